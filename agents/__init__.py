@@ -1,0 +1,1 @@
+"""Tabular agents as pure functions over pytrees (see the agents issue)."""

@@ -1,0 +1,1 @@
+"""Hardness measures of MDPs (see the hardness issue)."""

@@ -1,0 +1,46 @@
+"""jaxmdp: tabular MDPs as JAX pytrees, with exact dynamic programming and a functional environment API.
+
+Rebuilds the MDP side of "Hardness in Markov Decision Processes: Theory and Practice" (Conserva & Rauber, NeurIPS
+2022) so that many MDPs and many seeds run in lockstep under ``jit`` and ``vmap``.
+"""
+
+from jaxmdp import dynamic_programming
+from jaxmdp.communication import CommunicationClass, communication_class
+from jaxmdp.batching import pad, permute_states, stack, state_permutation, unstack
+from jaxmdp.env import EnvState, reset, sample_action, step
+from jaxmdp.families import Beta, PointMass
+from jaxmdp.mdp import MDP, MDPInfo, custom_mdp
+from jaxmdp.registry import families, make, register
+from jaxmdp.transforms import apply_noise, apply_p_lazy, apply_p_rand
+from jaxmdp.values import ReferenceValues, optimal_value, random_value, reference_values, worst_value
+
+__all__ = [
+    "MDP",
+    "MDPInfo",
+    "custom_mdp",
+    "make",
+    "families",
+    "register",
+    "apply_p_rand",
+    "apply_p_lazy",
+    "apply_noise",
+    "stack",
+    "unstack",
+    "pad",
+    "permute_states",
+    "state_permutation",
+    "EnvState",
+    "reset",
+    "step",
+    "sample_action",
+    "dynamic_programming",
+    "CommunicationClass",
+    "communication_class",
+    "ReferenceValues",
+    "reference_values",
+    "optimal_value",
+    "worst_value",
+    "random_value",
+    "Beta",
+    "PointMass",
+]

@@ -1,0 +1,434 @@
+"""Dynamic programming on MDPs: discounted, finite-horizon and average-reward, all jittable and vmappable.
+
+Every routine works on one *model* and leaves batching to ``jax.vmap``. A model is either an :class:`~jaxmdp.MDP`
+(expectations then use its successor lists, ``O(S A K)`` per backup) or a dense ``[S, A, S]`` kernel (used by agents
+that plan on sampled or estimated kernels). Rewards default to the MDP's ``R`` and can be overridden, e.g. with
+``-R`` for the worst policy or with an estimate.
+
+Conventions (paper §2.1):
+
+* discounted: ``Q(s,a) = R(s,a) + gamma * sum_s' P(s'|s,a) V(s')``;
+* finite horizon ``H``: ``V_H = 0``, ``Q_h = R + P V_{h+1}``, ``V_h = max_a Q_h`` for ``h = H-1..0``; arrays carry
+  ``H`` time rows for ``Q`` and ``H + 1`` for ``V`` (row ``H`` is zero). A traced ``horizon <= H`` makes the steps
+  ``h >= horizon`` worth zero, so stacked MDPs of different horizons share one program;
+* average reward: the gain of a policy from a start distribution ``d`` is ``rho = d^T P*_pi r_pi`` with ``P*_pi``
+  the Cesàro limit of the policy's chain. This is the paper's ``<mu^pi, R^pi>`` when the chain has one recurrent
+  class, and its natural extension (the expected long-run average reward from ``d``) otherwise.
+
+Greedy policies break ties deterministically towards the lowest action index.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from jaxmdp.mdp import MDP
+
+Model = MDP | jax.Array
+
+__all__ = [
+    "expected_next_values",
+    "q_values",
+    "greedy",
+    "uniform_policy",
+    "policy_matrix",
+    "policy_rewards",
+    "ValueIterationResult",
+    "value_iteration",
+    "policy_evaluation",
+    "policy_iteration",
+    "solve_discounted",
+    "finite_horizon_value_iteration",
+    "finite_horizon_policy_evaluation",
+    "recurrent_classes",
+    "chain_gain",
+    "gain_vector",
+    "policy_gain",
+    "GainResult",
+    "optimal_gain",
+]
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Building blocks
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def _dense(model: Model) -> jax.Array:
+    return model.T if isinstance(model, MDP) else model
+
+
+def _rewards(model: Model, rewards: jax.Array | None) -> jax.Array:
+    if rewards is not None:
+        return rewards
+    if isinstance(model, MDP):
+        return model.R
+    raise ValueError("rewards must be given when the model is a dense kernel")
+
+
+def _action_mask(model: Model) -> jax.Array | None:
+    return model.action_mask if isinstance(model, MDP) else None
+
+
+def expected_next_values(model: Model, V: jax.Array) -> jax.Array:
+    """``E[V(s') | s, a] = sum_s' P(s'|s,a) V(s')`` for every ``(s, a)``: an ``[S, A]`` array."""
+    if isinstance(model, MDP):
+        return jnp.sum(model.succ_p * V[model.succ], axis=-1)
+    return jnp.einsum("sat,t->sa", model, V)
+
+
+def q_values(model: Model, V: jax.Array, gamma: float | jax.Array = 1.0, rewards: jax.Array | None = None) -> jax.Array:
+    """One Bellman backup: ``Q = R + gamma * P V``."""
+    return _rewards(model, rewards) + gamma * expected_next_values(model, V)
+
+
+def greedy(Q: jax.Array, action_mask: jax.Array | None = None, atol: float = 0.0) -> jax.Array:
+    """One-hot greedy policy of ``Q[..., A]``.
+
+    Actions within ``atol`` of the maximum count as tied and the lowest index wins. ``action_mask`` excludes padded
+    actions.
+    """
+    if action_mask is not None:
+        Q = jnp.where(action_mask, Q, -jnp.inf)
+    best = jnp.max(Q, axis=-1, keepdims=True)
+    tied = Q >= best - atol
+    a = jnp.argmax(tied, axis=-1)
+    return jax.nn.one_hot(a, Q.shape[-1], dtype=Q.dtype)
+
+
+def uniform_policy(model: Model, shape: tuple[int, ...] = ()) -> jax.Array:
+    """The uniformly random policy ``pi(a|s) = 1/|A|`` over the valid actions, shape ``[*shape, S, A]``."""
+    T = _dense(model)
+    S, A = T.shape[0], T.shape[1]
+    mask = _action_mask(model)
+    w = jnp.ones((A,), T.dtype) if mask is None else mask.astype(T.dtype)
+    return jnp.broadcast_to(w / jnp.sum(w), (*shape, S, A))
+
+
+def policy_matrix(model: Model, pi: jax.Array) -> jax.Array:
+    """State-to-state kernel ``P_pi[s, s'] = sum_a pi(a|s) P(s'|s,a)`` of a stationary policy ``pi[S, A]``."""
+    return jnp.einsum("sa,sat->st", pi, _dense(model))
+
+
+def policy_rewards(model: Model, pi: jax.Array, rewards: jax.Array | None = None) -> jax.Array:
+    """Expected one-step reward ``r_pi(s) = sum_a pi(a|s) R(s,a)``."""
+    return jnp.sum(pi * _rewards(model, rewards), axis=-1)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Discounted
+# ---------------------------------------------------------------------------------------------------------------
+
+
+class ValueIterationResult(struct.PyTreeNode):
+    """Result of an iterative solver: values, iteration count and whether the stopping rule was met."""
+
+    Q: jax.Array
+    V: jax.Array
+    iterations: jax.Array
+    converged: jax.Array
+
+
+def value_iteration(
+    model: Model,
+    gamma: float | jax.Array = 0.99,
+    *,
+    rewards: jax.Array | None = None,
+    tol: float = 1e-4,
+    max_iter: int = 100_000,
+    V0: jax.Array | None = None,
+) -> ValueIterationResult:
+    """Synchronous (Jacobi) value iteration ``V <- max_a [R + gamma P V]`` from ``V0`` (default 0).
+
+    Stops when ``max_s |V_new - V| < tol`` (then ``||V - V*|| <= gamma tol / (1 - gamma)``) or after ``max_iter``
+    sweeps, reported by ``converged``. Use :func:`solve_discounted` for values exact to floating-point precision.
+    """
+    R = _rewards(model, rewards)
+    S = R.shape[0]
+    V0 = jnp.zeros((S,), R.dtype) if V0 is None else V0
+
+    def cond(c):
+        _, _, diff, i = c
+        return (diff >= tol) & (i < max_iter)
+
+    def body(c):
+        V, _, _, i = c
+        Q = q_values(model, V, gamma, R)
+        V_new = jnp.max(Q, axis=-1)
+        return V_new, Q, jnp.max(jnp.abs(V_new - V)), i + 1
+
+    Q0 = jnp.zeros_like(R)
+    V, Q, diff, it = jax.lax.while_loop(cond, body, (V0, Q0, jnp.asarray(jnp.inf, R.dtype), jnp.asarray(0)))
+    return ValueIterationResult(Q=Q, V=V, iterations=it, converged=diff < tol)
+
+
+def policy_evaluation(
+    model: Model, pi: jax.Array, gamma: float | jax.Array = 0.99, rewards: jax.Array | None = None
+) -> tuple[jax.Array, jax.Array]:
+    """Exact discounted evaluation of a stationary policy: ``V = (I - gamma P_pi)^{-1} r_pi`` and its ``Q``."""
+    R = _rewards(model, rewards)
+    P = policy_matrix(model, pi)
+    S = P.shape[0]
+    V = jnp.linalg.solve(jnp.eye(S, dtype=P.dtype) - gamma * P, policy_rewards(model, pi, R))
+    return q_values(model, V, gamma, R), V
+
+
+def policy_iteration(
+    model: Model,
+    gamma: float | jax.Array = 0.99,
+    *,
+    rewards: jax.Array | None = None,
+    policy: jax.Array | None = None,
+    max_iter: int = 200,
+    rtol: float = 1e-5,
+) -> ValueIterationResult:
+    """Howard's policy iteration with exact (linear-solve) evaluation, from ``policy`` (default: greedy on ``R``).
+
+    An action is replaced only when another improves its ``Q`` by more than ``rtol * (1 + max|V|)``, so floating-
+    point noise cannot make it cycle; the result is optimal to that precision. ``Q``/``V`` are those of the final
+    policy; ``iterations`` counts evaluations.
+    """
+    R = _rewards(model, rewards)
+    mask = _action_mask(model)
+    pi0 = greedy(R, mask) if policy is None else policy
+
+    def improve(pi, Q, V):
+        best = greedy(Q, mask)
+        cur = jnp.sum(pi * Q, axis=-1)
+        gain = jnp.max(jnp.where(mask, Q, -jnp.inf) if mask is not None else Q, axis=-1) - cur
+        switch = gain > rtol * (1.0 + jnp.max(jnp.abs(V)))
+        return jnp.where(switch[:, None], best, pi), jnp.any(switch)
+
+    def cond(c):
+        return c[3] & (c[4] < max_iter)
+
+    def body(c):
+        pi, _, _, _, i = c
+        Q, V = policy_evaluation(model, pi, gamma, R)
+        new_pi, changed = improve(pi, Q, V)
+        return new_pi, Q, V, changed, i + 1
+
+    S, A = R.shape
+    init = (pi0, jnp.zeros((S, A), R.dtype), jnp.zeros((S,), R.dtype), jnp.asarray(True), jnp.asarray(0))
+    pi, Q, V, changed, it = jax.lax.while_loop(cond, body, init)
+    return ValueIterationResult(Q=Q, V=V, iterations=it, converged=~changed)
+
+
+def solve_discounted(
+    model: Model, gamma: float | jax.Array = 0.99, *, rewards: jax.Array | None = None, vi_tol: float = 1e-3
+) -> ValueIterationResult:
+    """Optimal discounted ``Q*``, ``V*`` exact to floating-point precision.
+
+    A coarse value iteration (``vi_tol``) finds a near-optimal greedy policy, and policy iteration with exact
+    evaluation finishes the job (usually in one or two linear solves).
+    """
+    R = _rewards(model, rewards)
+    vi = value_iteration(model, gamma, rewards=R, tol=vi_tol, max_iter=10_000)
+    return policy_iteration(model, gamma, rewards=R, policy=greedy(vi.Q, _action_mask(model)))
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Finite horizon
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def _horizon_args(model: Model, H: int | None, horizon: Any) -> tuple[int, jax.Array]:
+    if H is None:
+        if not isinstance(model, MDP) or model.H is None:
+            raise ValueError("H must be given for a continuous MDP or a dense kernel")
+        H = model.H
+    if horizon is None:
+        horizon = model.horizon if isinstance(model, MDP) and model.H is not None else H
+    return H, jnp.asarray(horizon)
+
+
+def finite_horizon_value_iteration(
+    model: Model, rewards: jax.Array | None = None, H: int | None = None, horizon: Any = None
+) -> tuple[jax.Array, jax.Array]:
+    """Exact backward induction on a stationary model.
+
+    Returns ``Q[H, S, A]`` and ``V[H + 1, S]`` with ``V[H] = 0``; time steps ``h >= horizon`` are worth zero.
+    """
+    R = _rewards(model, rewards)
+    H, horizon = _horizon_args(model, H, horizon)
+
+    def step(V_next, h):
+        Q = jnp.where(h < horizon, q_values(model, V_next, 1.0, R), 0.0)
+        V = jnp.max(Q, axis=-1)
+        return V, (Q, V)
+
+    V_H = jnp.zeros(R.shape[:1], R.dtype)
+    _, (Q, V) = jax.lax.scan(step, V_H, jnp.arange(H), reverse=True)
+    return Q, jnp.concatenate([V, V_H[None]], axis=0)
+
+
+def finite_horizon_policy_evaluation(
+    model: Model, pi: jax.Array, rewards: jax.Array | None = None, H: int | None = None, horizon: Any = None
+) -> tuple[jax.Array, jax.Array]:
+    """Exact finite-horizon evaluation of ``pi[H, S, A]`` (time-indexed) or ``pi[S, A]`` (stationary).
+
+    Returns ``Q[H, S, A]`` and ``V[H + 1, S]`` with ``V_h = sum_a pi_h(a|s) Q_h(s, a)``.
+    """
+    R = _rewards(model, rewards)
+    H, horizon = _horizon_args(model, H, horizon)
+    pis = jnp.broadcast_to(pi, (H, *R.shape)) if pi.ndim == 2 else pi[:H]
+
+    def step(V_next, x):
+        h, pi_h = x
+        Q = jnp.where(h < horizon, q_values(model, V_next, 1.0, R), 0.0)
+        V = jnp.sum(pi_h * Q, axis=-1)
+        return V, (Q, V)
+
+    V_H = jnp.zeros(R.shape[:1], R.dtype)
+    _, (Q, V) = jax.lax.scan(step, V_H, (jnp.arange(H), pis), reverse=True)
+    return Q, jnp.concatenate([V, V_H[None]], axis=0)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Average reward
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def recurrent_classes(P: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """Recurrent states of a stochastic matrix and its closed classes.
+
+    Reachability comes from repeated squaring of the boolean adjacency (``O(S^3 log S)``, exact). A state is recurrent
+    when every state it reaches reaches it back. Returns ``(recurrent[S], same_class[S, S])`` with
+    ``same_class[s, t]`` true iff ``s`` and ``t`` are recurrent and in the same class.
+    """
+    S = P.shape[0]
+    reach = ((P > 0) | jnp.eye(S, dtype=bool)).astype(P.dtype)
+    n_squarings = max(1, (S - 1).bit_length())
+    reach = jax.lax.fori_loop(0, n_squarings, lambda _, M: jnp.minimum(M @ M, 1.0), reach) > 0
+    recurrent = jnp.all(~reach | reach.T, axis=1)
+    same_class = reach & reach.T & recurrent[:, None] & recurrent[None, :]
+    return recurrent, same_class
+
+
+def chain_gain(P: jax.Array, r: jax.Array) -> jax.Array:
+    """Long-run average reward ``g = P* r`` of a Markov chain from every state (``P*`` the Cesàro limit).
+
+    Uses Grassmann-Taksar-Heyman elimination, which only adds non-negative numbers and so stays accurate however
+    slowly the chain mixes (a linear solve with ``I - P`` loses digits in proportion to the mixing time). States are
+    ordered recurrent first and transient last; eliminating from the last position down, a recurrent state with no
+    mass left towards lower positions is the root of its class. Back-substitution gives every class's stationary
+    distribution (hence its gain; each class is renormalised on the fly to stay inside the floating-point range), and
+    transient states average the gains they are absorbed into. ``O(S^3)`` plus the
+    reachability of :func:`recurrent_classes`; handles periodic and multichain matrices.
+    """
+    S = P.shape[0]
+    dtype = P.dtype
+    recurrent, same_class = recurrent_classes(P)
+    perm = jnp.argsort(~recurrent, stable=True)
+    M = P[perm][:, perm]
+    rp, rec, Kp = r[perm], recurrent[perm], same_class[perm][:, perm].astype(dtype)
+    pos = jnp.arange(S)
+
+    def eliminate(i, carry):
+        M, scale = carry
+        k = S - 1 - i
+        lower = pos < k
+        row = jnp.where(lower, M[k], 0.0)
+        s = jnp.sum(row)
+        col = jnp.where(lower & (s > 0), M[:, k] / jnp.where(s > 0, s, 1.0), 0.0)
+        M = M.at[:, k].set(jnp.where(lower, col, M[:, k])) + jnp.outer(col, row)
+        return M, scale.at[k].set(s)
+
+    M, scale = jax.lax.fori_loop(0, S - 1, eliminate, (M, jnp.zeros((S,), dtype)))
+    root = rec & (scale == 0)
+
+    def stationary(k, pi):
+        # Unnormalised masses can span more than float32's range (ratios of 1e46 on a 50-state chain), so each class
+        # is rescaled as soon as its newest entry exceeds one.
+        val = jnp.where(root[k], 1.0, jnp.where(rec[k], pi @ jnp.where(pos < k, M[:, k], 0.0), 0.0))
+        pi = pi.at[k].set(val)
+        return jnp.where(Kp[k] > 0, pi / jnp.maximum(val, 1.0), pi)
+
+    pi = jax.lax.fori_loop(0, S, stationary, jnp.zeros((S,), dtype))
+    class_gain = (Kp @ (pi * rp)) / jnp.where(rec, Kp @ pi, 1.0)
+
+    def absorb(k, g):
+        trans = jnp.sum(jnp.where(pos < k, M[k], 0.0) * g) / jnp.where(scale[k] > 0, scale[k], 1.0)
+        return g.at[k].set(jnp.where(rec[k], g[k], trans))
+
+    g = jax.lax.fori_loop(0, S, absorb, jnp.where(rec, class_gain, 0.0))
+    return jnp.zeros((S,), dtype).at[perm].set(g)
+
+
+def gain_vector(model: Model, pi: jax.Array, rewards: jax.Array | None = None) -> jax.Array:
+    """Long-run average reward of ``pi`` from every state: ``g = P*_pi r_pi`` (an ``[S]`` array)."""
+    return chain_gain(policy_matrix(model, pi), policy_rewards(model, pi, rewards))
+
+
+def policy_gain(
+    model: Model, pi: jax.Array, start: jax.Array | None = None, rewards: jax.Array | None = None
+) -> jax.Array:
+    """Expected average reward ``rho = d^T P*_pi r_pi`` of a stationary policy from ``start`` (default ``P0``)."""
+    if start is None:
+        if not isinstance(model, MDP):
+            raise ValueError("start must be given when the model is a dense kernel")
+        start = model.P0
+    return start @ gain_vector(model, pi, rewards)
+
+
+class GainResult(struct.PyTreeNode):
+    """Optimal average reward: ``gain`` of the returned greedy ``policy`` (exact, from the start distribution),
+    the relative-value-iteration bounds ``lower <= rho* <= upper`` and its ``bias`` and ``Q``."""
+
+    gain: jax.Array
+    policy: jax.Array
+    lower: jax.Array
+    upper: jax.Array
+    bias: jax.Array
+    Q: jax.Array
+    iterations: jax.Array
+    converged: jax.Array
+
+
+def optimal_gain(
+    model: Model,
+    *,
+    rewards: jax.Array | None = None,
+    start: jax.Array | None = None,
+    tol: float = 1e-6,
+    max_iter: int = 200_000,
+    tau: float = 0.5,
+) -> GainResult:
+    """Gain-optimal policy of a weakly communicating MDP by relative value iteration (Puterman §8.5).
+
+    Iterates ``h <- T h - (T h)(s_ref)`` on the aperiodic transform ``P_tau = tau P + (1 - tau) I`` (same stationary
+    distributions, hence same gains and optimal policies). ``min_s (T h - h) <= rho* <= max_s (T h - h)``; it stops when
+    the span of ``T h - h`` drops below ``tol * (1 + |rho|)``. The greedy policy's gain is then evaluated exactly with
+    :func:`policy_gain`. For MDPs with several closed communicating classes the optimal gain depends on the start
+    state, the bounds do not meet and ``converged`` is False.
+    """
+    R = _rewards(model, rewards)
+    mask = _action_mask(model)
+    S = R.shape[0]
+    if start is None:
+        start = model.P0 if isinstance(model, MDP) else jnp.full((S,), 1.0 / S, R.dtype)
+
+    def backup(h):
+        return R + tau * expected_next_values(model, h) + (1.0 - tau) * h[:, None]
+
+    def cond(c):
+        _, lo, hi, i = c
+        return ((i == 0) | (hi - lo > tol * (1.0 + jnp.abs(hi)))) & (i < max_iter)
+
+    def body(c):
+        h, _, _, i = c
+        Th = jnp.max(backup(h), axis=-1)
+        d = Th - h
+        return Th - Th[0], jnp.min(d), jnp.max(d), i + 1
+
+    inf = jnp.asarray(jnp.inf, R.dtype)
+    h, lo, hi, it = jax.lax.while_loop(cond, body, (jnp.zeros((S,), R.dtype), -inf, inf, jnp.asarray(0)))
+    Q = backup(h)
+    pi = greedy(Q, mask)
+    rho = policy_gain(model, pi, start, R)
+    converged = (hi - lo) <= tol * (1.0 + jnp.abs(hi))
+    return GainResult(gain=rho, policy=pi, lower=lo, upper=hi, bias=h, Q=Q, iterations=it, converged=converged)

@@ -1,0 +1,16 @@
+"""The MDP families of the paper (App. C), built host-side and registered under their Colosseum names."""
+
+from jaxmdp.families.construction import CommonParams, Family, build_mdp
+from jaxmdp.families.distributions import Beta, PointMass
+from jaxmdp.families.river_swim import river_swim
+from jaxmdp.registry import register
+
+__all__ = ["Family", "CommonParams", "build_mdp", "Beta", "PointMass", "BUILTIN_FAMILIES"]
+
+#: Registry name -> builder of the built-in families.
+BUILTIN_FAMILIES = {
+    "RiverSwim": river_swim,
+}
+
+for _name, _builder in BUILTIN_FAMILIES.items():
+    register(_name, _builder, overwrite=True)

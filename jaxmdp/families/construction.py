@@ -1,0 +1,270 @@
+"""Host-side construction of a family's MDP, reproducing Colosseum's state order and random draws.
+
+A family describes its dynamics on *nodes* (small immutable records) through :class:`Family`; :func:`build_mdp`
+turns it into an :class:`~jaxmdp.MDP` exactly as families.md §1 states:
+
+1. two generators from ``seed``: ``G = numpy.random.RandomState(seed)`` and ``F = random.Random(seed)``;
+2. the family's starting nodes (drawing from ``G`` / ``F`` as the family specifies);
+3. a depth-first expansion from the starting nodes (§1.6): for each base action ``b`` of a node, the action
+   permutation ``sigma_n`` is drawn on first processing (``argsort(G.rand(A))`` when ``randomize_actions``), the
+   effective outcome list of ``b`` (§1.3: own outcomes, lazy self-loop, other actions' outcomes) is appended to the
+   discovery list, and unvisited next nodes are expanded immediately. State index = discovery position.
+4. ``T[s, sigma_n[b], s'] += p`` for every entry, and ``reward_mean/conc[s, sigma_n[b], s'] = D(n, b, n')``, filled for
+   every ``s'`` a kernel transform could add (``s`` itself and every action's successors);
+5. the horizon (§1.8): ``max(H_min, H)`` with ``H_min = 1 + max eccentricity of the possible starting nodes`` unless
+   the family overrides it.
+
+The draws from ``F`` made while expanding (the seeds of the reference's per-pair samplers) influence nothing
+structural and are skipped. Agent action ``k`` executes base action ``sigma_n^{-1}[k]`` and is rewarded with that
+base action's distribution (the reference looks the reward up with ``sigma_n[k]``, families.md §1.4 [quirk]; the two
+agree in every shipped family because their action-dependent rewards have ``A = 2`` or no randomisation).
+"""
+
+from __future__ import annotations
+
+import abc
+import random
+from collections import deque
+from collections.abc import Hashable, Iterator, Sequence
+from typing import Any
+
+import numpy as np
+
+from jaxmdp.families.distributions import Distribution
+from jaxmdp.mdp import MDP, MDPInfo, custom_mdp
+from jaxmdp.transforms import MAX_NOISE_PROBABILITY
+
+__all__ = ["Family", "CommonParams", "build_mdp", "check_noise_probability"]
+
+Node = Hashable
+
+
+def check_noise_probability(name: str, value: float | None) -> float:
+    """Validate ``p_rand`` / ``p_lazy``: ``None`` or a number in ``[0, 0.9999)``; returns it as a float."""
+    if value is None:
+        return 0.0
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number in [0, {MAX_NOISE_PROBABILITY}) or None; got {value!r}") from None
+    if not (0.0 <= v < MAX_NOISE_PROBABILITY):
+        raise ValueError(f"{name} must lie in [0, {MAX_NOISE_PROBABILITY}); got {v}")
+    return v
+
+
+class CommonParams:
+    """Validated parameters shared by every family (families.md §1.2)."""
+
+    def __init__(
+        self,
+        *,
+        episodic: bool,
+        seed: int,
+        p_rand: float | None = None,
+        p_lazy: float | None = None,
+        randomize_actions: bool = True,
+        make_reward_stochastic: bool = False,
+        reward_variance_multiplier: float = 1.0,
+        H: int | None = None,
+    ) -> None:
+        if not isinstance(episodic, (bool, np.bool_)):
+            raise ValueError(f"episodic must be True or False; got {episodic!r}")
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise ValueError(f"seed must be a non-negative integer; got {seed!r}")
+        if not (isinstance(reward_variance_multiplier, (int, float)) and reward_variance_multiplier > 0):
+            raise ValueError(f"reward_variance_multiplier must be > 0; got {reward_variance_multiplier!r}")
+        if H is not None:
+            if not episodic:
+                raise ValueError("H is only meaningful for episodic MDPs (episodic=True)")
+            if isinstance(H, bool) or not isinstance(H, (int, np.integer)) or H < 1:
+                raise ValueError(f"H must be a positive integer or None; got {H!r}")
+        self.episodic = bool(episodic)
+        self.seed = int(seed)
+        self.p_rand = check_noise_probability("p_rand", p_rand)
+        self.p_lazy = check_noise_probability("p_lazy", p_lazy)
+        self.randomize_actions = bool(randomize_actions)
+        self.make_reward_stochastic = bool(make_reward_stochastic)
+        self.reward_variance_multiplier = float(reward_variance_multiplier)
+        self.H = None if H is None else int(H)
+
+    def as_params(self) -> tuple[tuple[str, Any], ...]:
+        """The common part of the parameter dictionary, in the reference's order (§1.11)."""
+        return (
+            ("seed", self.seed),
+            ("randomize_actions", self.randomize_actions),
+            ("p_lazy", self.p_lazy or None),
+            ("p_rand", self.p_rand or None),
+            ("make_reward_stochastic", self.make_reward_stochastic),
+            ("reward_variance_multiplier", self.reward_variance_multiplier),
+        )
+
+
+class Family(abc.ABC):
+    """A family's dynamics on nodes. Subclasses set ``name``, ``n_actions``, ``node_fields`` and implement the
+    abstract methods; :func:`build_mdp` does the rest."""
+
+    name: str = ""
+    n_actions: int = 0
+    node_fields: tuple[str, ...] = ()
+    #: Families whose structure never depends on the seed (only action permutations do).
+    randomize_actions_allowed: bool = True
+
+    @abc.abstractmethod
+    def outcomes(self, node: Node, action: int) -> Sequence[tuple[Node, float]]:
+        """Base outcome list ``[(next_node, probability), ...]`` of base action ``action`` (duplicates allowed)."""
+
+    @abc.abstractmethod
+    def reward(self, node: Node, action: int, next_node: Node) -> Distribution:
+        """Reward distribution ``D(node, action, next_node)`` of base action ``action``."""
+
+    @abc.abstractmethod
+    def starting_nodes(
+        self, G: np.random.RandomState, F: random.Random
+    ) -> tuple[list[Node], list[float], list[Node]]:
+        """``(starting nodes, their probabilities, possible starting nodes)``, drawing from ``G`` / ``F``."""
+
+    def params(self) -> tuple[tuple[str, Any], ...]:
+        """The family's own parameters in the reference's order (families.md, each family's 'parameter dict')."""
+        return ()
+
+    def minimum_horizon(self, eccentricity: int) -> int:
+        """``H_min`` of the episodic version; ``eccentricity`` is the largest shortest-path distance from a possible
+        starting node (default: ``1 + eccentricity``, families.md §1.8)."""
+        return 1 + eccentricity
+
+    def fixed_horizon(self) -> int | None:
+        """A horizon that the family imposes (and that the user may not set), or None."""
+        return None
+
+    def node_values(self, node: Node) -> tuple[int, ...]:
+        """The node's fields as integers (the ``StateInfo`` vector)."""
+        return tuple(int(v) for v in node)
+
+    def node_label(self, node: Node) -> str:
+        """``"X=0,Y=2"``-style label (Colosseum's ``str(node)``)."""
+        return ",".join(f"{f}={v}" for f, v in zip(self.node_fields, node))
+
+    def layout(self) -> tuple[tuple[str, Any], ...]:
+        """Static, hashable data needed to render states (walls, goal, ...)."""
+        return ()
+
+
+def _effective_outcomes(fam: Family, node: Node, b: int, p_rand: float, p_lazy: float) -> list[tuple[Node, float]]:
+    """families.md §1.3: own outcomes, then the lazy self-loop, then the other actions' outcomes."""
+    A = fam.n_actions
+    own_w = (1.0 - p_lazy) * ((1.0 - p_rand) + p_rand / A)
+    out = [(n2, q * own_w) for n2, q in fam.outcomes(node, b)]
+    if p_lazy > 0:
+        out.append((node, p_lazy))
+    if p_rand > 0:
+        other_w = (1.0 - p_lazy) * p_rand / A
+        for c in range(A):
+            if c != b:
+                out.extend((n2, q * other_w) for n2, q in fam.outcomes(node, c))
+    return out
+
+
+def _eccentricity(fam: Family, sources: Sequence[Node]) -> int:
+    """Largest shortest-path distance from any source in the graph of base outcomes (§1.8)."""
+    best = 0
+    for src in sources:
+        dist = {src: 0}
+        queue = deque([src])
+        while queue:
+            n = queue.popleft()
+            for a in range(fam.n_actions):
+                for n2, q in fam.outcomes(n, a):
+                    if q > 0 and n2 not in dist:
+                        dist[n2] = dist[n] + 1
+                        queue.append(n2)
+        best = max(best, max(dist.values()))
+    return best
+
+
+def build_mdp(fam: Family, common: CommonParams) -> MDP:
+    """Build the :class:`~jaxmdp.MDP` of family ``fam`` with the common parameters (see the module docstring)."""
+    A = fam.n_actions
+    G = np.random.RandomState(common.seed)
+    F = random.Random(common.seed)
+    starts, start_probs, possible_starts = fam.starting_nodes(G, F)
+    randomize = common.randomize_actions and fam.randomize_actions_allowed
+    r, l = common.p_rand, common.p_lazy  # noqa: E741
+
+    index: dict[Node, int] = {}
+    sigma: dict[Node, np.ndarray] = {}
+    lists: dict[tuple[Node, int], list[tuple[Node, float]]] = {}  # keyed by (node, base action)
+    visited: set[Node] = set()
+
+    def discover(n: Node) -> None:
+        if n not in index:
+            index[n] = len(index)
+
+    def expand(n: Node) -> Iterator[Node]:
+        # One frame of the reference's recursive visit; yields each child to expand before continuing.
+        for b in range(A):
+            if n not in sigma:
+                sigma[n] = np.argsort(G.rand(A)) if randomize else np.arange(A)
+            lst = _effective_outcomes(fam, n, b, r, l)
+            discover(n)
+            for n2, _ in lst:
+                discover(n2)
+            visited.add(n)
+            lists[(n, b)] = lst
+            for n2, _ in lst:
+                if n2 not in visited:
+                    yield n2
+
+    for s0 in starts:
+        if s0 in visited:
+            continue
+        stack = [expand(s0)]
+        while stack:
+            child = next(stack[-1], None)
+            if child is None:
+                stack.pop()
+            elif child not in visited:
+                stack.append(expand(child))
+
+    nodes = list(index)
+    S = len(nodes)
+    T = np.zeros((S, A, S))
+    reward_mean = np.zeros((S, A, S))
+    reward_conc = np.zeros((S, A, S))
+    for n in nodes:
+        s = index[n]
+        neighbours = {n}
+        for c in range(A):
+            neighbours.update(n2 for n2, _ in fam.outcomes(n, c))
+        for b in range(A):
+            k = int(sigma[n][b])
+            for n2, p in lists[(n, b)]:
+                T[s, k, index[n2]] += p
+            for n2 in neighbours:
+                d = fam.reward(n, b, n2)
+                reward_mean[s, k, index[n2]] = d.mean
+                reward_conc[s, k, index[n2]] = d.conc
+
+    P0 = np.zeros(S)
+    for n, p in zip(starts, start_probs):
+        P0[index[n]] += p
+
+    H = None
+    if common.episodic:
+        fixed = fam.fixed_horizon()
+        if fixed is not None:
+            if common.H is not None:
+                raise ValueError(f"{fam.name} fixes its horizon to {fixed}; H must not be given")
+            H = fixed
+        else:
+            H_min = fam.minimum_horizon(_eccentricity(fam, possible_starts))
+            H = H_min if common.H is None else max(H_min, common.H)
+
+    info = MDPInfo(
+        family=fam.name,
+        params=common.as_params() + fam.params() + ((("H", H),) if H is not None else ()),
+        node_labels=tuple(fam.node_label(n) for n in nodes),
+        node_fields=fam.node_fields,
+        node_values=tuple(fam.node_values(n) for n in nodes),
+        layout=fam.layout(),
+    )
+    return custom_mdp(T, P0=P0, H=H, reward_mean=reward_mean, reward_conc=reward_conc, info=info)

@@ -1,0 +1,92 @@
+"""Reward distributions of the families: Beta or point mass (families.md §1.5).
+
+A family's reward distribution ``D(s, a, s')`` is stored in the MDP as its mean and Beta concentration
+(``conc = alpha + beta``, ``0`` for a point mass). Users may pass distributions as :class:`Beta` / :class:`PointMass`
+objects or as Colosseum-style tuples ``("beta", (a, b))`` / ``("deterministic", (c,))``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from typing import Any
+
+__all__ = ["Beta", "PointMass", "Distribution", "as_distribution", "resolve_distributions"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Beta:
+    """Beta(a, b) reward on [0, 1]; mean ``a / (a + b)``."""
+
+    a: float
+    b: float
+
+    def __post_init__(self) -> None:
+        if not (self.a > 0 and self.b > 0):
+            raise ValueError(f"Beta parameters must be positive; got a={self.a}, b={self.b}")
+
+    @property
+    def mean(self) -> float:
+        return self.a / (self.a + self.b)
+
+    @property
+    def conc(self) -> float:
+        return self.a + self.b
+
+    def __str__(self) -> str:
+        return f"Beta({self.a:g}, {self.b:g})"
+
+
+@dataclasses.dataclass(frozen=True)
+class PointMass:
+    """Deterministic reward ``value`` (Colosseum's ``deterministic`` distribution)."""
+
+    value: float
+
+    @property
+    def mean(self) -> float:
+        return self.value
+
+    @property
+    def conc(self) -> float:
+        return 0.0
+
+    def __str__(self) -> str:
+        return f"Deterministic({self.value:g})"
+
+
+Distribution = Beta | PointMass
+
+
+def as_distribution(name: str, spec: Any) -> Distribution:
+    """Parse a user-given distribution for parameter ``name``."""
+    if isinstance(spec, (Beta, PointMass)):
+        return spec
+    if isinstance(spec, tuple) and len(spec) == 2 and isinstance(spec[0], str):
+        kind, args = spec[0].lower(), tuple(spec[1])
+        if kind == "beta" and len(args) == 2:
+            return Beta(float(args[0]), float(args[1]))
+        if kind in ("deterministic", "point", "pointmass") and len(args) == 1:
+            return PointMass(float(args[0]))
+    raise ValueError(
+        f"{name} must be a Beta / PointMass, ('beta', (a, b)) or ('deterministic', (c,)); got {spec!r}"
+    )
+
+
+def resolve_distributions(
+    given: Mapping[str, Any], defaults: Mapping[str, Distribution], make_reward_stochastic: bool
+) -> dict[str, Distribution]:
+    """Explicit distributions (all or none, matching ``make_reward_stochastic``) or the family defaults."""
+    provided = {k: v for k, v in given.items() if v is not None}
+    if not provided:
+        return dict(defaults)
+    if len(provided) != len(given):
+        missing = sorted(set(given) - set(provided))
+        raise ValueError(f"reward distributions must be given all or none; missing {missing}")
+    dists = {k: as_distribution(k, v) for k, v in provided.items()}
+    for k, d in dists.items():
+        if make_reward_stochastic and isinstance(d, PointMass):
+            raise ValueError(f"{k} is a point mass but make_reward_stochastic=True")
+        if not make_reward_stochastic and not isinstance(d, PointMass):
+            raise ValueError(f"{k} is stochastic but make_reward_stochastic=False")
+    return dists

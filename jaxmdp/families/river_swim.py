@@ -1,0 +1,144 @@
+"""RiverSwim (Strehl & Littman 2008; paper App. C; families.md §2.1).
+
+A chain ``X = 0 .. size-1`` starting at ``X = 0``; LEFT (0) moves to ``max(X-1, 0)``, RIGHT (1) to
+``min(X+1, size-1)``, deterministically (the classic "current" is replaced by ``p_rand`` / ``p_lazy``). RIGHT at the
+right end pays the optimal reward, LEFT at the left end a small sub-optimal one, everything else the "other" reward.
+"""
+
+from __future__ import annotations
+
+import random
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from jaxmdp.families.construction import CommonParams, Family, build_mdp
+from jaxmdp.families.distributions import Beta, Distribution, PointMass, resolve_distributions
+from jaxmdp.mdp import MDP
+
+__all__ = ["RiverSwimNode", "RiverSwimFamily", "river_swim"]
+
+LEFT, RIGHT = 0, 1
+
+
+class RiverSwimNode(NamedTuple):
+    X: int
+
+
+class RiverSwimFamily(Family):
+    name = "RiverSwim"
+    n_actions = 2
+    node_fields = ("X",)
+
+    def __init__(
+        self,
+        *,
+        size: int,
+        episodic: bool,
+        make_reward_stochastic: bool,
+        reward_variance_multiplier: float,
+        optimal_mean_reward: float = 0.9,
+        sub_optimal_mean_reward: float = 0.2,
+        optimal_distribution: Any = None,
+        sub_optimal_distribution: Any = None,
+        other_distribution: Any = None,
+    ) -> None:
+        if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 2:
+            raise ValueError(f"size must be an integer >= 2 for RiverSwim; got {size!r}")
+        if not optimal_mean_reward - 0.1 > sub_optimal_mean_reward:
+            raise ValueError(
+                "optimal_mean_reward - 0.1 must exceed sub_optimal_mean_reward; "
+                f"got {optimal_mean_reward} and {sub_optimal_mean_reward}"
+            )
+        self.size = int(size)
+        self.optimal_mean_reward = float(optimal_mean_reward)
+        self.sub_optimal_mean_reward = float(sub_optimal_mean_reward)
+        v = reward_variance_multiplier
+        if make_reward_stochastic:
+            mu_s = self.sub_optimal_mean_reward / (self.size if episodic else 1)
+            mu_o = self.optimal_mean_reward
+            defaults = {
+                "optimal_distribution": Beta(v, v * (1 / mu_o - 1)),
+                "sub_optimal_distribution": Beta(v, v * (1 / mu_s - 1)),
+                "other_distribution": Beta(v, v * (10 / mu_s - 1)),
+            }
+        else:
+            defaults = {
+                "optimal_distribution": PointMass(1.0),
+                "sub_optimal_distribution": PointMass(0.005),
+                "other_distribution": PointMass(0.0),
+            }
+        given = {
+            "optimal_distribution": optimal_distribution,
+            "sub_optimal_distribution": sub_optimal_distribution,
+            "other_distribution": other_distribution,
+        }
+        self.dists = resolve_distributions(given, defaults, make_reward_stochastic)
+
+    def outcomes(self, node: RiverSwimNode, action: int) -> list[tuple[RiverSwimNode, float]]:
+        x = node.X
+        return [(RiverSwimNode(min(x + 1, self.size - 1) if action == RIGHT else max(x - 1, 0)), 1.0)]
+
+    def reward(self, node: RiverSwimNode, action: int, next_node: RiverSwimNode) -> Distribution:
+        if node.X == self.size - 1 and action == RIGHT:
+            return self.dists["optimal_distribution"]
+        if node.X == 0 and action == LEFT:
+            return self.dists["sub_optimal_distribution"]
+        return self.dists["other_distribution"]
+
+    def starting_nodes(self, G: np.random.RandomState, F: random.Random):
+        start = RiverSwimNode(0)
+        return [start], [1.0], [start]
+
+    def params(self) -> tuple[tuple[str, Any], ...]:
+        return (
+            ("size", self.size),
+            ("optimal_mean_reward", self.optimal_mean_reward),
+            ("sub_optimal_mean_reward", self.sub_optimal_mean_reward),
+            *((k, str(d)) for k, d in self.dists.items()),
+        )
+
+    def layout(self) -> tuple[tuple[str, Any], ...]:
+        return (("size", self.size),)
+
+
+def river_swim(
+    *,
+    episodic: bool,
+    seed: int,
+    size: int,
+    p_rand: float | None = None,
+    p_lazy: float | None = None,
+    randomize_actions: bool = True,
+    make_reward_stochastic: bool = False,
+    reward_variance_multiplier: float = 1.0,
+    optimal_mean_reward: float = 0.9,
+    sub_optimal_mean_reward: float = 0.2,
+    optimal_distribution: Any = None,
+    sub_optimal_distribution: Any = None,
+    other_distribution: Any = None,
+    H: int | None = None,
+) -> MDP:
+    """Build a RiverSwim MDP (families.md §2.1). Default horizon ``H = size``."""
+    common = CommonParams(
+        episodic=episodic,
+        seed=seed,
+        p_rand=p_rand,
+        p_lazy=p_lazy,
+        randomize_actions=randomize_actions,
+        make_reward_stochastic=make_reward_stochastic,
+        reward_variance_multiplier=reward_variance_multiplier,
+        H=H,
+    )
+    fam = RiverSwimFamily(
+        size=size,
+        episodic=episodic,
+        make_reward_stochastic=make_reward_stochastic,
+        reward_variance_multiplier=reward_variance_multiplier,
+        optimal_mean_reward=optimal_mean_reward,
+        sub_optimal_mean_reward=sub_optimal_mean_reward,
+        optimal_distribution=optimal_distribution,
+        sub_optimal_distribution=sub_optimal_distribution,
+        other_distribution=other_distribution,
+    )
+    return build_mdp(fam, common)

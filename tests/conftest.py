@@ -1,0 +1,65 @@
+"""Shared test helpers: small random MDPs and access to the reference data in ``../shared`` (optional)."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import jaxmdp
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def shared_dir() -> Path | None:
+    """``$JAXMDP_SHARED`` or ``../shared`` next to the repository, if present."""
+    env = os.environ.get("JAXMDP_SHARED")
+    for cand in ([Path(env)] if env else []) + [REPO.parent / "shared", REPO / "shared"]:
+        if (cand / "reference" / "colosseum" / "index.json").exists():
+            return cand
+    return None
+
+
+def reference_index() -> list[dict]:
+    """Entries of ``reference/colosseum/index.json`` (empty when the shared folder is absent)."""
+    root = shared_dir()
+    if root is None:
+        return []
+    return json.loads((root / "reference" / "colosseum" / "index.json").read_text())["files"]
+
+
+def load_reference(entry: dict) -> dict:
+    root = shared_dir()
+    with np.load(root / "reference" / "colosseum" / entry["file"]) as z:
+        return {k: z[k] for k in z.files}
+
+
+def build_reference_mdp(entry: dict) -> jaxmdp.MDP:
+    """Build the MDP of a reference entry with jaxmdp."""
+    params = dict(entry["constructor_params"])
+    seed = params.pop("seed")
+    return jaxmdp.make(entry["family"], episodic=entry["setting"] == "episodic", seed=seed, **params)
+
+
+def reference_params():
+    """``pytest.param`` per reference entry, or one skipped param when ``../shared`` is absent."""
+    entries = reference_index()
+    if not entries:
+        return [pytest.param(None, marks=pytest.mark.skip(reason="../shared/reference is not available"))]
+    return [pytest.param(e, id=e["id"]) for e in entries]
+
+
+def random_mdp(
+    rng: np.random.Generator, S: int = 6, A: int = 3, H: int | None = None, sparsity: float = 0.5
+) -> jaxmdp.MDP:
+    """A random MDP with sparse random kernels, Beta and point-mass rewards."""
+    T = rng.random((S, A, S)) * (rng.random((S, A, S)) < sparsity)
+    T[np.arange(S), :, rng.integers(0, S, size=S)] += 0.1  # no empty rows
+    T /= T.sum(-1, keepdims=True)
+    mean = rng.uniform(0.05, 0.95, size=(S, A, S))
+    conc = np.where(rng.random((S, A, S)) < 0.5, rng.uniform(1, 10, size=(S, A, S)), 0.0)
+    P0 = rng.random(S)
+    return jaxmdp.custom_mdp(T, P0=P0 / P0.sum(), H=H, reward_mean=mean, reward_conc=conc)

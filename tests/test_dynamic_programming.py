@@ -1,0 +1,221 @@
+"""Dynamic programming against independent numpy/scipy computations on small random MDPs.
+
+Independent references: brute force over all deterministic stationary policies (discounted optimum, optimal gain),
+plain numpy backward induction, numpy linear solves, and Cesàro averages of matrix powers in float64.
+"""
+
+import itertools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+import scipy.linalg
+
+import jaxmdp
+from jaxmdp import dynamic_programming as dp
+
+from conftest import random_mdp
+
+GAMMA = 0.9
+
+
+def np_policy_value(T, R, pi, gamma):
+    P = np.einsum("sa,sat->st", pi, T)
+    r = (pi * R).sum(-1)
+    return np.linalg.solve(np.eye(len(r)) - gamma * P, r)
+
+
+def deterministic_policies(S, A):
+    for actions in itertools.product(range(A), repeat=S):
+        yield np.eye(A)[list(actions)]
+
+
+def cesaro_gain(P, r, n=20_000):
+    """(1/n) sum_{t<n} P^t r in float64 (slow but independent)."""
+    x, acc = r.copy(), np.zeros_like(r)
+    for _ in range(n):
+        acc += x
+        x = P @ x
+    return acc / n
+
+
+@pytest.fixture(scope="module")
+def mdps():
+    rng = np.random.default_rng(0)
+    return [random_mdp(rng, S=5, A=3) for _ in range(3)]
+
+
+def test_q_values_match_dense_einsum(mdps):
+    m = mdps[0]
+    V = jnp.linspace(-1.0, 2.0, m.n_states)
+    dense = np.asarray(m.R) + GAMMA * np.einsum("sat,t->sa", np.asarray(m.T), np.asarray(V))
+    np.testing.assert_allclose(dp.q_values(m, V, GAMMA), dense, rtol=1e-6)
+    np.testing.assert_allclose(dp.q_values(m.T, V, GAMMA, m.R), dense, rtol=1e-6)
+
+
+def test_solve_discounted_equals_brute_force(mdps):
+    for m in mdps:
+        T, R = np.asarray(m.T, np.float64), np.asarray(m.R, np.float64)
+        best = np.max([np_policy_value(T, R, pi, GAMMA) for pi in deterministic_policies(*R.shape)], axis=0)
+        res = jax.jit(dp.solve_discounted, static_argnums=1)(m, GAMMA)
+        assert bool(res.converged)
+        np.testing.assert_allclose(res.V, best, rtol=2e-6)
+        np.testing.assert_allclose(res.V, np.max(res.Q, -1), rtol=2e-6)
+
+
+def test_value_iteration_respects_its_error_bound(mdps):
+    m = mdps[1]
+    exact = dp.solve_discounted(m, GAMMA).V
+    tol = 1e-3
+    vi = dp.value_iteration(m, GAMMA, tol=tol)
+    assert bool(vi.converged)
+    err = float(jnp.max(jnp.abs(vi.V - exact)))
+    assert err <= GAMMA * tol / (1 - GAMMA)
+    assert err > 0  # it stopped early: the bound is what is being tested
+
+
+def test_value_iteration_reports_non_convergence(mdps):
+    vi = dp.value_iteration(mdps[0], 0.999, tol=1e-9, max_iter=5)
+    assert not bool(vi.converged) and int(vi.iterations) == 5
+
+
+def test_policy_evaluation_matches_numpy_solve(mdps):
+    m = mdps[2]
+    rng = np.random.default_rng(1)
+    pi = rng.dirichlet(np.ones(m.n_actions), size=m.n_states)
+    Q, V = dp.policy_evaluation(m, jnp.asarray(pi, jnp.float32), GAMMA)
+    V_np = np_policy_value(np.asarray(m.T, np.float64), np.asarray(m.R, np.float64), pi, GAMMA)
+    np.testing.assert_allclose(V, V_np, rtol=1e-5)
+    np.testing.assert_allclose(jnp.sum(Q * pi, -1), V_np, rtol=1e-5)
+
+
+def test_finite_horizon_matches_numpy_backward_induction(mdps):
+    m, H = mdps[0], 7
+    T, R = np.asarray(m.T, np.float64), np.asarray(m.R, np.float64)
+    V = np.zeros(m.n_states)
+    Vs = [V]
+    for _ in range(H):
+        V = np.max(R + T @ V, axis=-1)
+        Vs.append(V)
+    Q, Vj = dp.finite_horizon_value_iteration(m.T, m.R, H=H)
+    np.testing.assert_allclose(Vj, np.array(Vs[::-1]), rtol=1e-5)
+    assert Q.shape == (H, m.n_states, m.n_actions)
+    # Evaluating the greedy policy gives back the optimal values; the uniform policy matches numpy.
+    _, Vg = dp.finite_horizon_policy_evaluation(m.T, dp.greedy(Q), m.R, H=H)
+    np.testing.assert_allclose(Vg, Vj, rtol=1e-5)
+    pi_u = np.full(R.shape, 1 / R.shape[1])
+    V = np.zeros(m.n_states)
+    for _ in range(H):
+        V = ((R + T @ V) * pi_u).sum(-1)
+    _, Vu = dp.finite_horizon_policy_evaluation(m.T, jnp.asarray(pi_u, jnp.float32), m.R, H=H)
+    np.testing.assert_allclose(Vu[0], V, rtol=1e-5)
+
+
+def test_traced_horizon_zeroes_late_steps(mdps):
+    m = mdps[0]
+    Q5, V5 = dp.finite_horizon_value_iteration(m.T, m.R, H=5)
+    Q8, V8 = dp.finite_horizon_value_iteration(m.T, m.R, H=8, horizon=jnp.asarray(5))
+    np.testing.assert_allclose(V8[0], V5[0], rtol=1e-6)
+    np.testing.assert_array_equal(V8[5:], 0.0)
+
+
+def test_greedy_breaks_ties_to_lowest_index_and_respects_mask():
+    Q = jnp.array([[1.0, 3.0, 3.0], [2.0, 2.0, 2.0], [0.0, 0.0, 5.0]])
+    np.testing.assert_array_equal(jnp.argmax(dp.greedy(Q), -1), [1, 0, 2])
+    mask = jnp.array([True, True, False])
+    np.testing.assert_array_equal(jnp.argmax(dp.greedy(Q, mask), -1), [1, 0, 0])
+    np.testing.assert_array_equal(jnp.argmax(dp.greedy(jnp.array([[1.0, 1.0 - 1e-7]]), atol=1e-6), -1), [0])
+
+
+def test_chain_gain_unichain_matches_scipy_null_space():
+    rng = np.random.default_rng(3)
+    P = rng.random((7, 7)) * (rng.random((7, 7)) < 0.6) + np.eye(7, k=1) + np.eye(7, k=-6)
+    P /= P.sum(-1, keepdims=True)
+    r = rng.random(7)
+    mu = scipy.linalg.null_space((np.eye(7) - P).T)[:, 0]
+    mu /= mu.sum()
+    g = dp.chain_gain(jnp.asarray(P, jnp.float32), jnp.asarray(r, jnp.float32))
+    np.testing.assert_allclose(g, np.full(7, mu @ r), rtol=1e-5)
+
+
+def test_chain_gain_multichain_periodic_matches_cesaro_average():
+    # States 0, 1 transient; {2, 3} a periodic closed class; {4} absorbing; {5, 6} a closed class.
+    P = np.zeros((7, 7))
+    P[0, [0, 1, 2, 4]] = [0.1, 0.3, 0.4, 0.2]
+    P[1, [0, 5]] = [0.5, 0.5]
+    P[2, 3] = P[3, 2] = 1.0
+    P[4, 4] = 1.0
+    P[5, [5, 6]] = [0.2, 0.8]
+    P[6, [5, 6]] = [0.6, 0.4]
+    r = np.array([0.3, 0.9, 1.0, 0.0, 0.25, 0.7, 0.1])
+    g = dp.chain_gain(jnp.asarray(P, jnp.float32), jnp.asarray(r, jnp.float32))
+    np.testing.assert_allclose(g, cesaro_gain(P, r), atol=2e-4)  # the Cesàro average itself has O(1/n) error
+    # Closed forms: class {2,3} averages 0.5; class {5,6}: mu = (3/7, 4/7).
+    np.testing.assert_allclose(np.asarray(g)[[2, 3, 4]], [0.5, 0.5, 0.25], rtol=1e-6)
+    np.testing.assert_allclose(g[5], 3 / 7 * 0.7 + 4 / 7 * 0.1, rtol=1e-6)
+
+
+def test_chain_gain_is_accurate_on_slowly_mixing_chains():
+    # A lazy random walk on a 60-state path: a linear solve with I - P loses ~4 digits here, GTH does not.
+    S = 60
+    P = np.zeros((S, S))
+    for s in range(S):
+        P[s, max(s - 1, 0)] += 0.45
+        P[s, min(s + 1, S - 1)] += 0.45
+        P[s, s] += 0.1
+    r = np.linspace(0.0, 1.0, S) ** 3
+    mu = scipy.linalg.null_space((np.eye(S) - P).T)[:, 0]
+    mu /= mu.sum()
+    g = dp.chain_gain(jnp.asarray(P, jnp.float32), jnp.asarray(r, jnp.float32))
+    np.testing.assert_allclose(g, mu @ r, rtol=2e-6)
+
+
+def test_optimal_gain_equals_brute_force_over_policies():
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        m = random_mdp(rng, S=5, A=2, sparsity=0.7)
+        T, R, P0 = (np.asarray(x, np.float64) for x in (m.T, m.R, m.P0))
+        gains = [
+            P0 @ cesaro_gain(np.einsum("sa,sat->st", pi, T), (pi * R).sum(-1), n=4000)
+            for pi in deterministic_policies(5, 2)
+        ]
+        res = jax.jit(dp.optimal_gain)(m)
+        assert bool(res.converged)
+        np.testing.assert_allclose(res.gain, max(gains), rtol=1e-3)
+        assert float(res.lower) - 1e-5 <= float(res.gain) <= float(res.upper) + 1e-5
+
+
+def test_optimal_gain_of_deterministic_river_swim():
+    m = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=5, randomize_actions=False)
+    res = dp.optimal_gain(m)
+    np.testing.assert_allclose(res.gain, 1.0, rtol=1e-6)
+    np.testing.assert_array_equal(jnp.argmax(res.policy, -1)[:4], [1, 1, 1, 1])
+
+
+def test_dp_vmaps_over_mdps_and_policies(mdps):
+    batch = jaxmdp.stack(mdps)
+    Vb = jax.vmap(lambda m: dp.solve_discounted(m, GAMMA).V)(batch.strip())
+    for i, m in enumerate(mdps):
+        np.testing.assert_allclose(Vb[i, : m.n_states], dp.solve_discounted(m, GAMMA).V, rtol=1e-5)
+    m = mdps[0]
+    pis = jax.random.dirichlet(jax.random.key(0), jnp.ones(m.n_actions), (4, m.n_states))
+    Vp = jax.vmap(lambda pi: dp.policy_evaluation(m, pi, GAMMA)[1])(pis)
+    for i in range(4):
+        np.testing.assert_allclose(Vp[i], dp.policy_evaluation(m, pis[i], GAMMA)[1], rtol=1e-6)
+
+
+def test_chain_gain_survives_stationary_masses_beyond_float32_range():
+    # A birth-death chain drifting right: mu(s) grows like 9^s, i.e. a ratio of ~1e47 over 50 states.
+    S = 50
+    P = np.zeros((S, S))
+    for s in range(S):
+        P[s, min(s + 1, S - 1)] += 0.9
+        P[s, max(s - 1, 0)] += 0.1
+    r = np.zeros(S)
+    r[-1], r[0] = 1.0, 0.5
+    g = dp.chain_gain(jnp.asarray(P, jnp.float32), jnp.asarray(r, jnp.float32))
+    mu = scipy.linalg.null_space((np.eye(S) - P).T)[:, 0]
+    mu /= mu.sum()
+    assert bool(jnp.all(jnp.isfinite(g)))
+    np.testing.assert_allclose(g, mu @ r, rtol=1e-6)
