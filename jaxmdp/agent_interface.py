@@ -1,0 +1,100 @@
+"""The interface between agents and the experiment runner (paper §3.3, App. A.1).
+
+An agent is a bundle of pure functions on unbatched pytrees; the runner vmaps them over seeds, MDPs and
+hyperparameter sets and drives them in lockstep:
+
+* ``init(key, spec, hparams) -> state``;
+* ``act(key, state, obs, h) -> action`` (``h`` is the in-episode step, or the steps since reset when continuous);
+* ``update(state, transition) -> state``: the cheap per-step learning rule;
+* ``needs_plan(state) -> bool``: whether an expensive planning step (a posterior sample and finite-horizon value
+  iteration, extended value iteration, ...) must run before the next action, e.g. at an episode or epoch boundary;
+* ``plan(key, state) -> state``: that planning step. The runner calls it inside a ``lax.cond`` whose predicate is
+  "some member of the batch needs to plan" and keeps the result only for the members that do, so planning is paid
+  only at boundaries instead of at every step (a ``cond`` inside a ``vmap`` would run it every step). The runner
+  also calls it once right after ``init`` (the reference's ``before_start_interacting``);
+* ``policy(state) -> pi``: the agent's current best policy estimate, ``[S, A]`` (continuous) or ``[H, S, A]``
+  (episodic), used only to compute expected regret.
+
+Hyperparameters are a ``flax.struct`` pytree whose numeric fields are leaves, so a grid can vmap over them; sizes
+are static. Agents must never choose an action outside ``spec.action_mask`` (padded actions of a stacked batch).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from jaxmdp.mdp import MDP
+
+__all__ = ["MDPSpec", "Transition", "Agent", "spec_of"]
+
+
+class MDPSpec(struct.PyTreeNode):
+    """What an agent may know about the MDP it faces.
+
+    ``n_states``, ``n_actions`` and ``H`` (time-array length, ``None`` when continuous) are static; ``horizon`` (the
+    member's own episode length), the masks and ``n_steps`` (the optimisation horizon ``T``, total interaction steps)
+    are traced, so one compiled program serves a stacked batch.
+    """
+
+    n_states: int = struct.field(pytree_node=False)
+    n_actions: int = struct.field(pytree_node=False)
+    H: int | None = struct.field(pytree_node=False)
+    horizon: jax.Array
+    state_mask: jax.Array
+    action_mask: jax.Array
+    n_steps: jax.Array
+
+    @property
+    def episodic(self) -> bool:
+        return self.H is not None
+
+
+def spec_of(mdp: MDP, n_steps: int | jax.Array) -> MDPSpec:
+    """The :class:`MDPSpec` of an (unbatched or stacked) MDP for an interaction of ``n_steps`` steps."""
+    return MDPSpec(
+        n_states=mdp.n_states,
+        n_actions=mdp.n_actions,
+        H=mdp.H,
+        horizon=mdp.horizon,
+        state_mask=mdp.state_mask,
+        action_mask=mdp.action_mask,
+        n_steps=jnp.broadcast_to(jnp.asarray(n_steps, jnp.int32), mdp.horizon.shape),
+    )
+
+
+class Transition(struct.PyTreeNode):
+    """One interaction step: ``obs --action--> next_obs`` with ``reward``, taken at in-episode step ``h``.
+
+    ``next_obs`` is the state the action reached, also on the last step of an episode (``terminated``), where the
+    environment then resets.
+    """
+
+    obs: jax.Array
+    action: jax.Array
+    reward: jax.Array
+    next_obs: jax.Array
+    h: jax.Array
+    terminated: jax.Array
+
+
+@dataclasses.dataclass(frozen=True)
+class Agent:
+    """A named bundle of the interface functions (see the module docstring) and default hyperparameters."""
+
+    name: str
+    episodic: bool
+    default_hparams: Any
+    init: Callable[[jax.Array, MDPSpec, Any], Any]
+    act: Callable[[jax.Array, Any, jax.Array, jax.Array], jax.Array]
+    update: Callable[[Any, Transition], Any]
+    policy: Callable[[Any], jax.Array]
+    needs_plan: Callable[[Any], jax.Array] = lambda state: jnp.zeros((), bool)
+    plan: Callable[[jax.Array, Any], Any] = lambda key, state: state
+    #: Validates hyperparameters on the host (raises ``ValueError``); called by the runner before compiling.
+    check_hparams: Callable[[Any], None] = lambda hparams: None
