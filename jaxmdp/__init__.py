@@ -11,6 +11,7 @@ from jaxmdp.env import EnvState, reset, sample_action, step
 from jaxmdp.families import Beta, PointMass
 from jaxmdp.mdp import MDP, MDPInfo, custom_mdp
 from jaxmdp.registry import families, make, register
+from jaxmdp.render import render
 from jaxmdp.transforms import apply_noise, apply_p_lazy, apply_p_rand
 from jaxmdp.values import ReferenceValues, optimal_value, random_value, reference_values, worst_value
 
@@ -33,6 +34,7 @@ __all__ = [
     "reset",
     "step",
     "sample_action",
+    "render",
     "dynamic_programming",
     "CommunicationClass",
     "communication_class",

@@ -14,7 +14,8 @@ import numpy as np
 
 from jaxmdp.families.construction import CommonParams, Family, build_mdp
 from jaxmdp.families.distributions import Beta, Distribution, PointMass, resolve_distributions
-from jaxmdp.mdp import MDP
+from jaxmdp.mdp import MDP, MDPInfo
+from jaxmdp.render import register_renderer
 
 __all__ = ["RiverSwimNode", "RiverSwimFamily", "river_swim"]
 
@@ -100,6 +101,18 @@ class RiverSwimFamily(Family):
 
     def layout(self) -> tuple[tuple[str, Any], ...]:
         return (("size", self.size),)
+
+
+def render_river_swim(info: MDPInfo, node: tuple[int, ...]) -> list[list[str]]:
+    """One row: ``S`` at the start, ``G`` at the end, ``A`` at the agent (symbols ``[" ", "A", "S", "G"]``)."""
+    size = info.layout_value("size")
+    row = [" "] * size
+    row[0], row[-1] = "S", "G"
+    row[node[0]] = "A"
+    return [row]
+
+
+register_renderer(RiverSwimFamily.name, render_river_swim)
 
 
 def river_swim(
