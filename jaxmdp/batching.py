@@ -71,6 +71,7 @@ def pad(mdp: MDP, n_states: int, n_actions: int, n_successors: int, H: int | Non
         horizon=mdp.horizon,
         H=H if mdp.episodic else None,
         info=mdp.info,
+        stochastic_rewards=mdp.stochastic_rewards,
     )
 
 
@@ -94,7 +95,8 @@ def stack(mdps: Sequence[MDP]) -> MDP:
     K = max(m.max_successors for m in mdps)
     H = max(m.H for m in mdps) if mdps[0].episodic else None
     padded = [pad(m.strip(), S, A, K, H) for m in mdps]
-    batch = jax.tree.map(lambda *xs: jnp.stack(xs), *padded)
+    stochastic = any(m.stochastic_rewards for m in mdps)
+    batch = jax.tree.map(lambda *xs: jnp.stack(xs), *[m.replace(stochastic_rewards=stochastic) for m in padded])
     return batch.replace(info=MDPInfo(family="stack", members=tuple(m.info for m in mdps)))
 
 
@@ -126,6 +128,7 @@ def unstack(batch: MDP) -> list[MDP]:
                 horizon=m.horizon,
                 H=H,
                 info=members[i],
+                stochastic_rewards=bool(np.any(np.asarray(m.reward_conc[:S, :A, :S])[np.asarray(m.T[:S, :A, :S]) > 0] > 0)),
             )
         )
     return out

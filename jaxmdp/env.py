@@ -32,10 +32,15 @@ class EnvState(struct.PyTreeNode):
     h: jax.Array
 
 
-def _sample_start(key: jax.Array, mdp: MDP) -> jax.Array:
+def _start_from_uniform(u: jax.Array, mdp: MDP) -> jax.Array:
     cdf = jnp.cumsum(mdp.P0)
-    u = jax.random.uniform(key, dtype=mdp.dtype) * cdf[-1]
-    return jnp.minimum(jnp.sum(cdf <= u), mdp.n_states - 1).astype(jnp.int32)
+    return jnp.minimum(jnp.sum(cdf <= u * cdf[-1]), mdp.n_states - 1).astype(jnp.int32)
+
+
+def _next_from_uniform(u: jax.Array, mdp: MDP, state: jax.Array, action: jax.Array) -> jax.Array:
+    cdf = jnp.cumsum(mdp.succ_p[state, action])
+    k = jnp.minimum(jnp.sum(cdf <= u * cdf[-1]), cdf.shape[-1] - 1)
+    return mdp.succ[state, action, k].astype(jnp.int32)
 
 
 def sample_action(key: jax.Array, mdp: MDP) -> jax.Array:
@@ -47,16 +52,14 @@ def sample_action(key: jax.Array, mdp: MDP) -> jax.Array:
 
 def sample_next_state(key: jax.Array, mdp: MDP, state: jax.Array, action: jax.Array) -> jax.Array:
     """Draw ``s' ~ P(. | state, action)`` by inverse CDF over the successor list (``O(K)``)."""
-    p = mdp.succ_p[state, action]
-    cdf = jnp.cumsum(p)
-    u = jax.random.uniform(key, dtype=mdp.dtype) * cdf[-1]
-    k = jnp.minimum(jnp.sum(cdf <= u), p.shape[-1] - 1)
-    return mdp.succ[state, action, k].astype(jnp.int32)
+    return _next_from_uniform(jax.random.uniform(key, dtype=mdp.dtype), mdp, state, action)
 
 
 def sample_reward(key: jax.Array, mdp: MDP, state: jax.Array, action: jax.Array, next_state: jax.Array) -> jax.Array:
     """Draw the reward of ``(state, action, next_state)``: Beta(mean*conc, (1-mean)*conc) if ``conc > 0``, else mean."""
     mean = mdp.reward_mean[state, action, next_state]
+    if not mdp.stochastic_rewards:  # static: no Beta anywhere, no draw compiled
+        return mean
     conc = mdp.reward_conc[state, action, next_state]
     stochastic = conc > 0
     alpha = jnp.where(stochastic, mean * conc, 1.0)
@@ -67,7 +70,7 @@ def sample_reward(key: jax.Array, mdp: MDP, state: jax.Array, action: jax.Array,
 
 def reset(key: jax.Array, mdp: MDP) -> tuple[jax.Array, EnvState]:
     """Start an episode: ``s0 ~ P0``, ``h = 0``. Returns ``(obs, state)``."""
-    s0 = _sample_start(key, mdp)
+    s0 = _start_from_uniform(jax.random.uniform(key, dtype=mdp.dtype), mdp)
     return s0, EnvState(state=s0, h=jnp.zeros((), jnp.int32))
 
 
@@ -79,13 +82,15 @@ def step(
     ``info`` holds ``final_observation`` (the state reached by this action, before any reset) and ``discount``
     (0 on termination, else 1).
     """
-    k_next, k_reward, k_reset = jax.random.split(key, 3)
+    # One key for the reward and two uniforms for the next and reset states: fewer PRNG calls than three splits.
+    k_reward, k_uniform = jax.random.split(key)
+    u_next, u_reset = jax.random.uniform(k_uniform, (2,), dtype=mdp.dtype)
     action = jnp.asarray(action, jnp.int32)
-    s_next = sample_next_state(k_next, mdp, state.state, action)
+    s_next = _next_from_uniform(u_next, mdp, state.state, action)
     reward = sample_reward(k_reward, mdp, state.state, action, s_next)
     h_next = state.h + 1
     terminated = (h_next >= mdp.horizon) if mdp.episodic else jnp.zeros((), bool)
-    s_reset = _sample_start(k_reset, mdp)
+    s_reset = _start_from_uniform(u_reset, mdp) if mdp.episodic else state.state
     new_state = EnvState(
         state=jnp.where(terminated, s_reset, s_next),
         h=jnp.where(terminated, 0, h_next).astype(jnp.int32),

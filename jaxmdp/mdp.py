@@ -16,6 +16,9 @@ Batching: ``state_mask`` and ``action_mask`` mark the real states and actions of
 :func:`jaxmdp.stack`; ``horizon`` is the (traced) episode length, while the static ``H`` is the length of time-indexed
 arrays (equal to ``horizon`` for a single MDP, the largest horizon of a stacked batch). ``H is None`` means continuous.
 
+``stochastic_rewards`` (static) records whether any reward is a Beta, so that deterministic-reward MDPs compile
+samplers without Beta draws.
+
 Static metadata (family, parameters, node labels, layout used for rendering) lives in the static :class:`MDPInfo`,
 outside the traced leaves. Because static fields are part of a pytree's structure, library functions call
 :meth:`MDP.strip` before their ``jit`` boundary so that MDPs that differ only in metadata share one compiled program.
@@ -87,6 +90,9 @@ class MDP:
     horizon: jax.Array
     H: int | None = struct.field(pytree_node=False, default=None)
     info: MDPInfo = struct.field(pytree_node=False, default=_EMPTY_INFO)
+    #: Static: whether some transition has a Beta reward. False lets samplers skip the Beta draw at compile time;
+    #: True is always correct (point masses are returned as their value either way).
+    stochastic_rewards: bool = struct.field(pytree_node=False, default=True)
 
     @property
     def n_states(self) -> int:
@@ -296,4 +302,5 @@ def custom_mdp(
         horizon=jnp.asarray(H if H is not None else 0, dtype=jnp.int32),
         H=H,
         info=info,
+        stochastic_rewards=bool(np.any(reward_conc[T > 0] > 0)),
     )

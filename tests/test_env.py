@@ -91,3 +91,20 @@ def test_batched_trajectories_equal_single_runs(episodic):
                 np.testing.assert_array_equal(got[i, j], want)
         # Padding is never entered.
         assert int(jnp.max(out[0][i])) < m.n_states and int(jnp.max(out[1][i])) < m.n_actions
+
+
+def test_stochastic_rewards_flag_is_static_and_exact():
+    det = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=4)
+    sto = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=4, make_reward_stochastic=True)
+    assert not det.stochastic_rewards and sto.stochastic_rewards
+    assert jaxmdp.stack([det, sto]).stochastic_rewards
+    # deterministic rewards are returned exactly, whatever the key
+    r = jax.vmap(lambda k: jaxmdp.env.sample_reward(k, det, jnp.int32(0), jnp.int32(0), jnp.int32(0)))(
+        jax.random.split(jax.random.key(0), 8)
+    )
+    np.testing.assert_array_equal(r, np.float32(0.005))
+    # a stochastic MDP whose flag is forced on still returns point masses exactly
+    forced = det.replace(stochastic_rewards=True)
+    np.testing.assert_array_equal(
+        jaxmdp.env.sample_reward(jax.random.key(1), forced, jnp.int32(0), jnp.int32(0), jnp.int32(0)), np.float32(0.005)
+    )
