@@ -2,6 +2,8 @@
 
 from jaxmdp.families.construction import CommonParams, Family, build_mdp
 from jaxmdp.families.distributions import Beta, PointMass
+from jaxmdp.families.minigrid_empty import minigrid_empty
+from jaxmdp.families.minigrid_rooms import minigrid_rooms
 from jaxmdp.families.river_swim import river_swim
 from jaxmdp.registry import register
 
@@ -10,6 +12,8 @@ __all__ = ["Family", "CommonParams", "build_mdp", "Beta", "PointMass", "BUILTIN_
 #: Registry name -> builder of the built-in families.
 BUILTIN_FAMILIES = {
     "RiverSwim": river_swim,
+    "MiniGridEmpty": minigrid_empty,
+    "MiniGridRooms": minigrid_rooms,
 }
 
 for _name, _builder in BUILTIN_FAMILIES.items():
