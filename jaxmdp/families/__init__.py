@@ -5,6 +5,7 @@ from jaxmdp.families.distributions import Beta, PointMass
 from jaxmdp.families.minigrid_empty import minigrid_empty
 from jaxmdp.families.minigrid_rooms import minigrid_rooms
 from jaxmdp.families.river_swim import river_swim
+from jaxmdp.families.taxi import taxi
 from jaxmdp.registry import register
 
 __all__ = ["Family", "CommonParams", "build_mdp", "Beta", "PointMass", "BUILTIN_FAMILIES"]
@@ -14,6 +15,7 @@ BUILTIN_FAMILIES = {
     "RiverSwim": river_swim,
     "MiniGridEmpty": minigrid_empty,
     "MiniGridRooms": minigrid_rooms,
+    "Taxi": taxi,
 }
 
 for _name, _builder in BUILTIN_FAMILIES.items():
