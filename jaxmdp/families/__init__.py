@@ -2,6 +2,7 @@
 
 from jaxmdp.families.construction import CommonParams, Family, build_mdp
 from jaxmdp.families.distributions import Beta, PointMass
+from jaxmdp.families.minigrid_doorkey import minigrid_doorkey
 from jaxmdp.families.minigrid_empty import minigrid_empty
 from jaxmdp.families.minigrid_rooms import minigrid_rooms
 from jaxmdp.families.river_swim import river_swim
@@ -16,6 +17,7 @@ BUILTIN_FAMILIES = {
     "MiniGridEmpty": minigrid_empty,
     "MiniGridRooms": minigrid_rooms,
     "Taxi": taxi,
+    "MiniGridDoorKey": minigrid_doorkey,
 }
 
 for _name, _builder in BUILTIN_FAMILIES.items():
