@@ -1,5 +1,6 @@
 """Taxi (families.md §2.7): walls, locations, worked example, dynamics, sizes, horizon, validation, rendering."""
 
+import importlib
 import itertools
 
 import numpy as np
@@ -183,3 +184,11 @@ def test_rendering(example):
     assert jaxmdp.render(m, s).split("\n") == ["X X X", "XPX X", "  A  ", " X X ", " X XD"]
     s = m.info.node_labels.index(label(4, 3, -1, -1, 0, 0))
     assert jaxmdp.render(m, s).split("\n") == ["X XAX", "X X X", "     ", " X X ", "DX X "]
+
+
+def test_location_rejection_loop_is_bounded(monkeypatch):
+    # jaxmdp.families.taxi (the attribute) is the builder function, so fetch the module itself.
+    module = importlib.import_module("jaxmdp.families.taxi")
+    monkeypatch.setattr(module, "MAX_LOCATION_DRAWS", 1)
+    with pytest.raises(ValueError, match="no set of Taxi locations pairwise farther apart than 2 was drawn in 1 tries"):
+        jaxmdp.make("Taxi", episodic=False, seed=0, size=4, length=1, n_locations=3)
