@@ -13,6 +13,7 @@ uniform. Every cell of the start side in every direction is a *possible* start (
 as ``2 size + 3``).
 
 The reference renders the MDP's *current* node whatever node is asked for [quirk]; we render the node asked for.
+``n_starting_states > size`` is a ``ValueError`` here; the reference silently starts from all ``size`` cells.
 """
 
 from __future__ import annotations

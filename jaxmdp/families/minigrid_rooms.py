@@ -15,6 +15,8 @@ which is removed; the goal room ``F.randint(0, 2)`` among the remaining three; `
 starts (it fixes the horizon ``2 k (rs+1) + 3``); its first ``n_starting_states`` entries are the uniform starts.
 
 The reference renders the MDP's *current* node whatever node is asked for [quirk]; we render the node asked for.
+``n_starting_states > 4 rs^2`` is a ``ValueError`` here; the reference builds a starting distribution whose
+probabilities do not match its nodes.
 """
 
 from __future__ import annotations

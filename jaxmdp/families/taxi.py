@@ -26,8 +26,13 @@ cell, listed passenger location x destination x free cell and shuffled with ``G.
 
 The horizon is ``floor(1.5 size^2)`` (or a larger requested ``H``), whatever the graph. Action randomisation is always
 off, as in the reference (``randomize_actions`` is accepted and ignored; the parameter dictionary reports False).
-Departures from the reference, both where it would crash or hang: a quadrant without free cells raises
-``ValueError``, and so does a location draw that is rejected :data:`MAX_LOCATION_DRAWS` times in a row.
+Departures from the reference, where it would crash or hang: a quadrant without free cells raises ``ValueError``,
+and so does a location draw that is rejected :data:`MAX_LOCATION_DRAWS` times in a row. Validation is also a little
+stricter: ``width >= 1`` (the reference accepts 0 and builds the walls of 1), ``length, space >= 0`` (negative values
+are meaningless or crash there), and partial reward distributions raise (the reference then ignores them).
+
+Building the episodic version also runs the engine's eccentricity search, whose result Taxi ignores (about 1 s for
+``size = 7``).
 """
 
 from __future__ import annotations
