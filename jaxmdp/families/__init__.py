@@ -2,7 +2,11 @@
 
 from jaxmdp.families.construction import CommonParams, Family, build_mdp
 from jaxmdp.families.distributions import Beta, PointMass
+from jaxmdp.families.minigrid_doorkey import minigrid_doorkey
+from jaxmdp.families.minigrid_empty import minigrid_empty
+from jaxmdp.families.minigrid_rooms import minigrid_rooms
 from jaxmdp.families.river_swim import river_swim
+from jaxmdp.families.taxi import taxi
 from jaxmdp.registry import register
 
 __all__ = ["Family", "CommonParams", "build_mdp", "Beta", "PointMass", "BUILTIN_FAMILIES"]
@@ -10,6 +14,10 @@ __all__ = ["Family", "CommonParams", "build_mdp", "Beta", "PointMass", "BUILTIN_
 #: Registry name -> builder of the built-in families.
 BUILTIN_FAMILIES = {
     "RiverSwim": river_swim,
+    "MiniGridEmpty": minigrid_empty,
+    "MiniGridRooms": minigrid_rooms,
+    "Taxi": taxi,
+    "MiniGridDoorKey": minigrid_doorkey,
 }
 
 for _name, _builder in BUILTIN_FAMILIES.items():

@@ -1,0 +1,249 @@
+"""MiniGridDoorKey (paper App. C, "MG-DoorKey"): a new family designed from the paper; Colosseum 1.2 has none.
+
+**Layout.** A ``size x size`` grid (cells ``0..size-1``, no outer wall cells, as in MiniGridEmpty) is split by one full
+wall line with a single door. Draws from ``G``, in order:
+
+1. ``G.randint(2)``: the wall is vertical (``0``, the cells ``X = w``) or horizontal (``1``, the cells ``Y = w``);
+2. ``w = 1 + G.randint(size - 2)``, so both rooms are non-empty;
+3. ``G.randint(size)``: the door's position along the wall;
+4. ``G.randint(2)``: the agent's room is the low side (``0``, coordinate ``< w``) or the high side (``1``);
+5. the goal: cell ``G.randint(n)`` of the other room's ``n`` cells, listed row-major (``X`` outer, ``Y`` inner);
+6. the key: cell ``G.randint(n)`` of the agent room's ``n`` cells, in the same listing;
+7. ``G.shuffle`` of the list of ``(cell, Dir)`` for the agent room's cells other than the key (``Dir = 0..3``
+   inner), all without key and with the door closed. This list is the set of *possible* starts (it fixes the default
+   horizon); its first ``n_starting_states`` entries are the uniform starting nodes.
+
+**Nodes** ``(X, Y, Dir, HasKey, DoorOpen)`` with ``HasKey, DoorOpen in {0, 1}``: the key never moves while on the
+floor and cannot be dropped, so a flag for it and one for the door make the dynamics Markov. Reachable combinations
+are ``(0, 0)``, ``(1, 0)`` and ``(1, 1)``.
+
+**Actions (5)**: ``0 MoveForward``, ``1 TurnRight``, ``2 TurnLeft`` (as in every MiniGrid family, see
+:mod:`jaxmdp.families.minigrid`), ``3 PickUp``, ``4 Open``. MoveForward enters the facing cell unless it is outside
+the grid, a wall cell, the door while closed, or the key cell while the key lies there (objects block, as in
+MiniGrid). PickUp sets ``HasKey = 1`` when the key lies on the floor in the facing cell ("in front of", paper). Open sets
+``DoorOpen = 1`` when carrying the key and facing the closed door; the door never closes again and the key is kept.
+Every other case leaves the node unchanged. All transitions are deterministic (before ``p_rand``/``p_lazy``).
+
+**Rewards**: the optimal distribution when the next node stands on the goal cell (turning on the goal keeps paying), the
+other distribution otherwise; defaults as MiniGridEmpty (point masses 1 / 0; stochastic ``Beta(v (size^2-1), v)`` /
+``Beta(v, v (size^2-1))``).
+
+**Structure.** The door-open states form the only closed class: every door-closed state is transient, so the continuous
+MDP is weakly communicating (paper App. C and §5: the reason the family was left out of the hyperparameter search).
+Without ``p_rand``/``p_lazy``, the episodic optimal return from a start is ``H - L + 1`` where ``L`` is the length of
+the shortest action sequence that enters the goal (afterwards turning on the goal pays every step).
+
+**Departures from the legacy v1.0 implementation** (families.md §2.8; not reproduced, only described): v1.0 had six
+actions (an extra DropObject), picked the key up when standing *on* its cell and let the agent walk over it, tracked the
+key's position ``(XKey, YKey)`` because it could be dropped, and drew its layout with its own random stream. Here the
+action set is the paper's five, pick-up works from the facing cell, the key blocks movement until picked up, and the
+draws are the ones listed above. As in v1.0 (and as in the paper) the key lies in the agent's room, the goal in the
+other one, the door opens only with the key and never closes, and two starting nodes are the default.
+
+Rendering (paper): ``>,v,<,^`` the agent, ``K`` the key while on the floor, ``C`` / ``O`` the closed / open door,
+``G`` the goal, ``W`` the wall; the top printed row is ``Y = size-1``.
+"""
+
+from __future__ import annotations
+
+import random
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from jaxmdp.families.construction import CommonParams, Family, build_mdp
+from jaxmdp.families.distributions import Distribution
+from jaxmdp.families.minigrid import (
+    ARROWS,
+    DIRECTION_NAMES,
+    MOVE_FORWARD,
+    TURN_LEFT,
+    TURN_RIGHT,
+    forward_cell,
+    minigrid_distributions,
+    turned,
+)
+from jaxmdp.families.parameters import integer_parameter
+from jaxmdp.mdp import MDP, MDPInfo
+from jaxmdp.render import register_renderer
+
+__all__ = ["MiniGridDoorKeyNode", "MiniGridDoorKeyFamily", "minigrid_doorkey", "PICK_UP", "OPEN"]
+
+PICK_UP, OPEN = 3, 4
+
+
+class MiniGridDoorKeyNode(NamedTuple):
+    X: int
+    Y: int
+    Dir: int
+    HasKey: int
+    DoorOpen: int
+
+
+class MiniGridDoorKeyFamily(Family):
+    name = "MiniGridDoorKey"
+    n_actions = 5
+    node_fields = ("X", "Y", "Dir", "HasKey", "DoorOpen")
+
+    def __init__(
+        self,
+        *,
+        size: int,
+        n_starting_states: int,
+        make_reward_stochastic: bool,
+        reward_variance_multiplier: float,
+        optimal_distribution: Any = None,
+        other_distribution: Any = None,
+    ) -> None:
+        self.size = integer_parameter("size", size, 3, self.name)
+        # The smallest agent room is one line of `size` cells, one of which holds the key.
+        self.n_starting_states = integer_parameter(
+            "n_starting_states", n_starting_states, 1, self.name, 4 * (self.size - 1)
+        )
+        self.dists = minigrid_distributions(
+            self.size, make_reward_stochastic, reward_variance_multiplier, optimal_distribution, other_distribution
+        )
+        self.walls: frozenset[tuple[int, int]] = frozenset()
+        self.door: tuple[int, int] = (-1, -1)
+        self.key: tuple[int, int] = (-1, -1)
+        self.goal: tuple[int, int] = (-1, -1)
+
+    def _draw_layout(self, G: np.random.RandomState) -> list[tuple[int, int]]:
+        """Steps 1-6 of the module docstring; returns the agent room's cells."""
+        size = self.size
+        vertical = int(G.randint(2)) == 0
+        w = 1 + int(G.randint(size - 2))
+        along = int(G.randint(size))
+        agent_low = int(G.randint(2)) == 0
+        line = [(w, i) if vertical else (i, w) for i in range(size)]
+        self.door = line[along]
+        self.walls = frozenset(line) - {self.door}
+        cells = [(x, y) for x in range(size) for y in range(size)]
+        coord = (lambda c: c[0]) if vertical else (lambda c: c[1])
+        low = [c for c in cells if coord(c) < w]
+        high = [c for c in cells if coord(c) > w]
+        agent_room, goal_room = (low, high) if agent_low else (high, low)
+        self.goal = goal_room[int(G.randint(len(goal_room)))]
+        self.key = agent_room[int(G.randint(len(agent_room)))]
+        return agent_room
+
+    def outcomes(self, node: MiniGridDoorKeyNode, action: int) -> list[tuple[MiniGridDoorKeyNode, float]]:
+        x, y, d, has_key, door_open = node
+        if action in (TURN_RIGHT, TURN_LEFT):
+            return [(MiniGridDoorKeyNode(x, y, turned(d, action), has_key, door_open), 1.0)]
+        front = forward_cell(x, y, d)
+        if action == MOVE_FORWARD:
+            blocked = (
+                not (0 <= front[0] < self.size and 0 <= front[1] < self.size)
+                or front in self.walls
+                or (front == self.door and not door_open)
+                or (front == self.key and not has_key)
+            )
+            if not blocked:
+                return [(MiniGridDoorKeyNode(*front, d, has_key, door_open), 1.0)]
+        elif action == PICK_UP and not has_key and front == self.key:
+            return [(MiniGridDoorKeyNode(x, y, d, 1, door_open), 1.0)]
+        elif action == OPEN and has_key and not door_open and front == self.door:
+            return [(MiniGridDoorKeyNode(x, y, d, has_key, 1), 1.0)]
+        return [(node, 1.0)]
+
+    def reward(self, node: MiniGridDoorKeyNode, action: int, next_node: MiniGridDoorKeyNode) -> Distribution:
+        on_goal = (next_node.X, next_node.Y) == self.goal
+        return self.dists["optimal_distribution" if on_goal else "other_distribution"]
+
+    def starting_nodes(self, G: np.random.RandomState, F: random.Random):
+        agent_room = self._draw_layout(G)
+        possible = [MiniGridDoorKeyNode(x, y, d, 0, 0) for x, y in agent_room if (x, y) != self.key for d in range(4)]
+        G.shuffle(possible)
+        starts = possible[: self.n_starting_states]
+        return starts, [1.0 / len(starts)] * len(starts), possible
+
+    def node_label(self, node: MiniGridDoorKeyNode) -> str:
+        x, y, d, has_key, door_open = node
+        return f"X={x},Y={y},Dir={DIRECTION_NAMES[d]},HasKey={has_key},DoorOpen={door_open}"
+
+    def params(self) -> tuple[tuple[str, Any], ...]:
+        return (
+            ("size", self.size),
+            ("n_starting_states", self.n_starting_states),
+            *((k, str(d)) for k, d in self.dists.items()),
+        )
+
+    def layout(self) -> tuple[tuple[str, Any], ...]:
+        return (
+            ("size", self.size),
+            ("walls", tuple(sorted(self.walls))),
+            ("door", self.door),
+            ("key", self.key),
+            ("goal", self.goal),
+        )
+
+
+def render_minigrid_doorkey(info: MDPInfo, node: tuple[int, ...]) -> list[list[str]]:
+    """``W`` walls, ``C``/``O`` the closed/open door, ``K`` the key while on the floor, ``G`` the goal and the agent's
+    arrow (``^ > v <``) on top; the top printed row is ``Y = size-1``.
+    Symbols ``[" ", ">", "<", "v", "^", "G", "W", "K", "C", "O"]``."""
+    size = info.layout_value("size")
+    x, y, d, has_key, door_open = node
+    rows = [[" "] * size for _ in range(size)]
+    for wx, wy in info.layout_value("walls"):
+        rows[wy][wx] = "W"
+    dx, dy = info.layout_value("door")
+    rows[dy][dx] = "O" if door_open else "C"
+    if not has_key:
+        kx, ky = info.layout_value("key")
+        rows[ky][kx] = "K"
+    gx, gy = info.layout_value("goal")
+    rows[gy][gx] = "G"
+    rows[y][x] = ARROWS[d]
+    return rows[::-1]
+
+
+register_renderer(MiniGridDoorKeyFamily.name, render_minigrid_doorkey)
+
+
+def minigrid_doorkey(
+    *,
+    episodic: bool,
+    seed: int,
+    size: int,
+    n_starting_states: int = 2,
+    p_rand: float | None = None,
+    p_lazy: float | None = None,
+    randomize_actions: bool = True,
+    make_reward_stochastic: bool = False,
+    reward_variance_multiplier: float = 1.0,
+    optimal_distribution: Any = None,
+    other_distribution: Any = None,
+    H: int | None = None,
+) -> MDP:
+    """Build a MiniGridDoorKey MDP (see the module docstring). Default horizon: ``1 +`` the largest shortest-path
+    distance from a possible start (families.md §1.8), which covers fetching the key, opening the door and reaching
+    the farthest cell.
+
+    Args:
+      size: grid side, an integer ``>= 3``.
+      n_starting_states: number of starting nodes, in ``[1, 4 (size - 1)]`` (the smallest agent room is one line of
+        ``size`` cells, one of which holds the key).
+      optimal_distribution, other_distribution: reward distributions (all or none; defaults as MiniGridEmpty).
+      The other arguments are the common ones (:class:`~jaxmdp.families.construction.CommonParams`).
+    """
+    common = CommonParams(
+        episodic=episodic,
+        seed=seed,
+        p_rand=p_rand,
+        p_lazy=p_lazy,
+        randomize_actions=randomize_actions,
+        make_reward_stochastic=make_reward_stochastic,
+        reward_variance_multiplier=reward_variance_multiplier,
+        H=H,
+    )
+    fam = MiniGridDoorKeyFamily(
+        size=size,
+        n_starting_states=n_starting_states,
+        make_reward_stochastic=make_reward_stochastic,
+        reward_variance_multiplier=reward_variance_multiplier,
+        optimal_distribution=optimal_distribution,
+        other_distribution=other_distribution,
+    )
+    return build_mdp(fam, common)
