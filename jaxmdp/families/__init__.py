@@ -1,6 +1,7 @@
 """The MDP families of the paper (App. C), built host-side and registered under their Colosseum names."""
 
 from jaxmdp.families.construction import CommonParams, Family, build_mdp
+from jaxmdp.families.deep_sea import deep_sea
 from jaxmdp.families.distributions import Beta, PointMass
 from jaxmdp.families.river_swim import river_swim
 from jaxmdp.registry import register
@@ -10,6 +11,7 @@ __all__ = ["Family", "CommonParams", "build_mdp", "Beta", "PointMass", "BUILTIN_
 #: Registry name -> builder of the built-in families.
 BUILTIN_FAMILIES = {
     "RiverSwim": river_swim,
+    "DeepSea": deep_sea,
 }
 
 for _name, _builder in BUILTIN_FAMILIES.items():
