@@ -4,6 +4,7 @@ from jaxmdp.families.construction import CommonParams, Family, build_mdp
 from jaxmdp.families.deep_sea import deep_sea
 from jaxmdp.families.distributions import Beta, PointMass
 from jaxmdp.families.river_swim import river_swim
+from jaxmdp.families.simple_grid import simple_grid
 from jaxmdp.registry import register
 
 __all__ = ["Family", "CommonParams", "build_mdp", "Beta", "PointMass", "BUILTIN_FAMILIES"]
@@ -12,6 +13,7 @@ __all__ = ["Family", "CommonParams", "build_mdp", "Beta", "PointMass", "BUILTIN_
 BUILTIN_FAMILIES = {
     "RiverSwim": river_swim,
     "DeepSea": deep_sea,
+    "SimpleGrid": simple_grid,
 }
 
 for _name, _builder in BUILTIN_FAMILIES.items():
