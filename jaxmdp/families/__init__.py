@@ -3,6 +3,7 @@
 from jaxmdp.families.construction import CommonParams, Family, build_mdp
 from jaxmdp.families.deep_sea import deep_sea
 from jaxmdp.families.distributions import Beta, PointMass
+from jaxmdp.families.frozen_lake import frozen_lake
 from jaxmdp.families.river_swim import river_swim
 from jaxmdp.families.simple_grid import simple_grid
 from jaxmdp.registry import register
@@ -14,6 +15,7 @@ BUILTIN_FAMILIES = {
     "RiverSwim": river_swim,
     "DeepSea": deep_sea,
     "SimpleGrid": simple_grid,
+    "FrozenLake": frozen_lake,
 }
 
 for _name, _builder in BUILTIN_FAMILIES.items():
