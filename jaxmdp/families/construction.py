@@ -213,8 +213,8 @@ def build_mdp(fam: Family, common: CommonParams) -> MDP:
     # the recursion into that list's next nodes. With point-mass rewards the first case always fires, so sigma_n is
     # drawn when n is first processed (pre-order). With stochastic rewards the flag turns False at the very first
     # lookup (the first starting node), and every other sigma_n is drawn after the subtree reached through base
-    # action 0 of n has been expanded (post-order). Verified on ref02 (RiverSwim), ref11 (DeepSea), ref20
-    # (SimpleGrid).
+    # action 0 of n has been expanded (post-order). Verified on the stochastic ref02 (RiverSwim), ref11 (DeepSea)
+    # and ref20 (SimpleGrid), and on the point-mass ref30 (MiniGridEmpty, checked with a throwaway family).
     rewards_deterministic = [True]
 
     def expand(n: Node) -> Iterator[Node]:
