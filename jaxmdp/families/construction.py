@@ -170,17 +170,23 @@ def _effective_outcomes(fam: Family, node: Node, b: int, p_rand: float, p_lazy: 
 
 def _eccentricity(fam: Family, sources: Sequence[Node]) -> int:
     """Largest shortest-path distance from any source in the graph of base outcomes (§1.8)."""
+    successors: dict[Node, list[Node]] = {}  # one outcome query per node, shared by all the searches
+
+    def succ(n: Node) -> list[Node]:
+        if n not in successors:
+            successors[n] = [n2 for a in range(fam.n_actions) for n2, q in fam.outcomes(n, a) if q > 0]
+        return successors[n]
+
     best = 0
     for src in sources:
         dist = {src: 0}
         queue = deque([src])
         while queue:
             n = queue.popleft()
-            for a in range(fam.n_actions):
-                for n2, q in fam.outcomes(n, a):
-                    if q > 0 and n2 not in dist:
-                        dist[n2] = dist[n] + 1
-                        queue.append(n2)
+            for n2 in succ(n):
+                if n2 not in dist:
+                    dist[n2] = dist[n] + 1
+                    queue.append(n2)
         best = max(best, max(dist.values()))
     return best
 
