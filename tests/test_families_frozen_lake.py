@@ -172,7 +172,8 @@ def test_stochastic_default_distributions(size, v, goal, default):
     assert params["default_r"] == f"Beta({default[0]:g}, {default[1]:g})"
     mean, conc = np.asarray(m.reward_mean), np.asarray(m.reward_conc)
     g, s00 = _idx(m, size - 1, size - 1), _idx(m, 0, 0)
-    assert conc[g, 0, s00] == pytest.approx(sum(default)) and mean[g, 0, s00] == pytest.approx(default[0] / sum(default))
+    assert conc[g, 0, s00] == pytest.approx(sum(default))
+    assert mean[g, 0, s00] == pytest.approx(default[0] / sum(default))
     into_goal = np.argwhere(np.asarray(m.T)[:, :, g] > 0)[0]
     assert conc[into_goal[0], into_goal[1], g] == pytest.approx(sum(goal))
     assert mean[into_goal[0], into_goal[1], g] == pytest.approx(goal[0] / sum(goal))

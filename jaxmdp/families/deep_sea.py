@@ -22,6 +22,7 @@ from jaxmdp.render import register_renderer
 __all__ = ["DeepSeaNode", "DeepSeaFamily", "deep_sea"]
 
 LEFT, RIGHT = 0, 1
+_DIST_ORDER = ("optimal_distribution", "sub_optimal_distribution", "other_distribution")
 
 
 class DeepSeaNode(NamedTuple):
@@ -67,7 +68,8 @@ class DeepSeaFamily(Family):
             if make_reward_stochastic:
                 # Means r_sub/size (sub-optimal), 1 - r_opt/size (optimal), 1/(1 + 10(size/r_sub - 1)) (other);
                 # the Beta parameters are positive only for returns in (0, size).
-                for pname, r in (("suboptimal_return", self.suboptimal_return), ("optimal_return", self.optimal_return)):
+                returns = (("suboptimal_return", self.suboptimal_return), ("optimal_return", self.optimal_return))
+                for pname, r in returns:
                     if not 0 < r < self.size:
                         raise ValueError(
                             f"{pname} must lie in (0, size={self.size}) for the stochastic default rewards; got {r}"
@@ -111,7 +113,7 @@ class DeepSeaFamily(Family):
             ("size", self.size),
             ("optimal_return", self.optimal_return),
             ("suboptimal_return", self.suboptimal_return),
-            *((k, str(self.dists[k])) for k in ("optimal_distribution", "sub_optimal_distribution", "other_distribution")),
+            *((k, str(self.dists[k])) for k in _DIST_ORDER),
         )
 
     def layout(self) -> tuple[tuple[str, Any], ...]:

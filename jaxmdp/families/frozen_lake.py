@@ -124,7 +124,8 @@ class FrozenLakeFamily(Family):
             if make_reward_stochastic:
                 # Means 1 - r_opt/size^2 (goal) and r_sub/size^2 (default); positive Beta parameters need both
                 # returns in (0, size^2).
-                for pname, r in (("optimal_return", self.optimal_return), ("suboptimal_return", self.suboptimal_return)):
+                returns = (("optimal_return", self.optimal_return), ("suboptimal_return", self.suboptimal_return))
+                for pname, r in returns:
                     if not 0 < r < self.size**2:
                         raise ValueError(
                             f"{pname} must lie in (0, size^2={self.size**2}) for the stochastic default rewards; "

@@ -22,6 +22,7 @@ from jaxmdp.render import register_renderer
 __all__ = ["SimpleGridNode", "SimpleGridReward", "SimpleGridFamily", "simple_grid"]
 
 UP, RIGHT, DOWN, LEFT, NO_OP = 0, 1, 2, 3, 4
+_DIST_ORDER = ("optimal_distribution", "sub_optimal_distribution", "other_distribution")
 
 
 class SimpleGridReward(enum.IntEnum):
@@ -178,7 +179,7 @@ class SimpleGridFamily(Family):
             ("n_starting_states", self.n_starting_states),
             ("optimal_mean_reward", self.optimal_mean_reward),
             ("sub_optimal_mean_reward", self.sub_optimal_mean_reward),
-            *((k, str(self.dists[k])) for k in ("optimal_distribution", "sub_optimal_distribution", "other_distribution")),
+            *((k, str(self.dists[k])) for k in _DIST_ORDER),
         )
 
     def layout(self) -> tuple[tuple[str, Any], ...]:
