@@ -1,12 +1,12 @@
 """Taxi (families.md §2.7): walls, locations, worked example, dynamics, sizes, horizon, validation, rendering."""
 
-import importlib
 import itertools
 
 import numpy as np
 import pytest
 
 import jaxmdp
+from jaxmdp.families import taxi as taxi_module
 from jaxmdp.families.taxi import taxi_walls
 
 LOCATIONS = [(0, 4), (0, 0), (4, 3), (3, 1)]  # size 5, defaults, seed 0 (spec's worked example)
@@ -187,8 +187,6 @@ def test_rendering(example):
 
 
 def test_location_rejection_loop_is_bounded(monkeypatch):
-    # jaxmdp.families.taxi (the attribute) is the builder function, so fetch the module itself.
-    module = importlib.import_module("jaxmdp.families.taxi")
-    monkeypatch.setattr(module, "MAX_LOCATION_DRAWS", 1)
+    monkeypatch.setattr(taxi_module, "MAX_LOCATION_DRAWS", 1)
     with pytest.raises(ValueError, match="no set of Taxi locations pairwise farther apart than 2 was drawn in 1 tries"):
         jaxmdp.make("Taxi", episodic=False, seed=0, size=4, length=1, n_locations=3)

@@ -14,7 +14,6 @@ from conftest import build_reference_mdp, load_reference, reference_params
 _reference_values = jax.jit(jaxmdp.reference_values, static_argnums=1)
 
 # Fixtures with randomize_actions=True whose permutations the engine already reproduces exactly.
-_PERMUTATIONS_REPRODUCED = {"ref30_MiniGridEmpty_episodic"}
 
 
 @pytest.fixture(scope="module")
@@ -32,11 +31,7 @@ def built():
 
 
 @pytest.mark.parametrize("entry", reference_params())
-def test_arrays_and_state_order(entry, built, request):
-    randomized = entry["constructor_params"].get("randomize_actions", True)
-    if randomized and entry["id"] not in _PERMUTATIONS_REPRODUCED:
-        # TODO(core): the action-permutation draw order of randomize_actions=True is not reproduced yet.
-        request.applymarker(pytest.mark.xfail(strict=True, reason="randomize_actions permutation stream"))
+def test_arrays_and_state_order(entry, built):
     ref = load_reference(entry)
     m = built(entry)
     assert m.n_states == entry["n_states"] and m.n_actions == entry["n_actions"]

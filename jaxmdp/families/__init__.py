@@ -1,23 +1,35 @@
-"""The MDP families of the paper (App. C), built host-side and registered under their Colosseum names."""
+"""The MDP families of the paper (App. C), built host-side and registered under their Colosseum names.
 
+Each family lives in its own module (``jaxmdp.families.river_swim``, ...), which defines the family's dynamics as a
+:class:`Family` and a builder function of the same name; the builders are registered in :data:`BUILTIN_FAMILIES`.
+"""
+
+from jaxmdp.families import (
+    deep_sea,
+    frozen_lake,
+    minigrid_doorkey,
+    minigrid_empty,
+    minigrid_rooms,
+    river_swim,
+    simple_grid,
+    taxi,
+)
 from jaxmdp.families.construction import CommonParams, Family, build_mdp
 from jaxmdp.families.distributions import Beta, PointMass
-from jaxmdp.families.minigrid_doorkey import minigrid_doorkey
-from jaxmdp.families.minigrid_empty import minigrid_empty
-from jaxmdp.families.minigrid_rooms import minigrid_rooms
-from jaxmdp.families.river_swim import river_swim
-from jaxmdp.families.taxi import taxi
 from jaxmdp.registry import register
 
 __all__ = ["Family", "CommonParams", "build_mdp", "Beta", "PointMass", "BUILTIN_FAMILIES"]
 
-#: Registry name -> builder of the built-in families.
+#: Registry name -> builder of the built-in families (the paper's seven plus MiniGridDoorKey).
 BUILTIN_FAMILIES = {
-    "RiverSwim": river_swim,
-    "MiniGridEmpty": minigrid_empty,
-    "MiniGridRooms": minigrid_rooms,
-    "Taxi": taxi,
-    "MiniGridDoorKey": minigrid_doorkey,
+    "RiverSwim": river_swim.river_swim,
+    "DeepSea": deep_sea.deep_sea,
+    "SimpleGrid": simple_grid.simple_grid,
+    "FrozenLake": frozen_lake.frozen_lake,
+    "MiniGridEmpty": minigrid_empty.minigrid_empty,
+    "MiniGridRooms": minigrid_rooms.minigrid_rooms,
+    "Taxi": taxi.taxi,
+    "MiniGridDoorKey": minigrid_doorkey.minigrid_doorkey,
 }
 
 for _name, _builder in BUILTIN_FAMILIES.items():

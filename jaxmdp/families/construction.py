@@ -5,10 +5,14 @@ turns it into an :class:`~jaxmdp.MDP` exactly as families.md §1 states:
 
 1. two generators from ``seed``: ``G = numpy.random.RandomState(seed)`` and ``F = random.Random(seed)``;
 2. the family's starting nodes (drawing from ``G`` / ``F`` as the family specifies);
-3. a depth-first expansion from the starting nodes (§1.6): for each base action ``b`` of a node, the action
-   permutation ``sigma_n`` is drawn on first processing (``argsort(G.rand(A))`` when ``randomize_actions``), the
-   effective outcome list of ``b`` (§1.3: own outcomes, lazy self-loop, other actions' outcomes) is appended to the
-   discovery list, and unvisited next nodes are expanded immediately. State index = discovery position.
+3. a depth-first expansion from the starting nodes (§1.6): for each base action ``b`` of a node, the effective
+   outcome list of ``b`` (§1.3: own outcomes, lazy self-loop, other actions' outcomes) is appended to the discovery
+   list, and unvisited next nodes are expanded immediately. State index = discovery position. The action
+   permutation ``sigma_n = argsort(G.rand(A))`` (``randomize_actions``) is drawn when ``n`` is first processed if
+   the rewards are point masses, but only *after* the subtree reached through base action 0 of ``n`` has been
+   expanded if they are stochastic (except for the very first node) -- the reference draws it lazily and its
+   first use depends on its "all rewards deterministic" flag (this refines families.md §1.4/§1.6, which state the
+   pre-order draw only);
 4. ``T[s, sigma_n[b], s'] += p`` for every entry, and ``reward_mean/conc[s, sigma_n[b], s'] = D(n, b, n')``, filled for
    every ``s'`` a kernel transform could add (``s`` itself and every action's successors);
 5. the horizon (§1.8): ``max(H_min, H)`` with ``H_min = 1 + max eccentricity of the possible starting nodes`` unless
@@ -30,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from jaxmdp.families.distributions import Distribution
+from jaxmdp.families.distributions import Distribution, PointMass
 from jaxmdp.mdp import MDP, MDPInfo, custom_mdp
 from jaxmdp.transforms import MAX_NOISE_PROBABILITY
 
@@ -166,17 +170,23 @@ def _effective_outcomes(fam: Family, node: Node, b: int, p_rand: float, p_lazy: 
 
 def _eccentricity(fam: Family, sources: Sequence[Node]) -> int:
     """Largest shortest-path distance from any source in the graph of base outcomes (§1.8)."""
+    successors: dict[Node, list[Node]] = {}  # one outcome query per node, shared by all the searches
+
+    def succ(n: Node) -> list[Node]:
+        if n not in successors:
+            successors[n] = [n2 for a in range(fam.n_actions) for n2, q in fam.outcomes(n, a) if q > 0]
+        return successors[n]
+
     best = 0
     for src in sources:
         dist = {src: 0}
         queue = deque([src])
         while queue:
             n = queue.popleft()
-            for a in range(fam.n_actions):
-                for n2, q in fam.outcomes(n, a):
-                    if q > 0 and n2 not in dist:
-                        dist[n2] = dist[n] + 1
-                        queue.append(n2)
+            for n2 in succ(n):
+                if n2 not in dist:
+                    dist[n2] = dist[n] + 1
+                    queue.append(n2)
         best = max(best, max(dist.values()))
     return best
 
@@ -199,20 +209,38 @@ def build_mdp(fam: Family, common: CommonParams) -> MDP:
         if n not in index:
             index[n] = len(index)
 
+    def draw_sigma(n: Node) -> None:
+        if n not in sigma:
+            sigma[n] = np.argsort(G.rand(A)) if randomize else np.arange(A)
+
+    # The reference draws sigma_n lazily, the first time it needs it: either when it looks up a reward distribution
+    # of n to update its "all rewards deterministic" flag (done for every outcome entry while the flag is still
+    # True), or when it files the outcome list of base action 0 under its agent label, which happens only *after*
+    # the recursion into that list's next nodes. With point-mass rewards the first case always fires, so sigma_n is
+    # drawn when n is first processed (pre-order). With stochastic rewards the flag turns False at the very first
+    # lookup (the first starting node), and every other sigma_n is drawn after the subtree reached through base
+    # action 0 of n has been expanded (post-order). Verified on the stochastic ref02 (RiverSwim), ref11 (DeepSea)
+    # and ref20 (SimpleGrid), and on the point-mass ref30 (MiniGridEmpty, checked with a throwaway family).
+    rewards_deterministic = [True]
+
     def expand(n: Node) -> Iterator[Node]:
         # One frame of the reference's recursive visit; yields each child to expand before continuing.
         for b in range(A):
-            if n not in sigma:
-                sigma[n] = np.argsort(G.rand(A)) if randomize else np.arange(A)
             lst = _effective_outcomes(fam, n, b, r, l)
             discover(n)
             for n2, _ in lst:
                 discover(n2)
+                if rewards_deterministic[0]:
+                    draw_sigma(n)
+                    # The reference's lookup uses sigma_n[b] as the base action (families.md §1.4 [quirk]).
+                    if not isinstance(fam.reward(n, int(sigma[n][b]), n2), PointMass):
+                        rewards_deterministic[0] = False
             visited.add(n)
             lists[(n, b)] = lst
             for n2, _ in lst:
                 if n2 not in visited:
                     yield n2
+            draw_sigma(n)
 
     for s0 in starts:
         if s0 in visited:

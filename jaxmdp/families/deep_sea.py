@@ -1,0 +1,185 @@
+"""DeepSea (Osband et al. 2019; paper App. C; families.md §2.2).
+
+A ``size x size`` triangle explored by diving: the agent starts at the top-left ``(X=0, Y=size-1)`` and every step
+goes one row down (``Y-1``) and one column LEFT (0, ``max(X-1, 0)``) or RIGHT (1, ``min(X+1, size-1)``); from the
+bottom row ``Y = 0`` every action jumps back to the start. LEFT pays a small sub-optimal reward everywhere (the
+bottom row included), RIGHT pays the "other" reward, except RIGHT at the bottom-right corner ``(size-1, 0)``, which
+pays the optimal reward. The episodic version has the fixed horizon ``H = size``; ``p_lazy`` is not allowed.
+"""
+
+from __future__ import annotations
+
+import random
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from jaxmdp.families.construction import CommonParams, Family, build_mdp, check_noise_probability
+from jaxmdp.families.distributions import Beta, Distribution, PointMass, resolve_distributions
+from jaxmdp.mdp import MDP, MDPInfo
+from jaxmdp.render import register_renderer
+
+__all__ = ["DeepSeaNode", "DeepSeaFamily", "deep_sea"]
+
+LEFT, RIGHT = 0, 1
+_DIST_ORDER = ("optimal_distribution", "sub_optimal_distribution", "other_distribution")
+
+
+class DeepSeaNode(NamedTuple):
+    X: int
+    Y: int
+
+
+class DeepSeaFamily(Family):
+    name = "DeepSea"
+    n_actions = 2
+    node_fields = ("X", "Y")
+
+    def __init__(
+        self,
+        *,
+        size: int,
+        make_reward_stochastic: bool,
+        reward_variance_multiplier: float,
+        optimal_return: float = 1.0,
+        suboptimal_return: float = 0.5,
+        optimal_distribution: Any = None,
+        sub_optimal_distribution: Any = None,
+        other_distribution: Any = None,
+    ) -> None:
+        if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 2:
+            raise ValueError(f"size must be an integer >= 2 for DeepSea; got {size!r}")
+        if not suboptimal_return < optimal_return - 0.1:
+            raise ValueError(
+                "suboptimal_return must be below optimal_return - 0.1; "
+                f"got {suboptimal_return} and {optimal_return}"
+            )
+        self.size = int(size)
+        self.optimal_return = float(optimal_return)
+        self.suboptimal_return = float(suboptimal_return)
+        given = {
+            "optimal_distribution": optimal_distribution,
+            "sub_optimal_distribution": sub_optimal_distribution,
+            "other_distribution": other_distribution,
+        }
+        v = reward_variance_multiplier
+        defaults: dict[str, Distribution] = {}
+        if all(d is None for d in given.values()):
+            if make_reward_stochastic:
+                # Means r_sub/size (sub-optimal), 1 - r_opt/size (optimal), 1/(1 + 10(size/r_sub - 1)) (other);
+                # the Beta parameters are positive only for returns in (0, size).
+                returns = (("suboptimal_return", self.suboptimal_return), ("optimal_return", self.optimal_return))
+                for pname, r in returns:
+                    if not 0 < r < self.size:
+                        raise ValueError(
+                            f"{pname} must lie in (0, size={self.size}) for the stochastic default rewards; got {r}"
+                        )
+                defaults = {
+                    "optimal_distribution": Beta(v * (self.size / self.optimal_return - 1), v),
+                    "sub_optimal_distribution": Beta(v, v * (self.size / self.suboptimal_return - 1)),
+                    "other_distribution": Beta(v, 10 * v * (self.size / self.suboptimal_return - 1)),
+                }
+            else:
+                # The deterministic small reward is 1/size^2 whatever suboptimal_return is (as in the reference).
+                defaults = {
+                    "optimal_distribution": PointMass(1.0),
+                    "sub_optimal_distribution": PointMass(1.0 / self.size**2),
+                    "other_distribution": PointMass(0.0),
+                }
+        self.dists = resolve_distributions(given, defaults, make_reward_stochastic)
+
+    def outcomes(self, node: DeepSeaNode, action: int) -> list[tuple[DeepSeaNode, float]]:
+        if node.Y == 0:
+            return [(DeepSeaNode(0, self.size - 1), 1.0)]
+        x = min(node.X + 1, self.size - 1) if action == RIGHT else max(node.X - 1, 0)
+        return [(DeepSeaNode(x, node.Y - 1), 1.0)]
+
+    def reward(self, node: DeepSeaNode, action: int, next_node: DeepSeaNode) -> Distribution:
+        if action == RIGHT and node.X == self.size - 1 and node.Y == 0:
+            return self.dists["optimal_distribution"]
+        if action == LEFT:
+            return self.dists["sub_optimal_distribution"]
+        return self.dists["other_distribution"]
+
+    def starting_nodes(self, G: np.random.RandomState, F: random.Random):
+        start = DeepSeaNode(0, self.size - 1)
+        return [start], [1.0], [start]
+
+    def fixed_horizon(self) -> int:
+        return self.size
+
+    def params(self) -> tuple[tuple[str, Any], ...]:
+        return (
+            ("size", self.size),
+            ("optimal_return", self.optimal_return),
+            ("suboptimal_return", self.suboptimal_return),
+            *((k, str(self.dists[k])) for k in _DIST_ORDER),
+        )
+
+    def layout(self) -> tuple[tuple[str, Any], ...]:
+        return (("size", self.size),)
+
+
+def render_deep_sea(info: MDPInfo, node: tuple[int, ...]) -> list[list[str]]:
+    """``size x size`` blanks with ``A`` at the agent; printed row ``r`` is ``Y = size-1-r``, column ``c`` is ``X``
+    (symbols ``["A", " "]``)."""
+    size = info.layout_value("size")
+    x, y = node
+    grid = [[" "] * size for _ in range(size)]
+    grid[size - 1 - y][x] = "A"
+    return grid
+
+
+register_renderer(DeepSeaFamily.name, render_deep_sea)
+
+
+def deep_sea(
+    *,
+    episodic: bool,
+    seed: int,
+    size: int,
+    p_rand: float | None = None,
+    p_lazy: float | None = None,
+    randomize_actions: bool = True,
+    make_reward_stochastic: bool = False,
+    reward_variance_multiplier: float = 1.0,
+    optimal_return: float = 1.0,
+    suboptimal_return: float = 0.5,
+    optimal_distribution: Any = None,
+    sub_optimal_distribution: Any = None,
+    other_distribution: Any = None,
+    H: int | None = None,
+) -> MDP:
+    """Build a DeepSea MDP (families.md §2.2).
+
+    ``S = size (size + 1) / 2`` reachable cells. Default rewards: deterministic optimal 1, sub-optimal ``1/size^2``,
+    other 0; stochastic (``v = reward_variance_multiplier``) optimal ``Beta(v (size/optimal_return - 1), v)``,
+    sub-optimal ``Beta(v, v (size/suboptimal_return - 1))``, other ``Beta(v, 10 v (size/suboptimal_return - 1))``.
+
+    Raises:
+      ValueError: ``size < 2``; ``p_lazy`` given (DeepSea has no lazy mechanic; ``None`` or 0 only);
+        ``suboptimal_return >= optimal_return - 0.1``; ``H`` given (the episodic horizon is fixed to ``size``).
+    """
+    if check_noise_probability("p_lazy", p_lazy) > 0:
+        raise ValueError(f"p_lazy must be None for DeepSea (it has no lazy mechanic); got {p_lazy}")
+    common = CommonParams(
+        episodic=episodic,
+        seed=seed,
+        p_rand=p_rand,
+        p_lazy=None,
+        randomize_actions=randomize_actions,
+        make_reward_stochastic=make_reward_stochastic,
+        reward_variance_multiplier=reward_variance_multiplier,
+        H=H,
+    )
+    fam = DeepSeaFamily(
+        size=size,
+        make_reward_stochastic=make_reward_stochastic,
+        reward_variance_multiplier=reward_variance_multiplier,
+        optimal_return=optimal_return,
+        suboptimal_return=suboptimal_return,
+        optimal_distribution=optimal_distribution,
+        sub_optimal_distribution=sub_optimal_distribution,
+        other_distribution=other_distribution,
+    )
+    return build_mdp(fam, common)
