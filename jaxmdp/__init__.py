@@ -8,7 +8,7 @@ from jaxmdp import dynamic_programming
 from jaxmdp.communication import CommunicationClass, communication_class
 from jaxmdp.batching import pad, permute_states, stack, state_permutation, unstack
 from jaxmdp.env import EnvState, reset, sample_action, step
-from jaxmdp.families import Beta, PointMass
+from jaxmdp.mdp_families import Beta, PointMass
 from jaxmdp.mdp import MDP, MDPInfo, custom_mdp
 from jaxmdp.registry import families, make, register
 from jaxmdp.render import render

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import jaxmdp
-from jaxmdp.families.frozen_lake import random_lake
+from jaxmdp.mdp_families.frozen_lake import random_lake
 
-from jaxmdp.families import frozen_lake as fl_module
+from jaxmdp.mdp_families import frozen_lake as fl_module
 
 UP, RIGHT, DOWN, LEFT = range(4)
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import jaxmdp
-from jaxmdp.families.minigrid_empty import side_cells
+from jaxmdp.mdp_families.minigrid_empty import side_cells
 
 DIRS = {"UP": (0, 1), "RIGHT": (1, 0), "DOWN": (0, -1), "LEFT": (-1, 0)}
 NAMES = ("UP", "RIGHT", "DOWN", "LEFT")

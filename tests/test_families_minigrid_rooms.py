@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import jaxmdp
-from jaxmdp.families.minigrid_rooms import admissible_cells, room_cells
+from jaxmdp.mdp_families.minigrid_rooms import admissible_cells, room_cells
 
 DELTA = ((0, 1), (1, 0), (0, -1), (-1, 0))
 NAMES = ("UP", "RIGHT", "DOWN", "LEFT")

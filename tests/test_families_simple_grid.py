@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import jaxmdp
-from jaxmdp.families.simple_grid import SimpleGridFamily, SimpleGridReward
+from jaxmdp.mdp_families.simple_grid import SimpleGridFamily, SimpleGridReward
 
 UP, RIGHT, DOWN, LEFT, NO_OP = range(5)
 

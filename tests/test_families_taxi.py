@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import jaxmdp
-from jaxmdp.families import taxi as taxi_module
-from jaxmdp.families.taxi import taxi_walls
+from jaxmdp.mdp_families import taxi as taxi_module
+from jaxmdp.mdp_families.taxi import taxi_walls
 
 LOCATIONS = [(0, 4), (0, 0), (4, 3), (3, 1)]  # size 5, defaults, seed 0 (spec's worked example)
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from jaxmdp.families.distributions import Beta, Distribution, PointMass, resolve_distributions
+from jaxmdp.mdp_families.distributions import Beta, Distribution, PointMass, resolve_distributions
 
 __all__ = [
     "UP",

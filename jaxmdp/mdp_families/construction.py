@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from jaxmdp.families.distributions import Distribution, PointMass
+from jaxmdp.mdp_families.distributions import Distribution, PointMass
 from jaxmdp.mdp import MDP, MDPInfo, custom_mdp
 from jaxmdp.transforms import MAX_NOISE_PROBABILITY
 

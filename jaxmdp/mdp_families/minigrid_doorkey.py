@@ -18,7 +18,7 @@ floor and cannot be dropped, so a flag for it and one for the door make the dyna
 are ``(0, 0)``, ``(1, 0)`` and ``(1, 1)``.
 
 **Actions (5)**: ``0 MoveForward``, ``1 TurnRight``, ``2 TurnLeft`` (as in every MiniGrid family, see
-:mod:`jaxmdp.families.minigrid`), ``3 PickUp``, ``4 Open``. MoveForward enters the facing cell unless it is outside
+:mod:`jaxmdp.mdp_families.minigrid`), ``3 PickUp``, ``4 Open``. MoveForward enters the facing cell unless it is outside
 the grid, a wall cell, the door while closed, or the key cell while the key lies there (objects block, as in
 MiniGrid). PickUp sets ``HasKey = 1`` when the key lies on the floor in the facing cell ("in front of", paper). Open sets
 ``DoorOpen = 1`` when carrying the key and facing the closed door; the door never closes again and the key is kept.
@@ -51,9 +51,9 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.families.construction import CommonParams, Family, build_mdp
-from jaxmdp.families.distributions import Distribution
-from jaxmdp.families.minigrid import (
+from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp
+from jaxmdp.mdp_families.distributions import Distribution
+from jaxmdp.mdp_families.minigrid import (
     ARROWS,
     DIRECTION_NAMES,
     MOVE_FORWARD,
@@ -63,7 +63,7 @@ from jaxmdp.families.minigrid import (
     minigrid_distributions,
     turned,
 )
-from jaxmdp.families.parameters import integer_parameter
+from jaxmdp.mdp_families.parameters import integer_parameter
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
@@ -226,7 +226,7 @@ def minigrid_doorkey(
       n_starting_states: number of starting nodes, in ``[1, 4 (size - 1)]`` (the smallest agent room is one line of
         ``size`` cells, one of which holds the key).
       optimal_distribution, other_distribution: reward distributions (all or none; defaults as MiniGridEmpty).
-      The other arguments are the common ones (:class:`~jaxmdp.families.construction.CommonParams`).
+      The other arguments are the common ones (:class:`~jaxmdp.mdp_families.construction.CommonParams`).
     """
     common = CommonParams(
         episodic=episodic,

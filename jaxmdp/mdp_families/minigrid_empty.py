@@ -2,7 +2,7 @@
 
 An empty ``size x size`` grid (cells ``0..size-1``, no wall cells). Nodes are ``(X, Y, Dir)``; actions
 ``MoveForward`` (clipped at the border: bumping keeps the node), ``TurnRight``, ``TurnLeft`` (see
-:mod:`jaxmdp.families.minigrid`). The optimal reward is paid whenever the next node stands on the goal cell.
+:mod:`jaxmdp.mdp_families.minigrid`). The optimal reward is paid whenever the next node stands on the goal cell.
 
 Sides of the grid, each listed in a fixed order: side 0 the column ``X = 0`` from ``Y = 0`` up; side 1 the row ``Y = 0``
 from ``X = 0`` right; side 2 the column ``X = size-1`` from ``Y = size-1`` down; side 3 the row ``Y = size-1`` from
@@ -23,9 +23,9 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.families.construction import CommonParams, Family, build_mdp
-from jaxmdp.families.distributions import Distribution
-from jaxmdp.families.minigrid import (
+from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp
+from jaxmdp.mdp_families.distributions import Distribution
+from jaxmdp.mdp_families.minigrid import (
     ARROWS,
     MOVE_FORWARD,
     forward_cell,
@@ -33,7 +33,7 @@ from jaxmdp.families.minigrid import (
     minigrid_label,
     turned,
 )
-from jaxmdp.families.parameters import integer_parameter
+from jaxmdp.mdp_families.parameters import integer_parameter
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
@@ -155,8 +155,8 @@ def minigrid_empty(
       size: grid side, an integer ``>= 3``.
       n_starting_states: number of starting cells on the start side, in ``[1, size]``.
       optimal_distribution, other_distribution: reward distributions (all or none; defaults in
-        :func:`~jaxmdp.families.minigrid.minigrid_distributions`).
-      The other arguments are the common ones (:class:`~jaxmdp.families.construction.CommonParams`).
+        :func:`~jaxmdp.mdp_families.minigrid.minigrid_distributions`).
+      The other arguments are the common ones (:class:`~jaxmdp.mdp_families.construction.CommonParams`).
     """
     common = CommonParams(
         episodic=episodic,

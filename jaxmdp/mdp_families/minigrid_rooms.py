@@ -5,7 +5,7 @@ with a door in the middle of every room span. Room ``(rx, ry)`` holds the cells 
 ``0 <= i, j < rs``; the wall lines lie at ``w = j (rs+1) - 1`` (``j = 1..k-1``) and the doors at ``(w, m)`` and
 ``(m, w)`` with ``m = j (rs+1) + floor(rs/2)`` (``j = 0..k-1``). The grid side is ``k rs + k - 1``. Nodes are
 ``(X, Y, Dir)``; ``MoveForward`` enters the facing cell only when it is a room or door cell (walls and the border
-block), the turns are as in every MiniGrid family (:mod:`jaxmdp.families.minigrid`). The optimal reward is paid
+block), the turns are as in every MiniGrid family (:mod:`jaxmdp.mdp_families.minigrid`). The optimal reward is paid
 whenever the next node stands on the goal cell.
 
 Draws, in order: the start room ``F.randint(0, 3)`` among the corner rooms ``[(0,0), (0,k-1), (k-1,0), (k-1,k-1)]``,
@@ -27,9 +27,9 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.families.construction import CommonParams, Family, build_mdp
-from jaxmdp.families.distributions import Distribution
-from jaxmdp.families.minigrid import (
+from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp
+from jaxmdp.mdp_families.distributions import Distribution
+from jaxmdp.mdp_families.minigrid import (
     ARROWS,
     MOVE_FORWARD,
     forward_cell,
@@ -37,7 +37,7 @@ from jaxmdp.families.minigrid import (
     minigrid_label,
     turned,
 )
-from jaxmdp.families.parameters import integer_parameter
+from jaxmdp.mdp_families.parameters import integer_parameter
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
@@ -195,7 +195,7 @@ def minigrid_rooms(
       n_starting_states: number of starting nodes, in ``[1, 4 rs^2]``.
       optimal_distribution, other_distribution: reward distributions (all or none); the defaults are MiniGridEmpty's
         with ``size = int(rs sqrt(n_rooms))``.
-      The other arguments are the common ones (:class:`~jaxmdp.families.construction.CommonParams`).
+      The other arguments are the common ones (:class:`~jaxmdp.mdp_families.construction.CommonParams`).
     """
     common = CommonParams(
         episodic=episodic,

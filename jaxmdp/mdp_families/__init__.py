@@ -1,10 +1,10 @@
 """The MDP families of the paper (App. C), built host-side and registered under their Colosseum names.
 
-Each family lives in its own module (``jaxmdp.families.river_swim``, ...), which defines the family's dynamics as a
+Each family lives in its own module (``jaxmdp.mdp_families.river_swim``, ...), which defines the family's dynamics as a
 :class:`Family` and a builder function of the same name; the builders are registered in :data:`BUILTIN_FAMILIES`.
 """
 
-from jaxmdp.families import (
+from jaxmdp.mdp_families import (
     deep_sea,
     frozen_lake,
     minigrid_doorkey,
@@ -14,8 +14,8 @@ from jaxmdp.families import (
     simple_grid,
     taxi,
 )
-from jaxmdp.families.construction import CommonParams, Family, build_mdp
-from jaxmdp.families.distributions import Beta, PointMass
+from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp
+from jaxmdp.mdp_families.distributions import Beta, PointMass
 from jaxmdp.registry import register
 
 __all__ = ["Family", "CommonParams", "build_mdp", "Beta", "PointMass", "BUILTIN_FAMILIES"]

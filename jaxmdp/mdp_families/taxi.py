@@ -44,9 +44,9 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.families.construction import CommonParams, Family, build_mdp
-from jaxmdp.families.distributions import Beta, Distribution, PointMass, resolve_distributions
-from jaxmdp.families.parameters import integer_parameter
+from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp
+from jaxmdp.mdp_families.distributions import Beta, Distribution, PointMass, resolve_distributions
+from jaxmdp.mdp_families.parameters import integer_parameter
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
@@ -302,7 +302,7 @@ def taxi(
       default_r, successfully_delivery_r, failure_delivery_r: reward distributions (all or none) with means
         ``failure < default < success``.
       randomize_actions: ignored: Taxi never relabels its actions (the reference forces it off).
-      The other arguments are the common ones (:class:`~jaxmdp.families.construction.CommonParams`).
+      The other arguments are the common ones (:class:`~jaxmdp.mdp_families.construction.CommonParams`).
     """
     del randomize_actions  # the reference forces it to False
     common = CommonParams(

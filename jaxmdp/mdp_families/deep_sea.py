@@ -14,8 +14,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.families.construction import CommonParams, Family, build_mdp, check_noise_probability
-from jaxmdp.families.distributions import Beta, Distribution, PointMass, resolve_distributions
+from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp, check_noise_probability
+from jaxmdp.mdp_families.distributions import Beta, Distribution, PointMass, resolve_distributions
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
