@@ -184,75 +184,74 @@ def _episodic_paper(mdp: MDP, rtol: float, max_iter: int, block: int) -> Measure
     H, S = mdp.H, mdp.n_states
     reach = reachable_pairs(mdp)  # [H, S]
     dtype = mdp.dtype
-    E = H * S
-    B = min(block, E)
-    n_blocks = -(-E // B)
-    tgt = jnp.arange(n_blocks * B)
-    tgt_h, tgt_s = tgt // S, tgt % S
-    tgt_valid = (tgt < E) & reach[jnp.minimum(tgt_h, H - 1), tgt_s]
-    hs = jnp.arange(H)
+    B = min(block, S)
+    n_chunks = -(-S // B)
+    horizon = mdp.horizon
 
-    def backward(c, th, ts, final):
-        """Backward pass for targets ``(th, ts)`` [B] at reset costs ``c`` [B]. Carries the affine pieces
-        ``W = alpha + beta c`` of the greedy action; returns ``(alpha_0, beta_0)`` or, if ``final``, the maximum of
-        ``W`` over the reachable source pairs."""
+    def solve(item):
+        """Targets ``(he, e)`` for one in-episode time ``he`` and a chunk of ``B`` states ``e``."""
+        he, chunk = item // n_chunks, item % n_chunks
+        cols = chunk * B + jnp.arange(B)
+        ok = (cols < S) & reach[he, jnp.minimum(cols, S - 1)]
+        # After the target time the target cannot be hit before the reset: from (h, s), h > he, the hitting time is
+        # exactly (horizon - h) + c. So the backward induction only runs over h = he .. 0.
+        after = (horizon - he - 1).astype(dtype)
 
-        def step(carry, h):
-            alpha_n, beta_n, best = carry
-            ab = _expect_columns(mdp.succ, mdp.succ_p, jnp.concatenate([alpha_n, beta_n], axis=1))
-            qa, qb = 1.0 + ab[..., :B], ab[..., B:]
-            w = jnp.where(mdp.action_mask[None, :, None], qa + qb * c, jnp.inf)
-            a_star = jnp.argmin(w, axis=1)  # [S, B]
-            alpha = jnp.take_along_axis(qa, a_star[:, None], axis=1)[:, 0]
-            beta = jnp.take_along_axis(qb, a_star[:, None], axis=1)[:, 0]
-            is_reset = h == mdp.horizon - 1
-            alpha = jnp.where(is_reset, 1.0, alpha)
-            beta = jnp.where(is_reset, 1.0, beta)
-            hit = (h == th)[None, :] & (jnp.arange(S)[:, None] == ts[None, :])
-            live = (h < mdp.horizon) & ~hit
-            alpha = jnp.where(live, alpha, 0.0)
-            beta = jnp.where(live, beta, 0.0)
-            if final:
+        def backward(c):
+            def step(k, carry):
+                alpha_n, beta_n, best = carry
+                h = he - k
+                ab = _expect_columns(mdp.succ, mdp.succ_p, jnp.concatenate([alpha_n, beta_n], axis=1))
+                qa, qb = 1.0 + ab[..., :B], ab[..., B:]
+                w = jnp.where(mdp.action_mask[None, :, None], qa + qb * c, jnp.inf)
+                a_star = jnp.argmin(w, axis=1)  # [S, B]
+                alpha = jnp.take_along_axis(qa, a_star[:, None], axis=1)[:, 0]
+                beta = jnp.take_along_axis(qb, a_star[:, None], axis=1)[:, 0]
+                is_reset = h == horizon - 1
+                alpha = jnp.where(is_reset, 1.0, alpha)
+                beta = jnp.where(is_reset, 1.0, beta)
+                hit = (jnp.arange(S)[:, None] == cols[None, :]) & (h == he)
+                alpha = jnp.where(hit, 0.0, alpha)
+                beta = jnp.where(hit, 0.0, beta)
                 src = reach[h][:, None] & ~hit
                 best = jnp.maximum(best, jnp.max(jnp.where(src, alpha + beta * c, -jnp.inf), axis=0))
-            return (alpha, beta, best), None
+                return alpha, beta, best
 
-        z = jnp.zeros((S, B), dtype)
-        (alpha0, beta0, best), _ = jax.lax.scan(step, (z, z, jnp.full((B,), -jnp.inf, dtype)), hs, reverse=True)
-        return alpha0, beta0, best
+            init_a = jnp.full((S, B), after, dtype)
+            init_b = jnp.ones((S, B), dtype)
+            best0 = jnp.where(he < horizon - 1, after + c, -jnp.inf)
+            alpha0, beta0, best = jax.lax.fori_loop(0, he + 1, step, (init_a, init_b, best0))
+            fa, fb = mdp.P0 @ alpha0, mdp.P0 @ beta0
+            c_next = jnp.where(fb < 1.0, fa / jnp.maximum(1.0 - fb, 1e-30), jnp.inf)
+            return c_next, best
 
-    def solve_block(args):
-        th, ts, ok = args
-        # Newton / policy iteration on c, from the policy that maximises the hit probability (huge c).
-        c0 = jnp.full((B,), 1e6 * H, dtype)
-
-        def newton(c):
-            a0, b0, _ = backward(c, th, ts, False)
-            fa, fb = mdp.P0 @ a0, mdp.P0 @ b0
-            return jnp.where(fb < 1.0, fa / jnp.maximum(1.0 - fb, 1e-30), jnp.inf)
-
-        # In exact arithmetic the iterates decrease monotonically to the fixed point after the first step; stop
-        # once a step no longer decreases c by more than rtol (round-off level), keeping the smaller value.
+        # Newton / policy iteration on c from the policy that maximises the hit probability (huge c). After the
+        # first step the iterates decrease monotonically to the fixed point (concave map); stop once a step no
+        # longer decreases c by more than rtol (round-off level). ``best`` is evaluated at the last c, which is
+        # within rtol of the fixed point.
         def moving(c, c_prev):
             return (c_prev - c) > rtol * jnp.abs(c)
 
         def cond(carry):
-            c, c_prev, i = carry
+            c, c_prev, _, i = carry
             return jnp.any(moving(c, c_prev) & ok) & (i < max_iter)
 
         def body(carry):
-            c, _, i = carry
-            return newton(c), c, i + 1
+            c, _, _, i = carry
+            c_next, best = backward(c)
+            return jnp.minimum(c_next, c), c, best, i + 1
 
-        c1 = newton(c0)
-        c, c_prev, _ = jax.lax.while_loop(cond, body, (newton(c1), c1, jnp.asarray(1)))
-        converged = ~moving(c, c_prev) & jnp.isfinite(c)
-        c = jnp.minimum(c, c_prev)
-        _, _, best = backward(c, th, ts, True)
-        return jnp.where(ok, best, -jnp.inf), converged | ~ok
+        def run():
+            c1, _ = backward(jnp.full((B,), 1e6 * H, dtype))
+            c2, best = backward(c1)
+            c, c_prev, best, _ = jax.lax.while_loop(cond, body, (jnp.minimum(c2, c1), c1, best, jnp.asarray(2)))
+            converged = ~moving(c, c_prev) & jnp.isfinite(c)
+            return jnp.max(jnp.where(ok, best, -jnp.inf)), jnp.all(converged | ~ok)
 
-    blocks = (tgt_h.reshape(n_blocks, B), tgt_s.reshape(n_blocks, B), tgt_valid.reshape(n_blocks, B))
-    best, converged = jax.lax.map(solve_block, blocks)
+        # Skip items without a reachable target (single MDPs; under vmap both branches run).
+        return jax.lax.cond(jnp.any(ok), run, lambda: (jnp.asarray(-jnp.inf, dtype), jnp.asarray(True)))
+
+    best, converged = jax.lax.map(solve, jnp.arange(H * n_chunks))
     return MeasureResult.make(jnp.max(best), jnp.all(converged))
 
 
@@ -275,13 +274,15 @@ def _continuous_colosseum(mdp: MDP, max_iter: int) -> MeasureResult:
 
     # Per-target value iteration with gamma = 1 on V = -ET; each target stops on its own (measures.md §3.1).
     def gs_sweep(V, done):
+        # A static trip count keeps the loop index unbatched under vmap (in-place row updates); padded rows and
+        # Jacobi members keep their values.
         def body(s, V):
             q = -1.0 + jnp.sum(mdp.succ_p[s][:, :, None] * V[mdp.succ[s]], axis=1)  # [A, E]
             q = jnp.where(mdp.action_mask[:, None], q, -jnp.inf)
-            row = jnp.where(is_target[s] | done, V[s], jnp.max(q, axis=0))
-            return V.at[s].set(row)
+            keep = is_target[s] | done | jacobi | ~valid[s]
+            return V.at[s].set(jnp.where(keep, V[s], jnp.max(q, axis=0)))
 
-        return jax.lax.fori_loop(0, jnp.where(jacobi, 0, n_states), body, V)
+        return jax.lax.fori_loop(0, S, body, V)
 
     def jacobi_sweep(V, done):
         Q = -1.0 + _expect_columns(mdp.succ, mdp.succ_p, V)
@@ -294,7 +295,8 @@ def _continuous_colosseum(mdp: MDP, max_iter: int) -> MeasureResult:
 
     def body(c):
         V, done, i = c
-        V_new = jnp.where(jacobi, jacobi_sweep(V, done), gs_sweep(V, done))
+        # cond runs one branch for a single MDP; under vmap it becomes a select over both.
+        V_new = jax.lax.cond(jacobi, jacobi_sweep, gs_sweep, V, done)
         diff = jnp.max(jnp.abs(V_new - V), axis=0)
         return V_new, done | (diff < eps), i + 1
 
@@ -404,10 +406,14 @@ def _episodic_colosseum(mdp: MDP, max_iter: int) -> MeasureResult:
         cur_b = jnp.where(first_b, cur, cur_b)
         return ET_new, cur_a, cur_b, done_b | first_b, i + 1
 
+    # A state that no in-episode time reaches is never hit: the reference's sweep diverges on it (it never stops);
+    # its hitting time is infinite, so is the result.
+    never = valid & ~jnp.any(reach, axis=0)
     inf = jnp.full((S,), jnp.inf, dtype)
-    init = (jnp.zeros((H, S, S), dtype), inf, inf, jnp.zeros((S,), bool), jnp.asarray(0))
+    init = (jnp.zeros((H, S, S), dtype), inf, inf, never, jnp.asarray(0))
     _, cur_a, cur_b, done_b, _ = jax.lax.while_loop(cond, body, init)
-    D = _two_snapshot_scan(cur_a, cur_b, idx[::-1], valid)
+    D = _two_snapshot_scan(cur_a, cur_b, idx[::-1], valid & ~never)
+    D = jnp.where(jnp.any(never), jnp.inf, D)
     return MeasureResult.make(D, jnp.all(done_b | ~valid))
 
 
@@ -434,7 +440,7 @@ def diameter(
     rtol: float = 1e-6,
     max_iter: int = 100_000,
     n_candidates: int = 8,
-    block: int = 256,
+    block: int = 512,
 ) -> MeasureResult:
     """The diameter of ``mdp`` (module docstring), as a :class:`~hardness.MeasureResult`.
 

@@ -50,25 +50,28 @@ def reference_value_iteration(
     Gauss-Seidel visits only the real rows (``row_mask``; padded rows are absorbing with zero reward and stay 0).
     """
     S = R.shape[0]
-    n_rows = jnp.sum(row_mask)
 
     def backup_row(V, s):
         return R[s] + gamma * jnp.sum(succ_p[s] * V[succ[s]], axis=-1)
 
     def gauss_seidel(V):
+        # A static trip count keeps the loop index unbatched under vmap (in-place row updates); padded rows and
+        # Jacobi members are left alone.
         def body(s, c):
             V, Q = c
             q = backup_row(V, s)
-            return V.at[s].set(jnp.max(q)), Q.at[s].set(q)
+            skip = jacobi | ~row_mask[s]
+            return V.at[s].set(jnp.where(skip, V[s], jnp.max(q))), Q.at[s].set(jnp.where(skip, Q[s], q))
 
-        # Jacobi members of a vmapped batch run zero Gauss-Seidel steps.
-        n = jnp.where(jacobi, 0, n_rows)
-        return jax.lax.fori_loop(0, n, body, (V, jnp.zeros_like(R)))
+        return jax.lax.fori_loop(0, S, body, (V, jnp.zeros_like(R)))
+
+    def jacobi_sweep(V):
+        Q = R + gamma * jnp.sum(succ_p * V[succ], axis=-1)
+        return jnp.max(Q, -1), Q
 
     def sweep(V):
-        Qj = R + gamma * jnp.sum(succ_p * V[succ], axis=-1)
-        Vg, Qg = gauss_seidel(V)
-        return jnp.where(jacobi, jnp.max(Qj, -1), Vg), jnp.where(jacobi, Qj, Qg)
+        # cond runs one branch for a single MDP; under vmap it becomes a select over both.
+        return jax.lax.cond(jacobi, jacobi_sweep, gauss_seidel, V)
 
     def cond(c):
         _, _, diff, i = c

@@ -130,3 +130,15 @@ def test_bad_arguments():
         hardness.diameter(m, variant="exact")
     with pytest.raises(ValueError, match="rtol"):
         hardness.diameter(m, rtol=0.0)
+
+
+def test_colosseum_episodic_never_reached_state_is_infinite():
+    # State 2 is reachable, but not within an episode of length 2 from state 0: the reference's sweep would never
+    # stop on it; the hitting time is infinite.
+    T = np.zeros((3, 1, 3))
+    T[0, 0, 1] = T[1, 0, 2] = T[2, 0, 0] = 1.0
+    m = jaxmdp.custom_mdp(T, np.zeros((3, 1)), H=2)
+    res = hardness.diameter(m, variant="colosseum")
+    assert float(res.value) == np.inf and bool(res.converged)
+    # The paper's time-augmented MDP only has the reachable pairs (0, 0) and (1, 1): diameter 1.
+    assert float(hardness.diameter(m).value) == 1.0
