@@ -16,20 +16,29 @@ to 1, whose hitting times converge very slowly) returns ``inf`` with ``converged
 
 ``variant="paper"``, episodic: the continuous diameter of the time-augmented MDP, whose states are the reachable
 pairs ``(h, s)`` (:func:`jaxmdp.episodic.reachable_pairs`; unreachable pairs are neither sources nor targets, so the
-diameter is always finite). For a target pair, given the expected hitting time ``c`` from a fresh reset, the hitting
-times from every pair are a backward induction over ``h`` in which each value is affine in ``c``; ``c`` is the fixed
-point of the concave piecewise-linear map ``c -> P0 . W_0(c)`` whose slope is the probability of missing the target
-during an episode. Newton's method on it is policy iteration: starting from the policy that maximises the
-probability of a hit, each step solves the linear equation of the current policy exactly and converges in a few
-backward passes. No ``(S H) x (S H)`` matrix is built; targets are processed in blocks.
+diameter is always finite). It has a closed form. Take a target pair ``(h_e, e)`` and let ``c`` be the optimal
+expected hitting time from a fresh reset. From ``(h, s)`` with ``h > h_e`` the target cannot be hit before the next
+reset, ``horizon - h`` steps away, so ``T* = horizon - h + c``. From ``h <= h_e`` a trip either hits at time ``h_e``
+(taking ``h_e - h`` steps) or misses and takes ``horizon - h + c``; the expected time is affine in the hit
+probability with a negative slope, so the optimal policy maximises the probability ``M_{h_e - h}[s, e]`` of being in
+``e`` exactly ``h_e - h`` steps later, whatever ``c``:
+``T* = horizon - h + c - (horizon - h_e + c) M_{h_e - h}[s, e]``. At the reset this gives
+``c = horizon / q - (horizon - h_e)`` with ``q = P0 . M_{h_e}[:, e]``. The ``H`` matrices
+``M_{k+1}[s, e] = max_a sum_s' P(s'|s,a) M_k[s', e]`` (``M_0 = I``, one all-targets backup each) serve every
+target time, so the whole diameter costs two scans of ``H`` backups, ``O(H S A K S + H^2 S^2)``, with no iteration
+and no ``(S H) x (S H)`` matrix.
 
 ``variant="colosseum"``: the reference's procedures, for parity with its numbers (measures.md §3.1-3.2, both
 [paper≠code] where they differ): continuous, per target value iteration with ``gamma = 1``, ``eps = 1e-3`` from 0
 (Gauss-Seidel in index order, or Jacobi when the reference's size/sparsity rule applies), ``D = max(0, max_e d_e)``;
 above 1000 states its sparse solver with the early exit on the running maximum (targets in index order). Episodic,
 the reference's sweep on ``T_epi`` for each target *state* in the order ``S-1 .. 0`` with its two stopping rules
-and the minimum over the in-episode times of the positive hitting times. Both under-estimate the exact value
-slightly (stopping at ``eps``) and the episodic one is a different quantity from the paper's.
+and the minimum over the in-episode times of the positive hitting times; a state that no in-episode time reaches
+(on which the reference never stops) gives ``inf``. The reference's per-target early exits depend on the running
+maximum of the targets before; all targets are swept in parallel, the value of each is recorded at the first sweep
+under the loose and under the tight threshold, and the sequential exits are replayed afterwards (exact, because the
+per-target values only grow with the sweeps). Both under-estimate the exact value slightly (stopping at ``eps``) and
+the episodic one is a different quantity from the paper's.
 """
 
 from __future__ import annotations
@@ -180,79 +189,43 @@ def _continuous_paper(mdp: MDP, rtol: float, max_iter: int, n_candidates: int) -
 # ---------------------------------------------------------------------------------------------------------------
 
 
-def _episodic_paper(mdp: MDP, rtol: float, max_iter: int, block: int) -> MeasureResult:
+def _episodic_paper(mdp: MDP) -> MeasureResult:
+    """Closed form on the time-augmented MDP (module docstring): ``M_k[s, e]``, the largest probability of being in
+    ``e`` exactly ``k`` steps after ``s``, gives every hitting time of every target pair."""
     H, S = mdp.H, mdp.n_states
-    reach = reachable_pairs(mdp)  # [H, S]
     dtype = mdp.dtype
-    B = min(block, S)
-    n_chunks = -(-S // B)
-    horizon = mdp.horizon
+    reach = reachable_pairs(mdp)  # [H, S]: sources and targets
+    horizon = mdp.horizon.astype(dtype)
+    he = jnp.arange(H, dtype=dtype)[:, None]  # target time, [H, 1]
 
-    def solve(item):
-        """Targets ``(he, e)`` for one in-episode time ``he`` and a chunk of ``B`` states ``e``."""
-        he, chunk = item // n_chunks, item % n_chunks
-        cols = chunk * B + jnp.arange(B)
-        ok = (cols < S) & reach[he, jnp.minimum(cols, S - 1)]
-        # After the target time the target cannot be hit before the reset: from (h, s), h > he, the hitting time is
-        # exactly (horizon - h) + c. So the backward induction only runs over h = he .. 0.
-        after = (horizon - he - 1).astype(dtype)
+    def next_M(M):
+        Q = _expect_columns(mdp.succ, mdp.succ_p, M)
+        Q = jnp.where(mdp.action_mask[None, :, None], Q, -jnp.inf)
+        return jnp.where(mdp.state_mask[:, None], jnp.max(Q, axis=1), 0.0)
 
-        def backward(c):
-            def step(k, carry):
-                alpha_n, beta_n, best = carry
-                h = he - k
-                ab = _expect_columns(mdp.succ, mdp.succ_p, jnp.concatenate([alpha_n, beta_n], axis=1))
-                qa, qb = 1.0 + ab[..., :B], ab[..., B:]
-                w = jnp.where(mdp.action_mask[None, :, None], qa + qb * c, jnp.inf)
-                a_star = jnp.argmin(w, axis=1)  # [S, B]
-                alpha = jnp.take_along_axis(qa, a_star[:, None], axis=1)[:, 0]
-                beta = jnp.take_along_axis(qb, a_star[:, None], axis=1)[:, 0]
-                is_reset = h == horizon - 1
-                alpha = jnp.where(is_reset, 1.0, alpha)
-                beta = jnp.where(is_reset, 1.0, beta)
-                hit = (jnp.arange(S)[:, None] == cols[None, :]) & (h == he)
-                alpha = jnp.where(hit, 0.0, alpha)
-                beta = jnp.where(hit, 0.0, beta)
-                src = reach[h][:, None] & ~hit
-                best = jnp.maximum(best, jnp.max(jnp.where(src, alpha + beta * c, -jnp.inf), axis=0))
-                return alpha, beta, best
+    eye = jnp.eye(S, dtype=dtype)
+    # q[he, e] = P0 . M_he[:, e]: the best probability of a hit from a fresh reset.
+    _, q = jax.lax.scan(lambda M, _: (next_M(M), mdp.P0 @ M), eye, None, length=H)
+    c = jnp.where(q > 0, horizon / jnp.where(q > 0, q, 1.0) - (horizon - he), jnp.inf)  # [H, S]
+    A = horizon - he + c
+    # Sources after the target time: the next reset is (horizon - h) steps away, the worst is h = he + 1.
+    best0 = jnp.where(he < horizon - 1, horizon - he - 1 + c, -jnp.inf)
 
-            init_a = jnp.full((S, B), after, dtype)
-            init_b = jnp.ones((S, B), dtype)
-            best0 = jnp.where(he < horizon - 1, after + c, -jnp.inf)
-            alpha0, beta0, best = jax.lax.fori_loop(0, he + 1, step, (init_a, init_b, best0))
-            fa, fb = mdp.P0 @ alpha0, mdp.P0 @ beta0
-            c_next = jnp.where(fb < 1.0, fa / jnp.maximum(1.0 - fb, 1e-30), jnp.inf)
-            return c_next, best
+    def sweep(carry, k):
+        # Sources k steps before the target time: W = A + k - A * M_k[s, e], largest at the smallest M_k over the
+        # states reachable at h = he - k.
+        M, best = carry
+        min_m = jnp.min(jnp.where(reach[:, :, None], M[None], jnp.inf), axis=1)  # [h, e]
+        h = jnp.arange(H) - k
+        mm = min_m[jnp.maximum(h, 0)]
+        ok = (h >= 0)[:, None] & jnp.isfinite(mm)
+        best = jnp.where(ok, jnp.maximum(best, A + k.astype(dtype) - A * mm), best)
+        return (next_M(M), best), None
 
-        # Newton / policy iteration on c from the policy that maximises the hit probability (huge c). After the
-        # first step the iterates decrease monotonically to the fixed point (concave map); stop once a step no
-        # longer decreases c by more than rtol (round-off level). ``best`` is evaluated at the last c, which is
-        # within rtol of the fixed point.
-        def moving(c, c_prev):
-            return (c_prev - c) > rtol * jnp.abs(c)
-
-        def cond(carry):
-            c, c_prev, _, i = carry
-            return jnp.any(moving(c, c_prev) & ok) & (i < max_iter)
-
-        def body(carry):
-            c, _, _, i = carry
-            c_next, best = backward(c)
-            return jnp.minimum(c_next, c), c, best, i + 1
-
-        def run():
-            c1, _ = backward(jnp.full((B,), 1e6 * H, dtype))
-            c2, best = backward(c1)
-            c, c_prev, best, _ = jax.lax.while_loop(cond, body, (jnp.minimum(c2, c1), c1, best, jnp.asarray(2)))
-            converged = ~moving(c, c_prev) & jnp.isfinite(c)
-            return jnp.max(jnp.where(ok, best, -jnp.inf)), jnp.all(converged | ~ok)
-
-        # Skip items without a reachable target (single MDPs; under vmap both branches run).
-        return jax.lax.cond(jnp.any(ok), run, lambda: (jnp.asarray(-jnp.inf, dtype), jnp.asarray(True)))
-
-    best, converged = jax.lax.map(solve, jnp.arange(H * n_chunks))
-    return MeasureResult.make(jnp.max(best), jnp.all(converged))
+    (_, best), _ = jax.lax.scan(sweep, (eye, best0), jnp.arange(H))
+    value = jnp.max(jnp.where(reach, best, -jnp.inf))
+    # Every reachable target has a positive hit probability; only float underflow could make it 0.
+    return MeasureResult.make(value, jnp.all(~reach | (q > 0)))
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -300,14 +273,18 @@ def _continuous_colosseum(mdp: MDP, max_iter: int) -> MeasureResult:
         diff = jnp.max(jnp.abs(V_new - V), axis=0)
         return V_new, done | (diff < eps), i + 1
 
-    V, done, _ = jax.lax.while_loop(cond, body, (jnp.zeros((S, S), dtype), ~cols, jnp.asarray(0)))
-    d = jnp.max(jnp.where(valid[:, None] & cols[None, :], -V, -jnp.inf), axis=0)
-    value = jnp.where(connected, jnp.maximum(0.0, jnp.max(d)), jnp.inf)
-    dense = MeasureResult.make(value, jnp.all(done) | ~connected)
+    def dense():
+        V, done, _ = jax.lax.while_loop(cond, body, (jnp.zeros((S, S), dtype), ~cols, jnp.asarray(0)))
+        d = jnp.max(jnp.where(valid[:, None] & cols[None, :], -V, -jnp.inf), axis=0)
+        value = jnp.where(connected, jnp.maximum(0.0, jnp.max(d)), jnp.inf)
+        return MeasureResult.make(value, jnp.all(done) | ~connected)
+
     if S <= SPARSE_DIAMETER_STATES:
-        return dense
-    sparse = _continuous_colosseum_sparse(mdp, connected, max_iter)
-    return jax.tree.map(lambda a, b: jnp.where(n_states > SPARSE_DIAMETER_STATES, a, b), sparse, dense)
+        return dense()
+    # The path depends on the real number of states (a padded batch may mix both).
+    return jax.lax.cond(
+        n_states > SPARSE_DIAMETER_STATES, lambda: _continuous_colosseum_sparse(mdp, connected, max_iter), dense
+    )
 
 
 def _two_snapshot_scan(cur_a: jax.Array, cur_b: jax.Array, order: jax.Array, valid: jax.Array) -> jax.Array:
@@ -422,11 +399,11 @@ def _episodic_colosseum(mdp: MDP, max_iter: int) -> MeasureResult:
 # ---------------------------------------------------------------------------------------------------------------
 
 
-@functools.partial(jax.jit, static_argnames=("variant", "rtol", "max_iter", "n_candidates", "block"))
-def _diameter(mdp: MDP, variant: str, rtol: float, max_iter: int, n_candidates: int, block: int) -> MeasureResult:
+@functools.partial(jax.jit, static_argnames=("variant", "rtol", "max_iter", "n_candidates"))
+def _diameter(mdp: MDP, variant: str, rtol: float, max_iter: int, n_candidates: int) -> MeasureResult:
     if variant == "paper":
         if mdp.episodic:
-            return _episodic_paper(mdp, rtol, max_iter, block)
+            return _episodic_paper(mdp)
         return _continuous_paper(mdp, rtol, max_iter, n_candidates)
     if mdp.episodic:
         return _episodic_colosseum(mdp, max_iter)
@@ -440,25 +417,22 @@ def diameter(
     rtol: float = 1e-6,
     max_iter: int = 100_000,
     n_candidates: int = 8,
-    block: int = 512,
 ) -> MeasureResult:
     """The diameter of ``mdp`` (module docstring), as a :class:`~hardness.MeasureResult`.
 
     Args:
       mdp: a single MDP; ``jax.vmap`` over a stacked batch for many.
       variant: ``"paper"`` (exact, certified to ``rtol``) or ``"colosseum"`` (the reference's procedure).
-      rtol: relative certificate of the paper variant (continuous: ``max U <= (1 + rtol) max L``; episodic:
-        Newton steps below ``rtol`` relative). Float32 round-off bounds what is reachable: values are exact to
-        about ``1e-6`` relative; a tolerance far below the dtype's precision may leave ``converged=False``.
-      max_iter: sweep budget (Newton steps for the episodic paper variant); exhausting it returns ``inf`` with
-        ``converged=False``.
+      rtol: relative certificate of the continuous paper variant, ``max U <= (1 + rtol) max L``. Float32 round-off
+        bounds what is reachable: values are exact to about ``1e-6`` relative; a tolerance far below the dtype's
+        precision may leave ``converged=False``. (The episodic paper variant is a closed form.)
+      max_iter: sweep budget of the iterative variants; exhausting it returns ``inf`` with ``converged=False``.
       n_candidates: continuous paper variant: how many targets the second phase keeps.
-      block: episodic paper variant: target pairs processed together (memory ``O(S A K block)``).
     """
     if variant not in ("paper", "colosseum"):
         raise ValueError(f"variant must be 'paper' or 'colosseum'; got {variant!r}")
     if not (0.0 < rtol < 1.0):
         raise ValueError(f"rtol must lie in (0, 1); got {rtol}")
-    if max_iter < 1 or n_candidates < 1 or block < 1:
-        raise ValueError("max_iter, n_candidates and block must be positive integers")
-    return _diameter(mdp.strip(), variant, float(rtol), int(max_iter), int(n_candidates), int(block))
+    if max_iter < 1 or n_candidates < 1:
+        raise ValueError("max_iter and n_candidates must be positive integers")
+    return _diameter(mdp.strip(), variant, float(rtol), int(max_iter), int(n_candidates))

@@ -28,50 +28,55 @@ from typing import Literal
 import jax
 import jax.numpy as jnp
 
-from hardness.reference_vi import reference_value_iteration, uses_jacobi
 from hardness.result import MeasureResult
+from hardness.value_norm import optimal_values
 from jaxmdp import dynamic_programming as dp
 from jaxmdp.episodic import reachable_pairs
 from jaxmdp.mdp import MDP
 
-__all__ = ["sum_reciprocal_gaps", "suboptimality_gaps"]
+__all__ = ["sum_reciprocal_gaps", "sum_reciprocal_gaps_from", "suboptimality_gaps"]
 
 Variant = Literal["paper", "colosseum"]
 Form = Literal["regularized", "raw"]
 
 
 def suboptimality_gaps(
-    mdp: MDP, gamma: float | jax.Array = 0.99, *, variant: Variant = "paper", max_iter: int = 1_000_000
+    mdp: MDP,
+    gamma: float | jax.Array = 0.99,
+    *,
+    variant: Variant = "paper",
+    max_iter: int = 1_000_000,
+    values: tuple[jax.Array, jax.Array, jax.Array] | None = None,
 ) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
     """``(Delta, mask, V_scale, converged)``: the gaps (``[S, A]`` or ``[H, S, A]``), the pairs the sum runs over,
-    the largest ``|V*|`` (for the raw form's zero threshold) and whether the values converged. Traceable."""
+    the largest ``|V*|`` (for the raw form's zero threshold) and whether the values converged. Traceable;
+    ``values`` = :func:`hardness.value_norm.optimal_values` of a continuous MDP if already computed."""
     if mdp.episodic:
         Q, V = dp.finite_horizon_value_iteration(mdp)
         delta = V[:-1, :, None] - Q
         mask = reachable_pairs(mdp)[:, :, None] & mdp.action_mask[None, None, :]
         return delta, mask, jnp.max(jnp.abs(V)), jnp.asarray(True)
+    Q, V, converged = optimal_values(mdp, gamma, variant, max_iter) if values is None else values
     if variant == "paper":
-        sol = dp.solve_discounted(mdp, gamma)
-        Q, V, converged = sol.Q, sol.V, sol.converged
         V = jnp.max(jnp.where(mdp.action_mask, Q, -jnp.inf), axis=-1)  # Delta >= 0 exactly, one zero per state
-    else:
-        jacobi = uses_jacobi(mdp.succ_p, mdp.state_mask, mdp.action_mask)
-        Q, V, converged = reference_value_iteration(
-            mdp.succ, mdp.succ_p, mdp.R, gamma, jacobi=jacobi, row_mask=mdp.state_mask, max_iter=max_iter
-        )
     mask = mdp.state_mask[:, None] & mdp.action_mask[None, :]
     return V[:, None] - Q, mask, jnp.max(jnp.abs(V)), converged
 
 
-@functools.partial(jax.jit, static_argnames=("variant", "form", "max_iter"))
-def _sum_reciprocal_gaps(mdp, gamma, regularizer, zero_tol, variant, form, max_iter):
-    delta, mask, scale, converged = suboptimality_gaps(mdp, gamma, variant=variant, max_iter=max_iter)
+def sum_reciprocal_gaps_from(mdp, gamma, regularizer, zero_tol, variant, form, max_iter, values=None):
+    """Traceable core of :func:`sum_reciprocal_gaps` (``values`` as in :func:`suboptimality_gaps`)."""
+    delta, mask, scale, converged = suboptimality_gaps(mdp, gamma, variant=variant, max_iter=max_iter, values=values)
     if form == "regularized":
         terms = jnp.where(mask, 1.0 / (delta + regularizer), 0.0)
     else:
         nonzero = mask & (delta > zero_tol * jnp.maximum(1.0, scale))
         terms = jnp.where(nonzero, 1.0 / jnp.where(nonzero, delta, 1.0), 0.0)
     return MeasureResult.make(jnp.sum(terms), converged)
+
+
+_sum_reciprocal_gaps = functools.partial(jax.jit, static_argnames=("variant", "form", "max_iter"))(
+    sum_reciprocal_gaps_from
+)
 
 
 def sum_reciprocal_gaps(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from typing import Literal
 
 import jax
@@ -9,9 +10,9 @@ import jax.numpy as jnp
 from flax import struct
 
 from hardness.diameter import diameter
-from hardness.gaps import sum_reciprocal_gaps
+from hardness.gaps import sum_reciprocal_gaps_from
 from hardness.result import MeasureResult
-from hardness.value_norm import value_norm
+from hardness.value_norm import _host_continuous_form, optimal_values, value_norm_from
 from jaxmdp.episodic import ContinuousForm
 from jaxmdp.mdp import MDP
 
@@ -37,11 +38,30 @@ def measures(
     continuous_form: ContinuousForm | None = None,
 ) -> HardnessMeasures:
     """Diameter, (discounted) environmental value norm and regularised sum of reciprocal gaps of ``mdp``, each with
-    its defaults; ``continuous_form`` as in :func:`hardness.value_norm` (colosseum variant of episodic MDPs)."""
+    its defaults; ``continuous_form`` as in :func:`hardness.value_norm` (colosseum variant of episodic MDPs). The
+    optimal values of a continuous MDP are computed once and shared by the value norm and the gap sum."""
+    if variant not in ("paper", "colosseum"):
+        raise ValueError(f"variant must be 'paper' or 'colosseum'; got {variant!r}")
+    if not (0.0 < float(gamma) < 1.0):
+        raise ValueError(f"gamma must lie in (0, 1); got {gamma}")
+    cf = None
+    if variant == "colosseum" and mdp.episodic:
+        cf = continuous_form if continuous_form is not None else _host_continuous_form(mdp)
     return HardnessMeasures(
         diameter=diameter(mdp, variant=variant),
-        value_norm=value_norm(mdp, gamma, variant=variant, continuous_form=continuous_form),
-        sum_reciprocal_gaps=sum_reciprocal_gaps(mdp, gamma, variant=variant),
+        **_shared(mdp.strip(), cf, jnp.asarray(gamma, mdp.dtype), variant),
+    )
+
+
+@functools.partial(jax.jit, static_argnames=("variant",))
+def _shared(mdp, cf, gamma, variant):
+    values = None if mdp.episodic else optimal_values(mdp, gamma, variant)
+    dt = mdp.dtype
+    return dict(
+        value_norm=value_norm_from(mdp, cf, gamma, variant, True, 1_000_000, values),
+        sum_reciprocal_gaps=sum_reciprocal_gaps_from(
+            mdp, gamma, jnp.asarray(0.1, dt), jnp.asarray(1e-5, dt), variant, "regularized", 1_000_000, values
+        ),
     )
 
 

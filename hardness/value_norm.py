@@ -48,7 +48,7 @@ from jaxmdp import dynamic_programming as dp
 from jaxmdp.episodic import ContinuousForm, continuous_form, reachable_pairs
 from jaxmdp.mdp import MDP
 
-__all__ = ["value_norm", "deterministic_base", "chain_bias"]
+__all__ = ["value_norm", "value_norm_from", "optimal_values", "deterministic_base", "chain_bias"]
 
 Variant = Literal["paper", "colosseum"]
 
@@ -112,11 +112,10 @@ def _dense_chain(succ: jax.Array, succ_p: jax.Array, pi: jax.Array) -> jax.Array
 # ---------------------------------------------------------------------------------------------------------------
 
 
-def _paper_continuous(mdp: MDP, gamma: float, discounted: bool) -> MeasureResult:
+def _paper_continuous(mdp: MDP, gamma: float, discounted: bool, values=None) -> MeasureResult:
     mask = mdp.state_mask[:, None] & mdp.action_mask[None, :]
     if discounted:
-        sol = dp.solve_discounted(mdp, gamma)
-        V, converged = sol.V, sol.converged
+        _, V, converged = optimal_values(mdp, gamma, "paper") if values is None else values
     else:
         opt = dp.optimal_gain(mdp)
         pi = opt.policy
@@ -143,11 +142,11 @@ def _paper_episodic(mdp: MDP, gamma: float) -> MeasureResult:
 # ---------------------------------------------------------------------------------------------------------------
 
 
-def _colosseum_on(succ, succ_p, R, row_mask, action_mask, gamma, discounted, max_iter) -> MeasureResult:
-    jacobi = uses_jacobi(succ_p, row_mask, action_mask)
-    Q, V, converged = reference_value_iteration(
-        succ, succ_p, R, gamma, jacobi=jacobi, row_mask=row_mask, max_iter=max_iter
-    )
+def _colosseum_on(succ, succ_p, R, row_mask, action_mask, gamma, discounted, max_iter, values=None) -> MeasureResult:
+    if values is None:
+        jacobi = uses_jacobi(succ_p, row_mask, action_mask)
+        values = reference_value_iteration(succ, succ_p, R, gamma, jacobi=jacobi, row_mask=row_mask, max_iter=max_iter)
+    Q, V, converged = values
     if not discounted:
         pi = dp.greedy(Q, action_mask)
         V = chain_bias(_dense_chain(succ, succ_p, pi), jnp.sum(pi * R, axis=-1))
@@ -155,24 +154,42 @@ def _colosseum_on(succ, succ_p, R, row_mask, action_mask, gamma, discounted, max
     return MeasureResult.make(_masked_sqrt_max(_code_form(succ, succ_p, V), mask), converged)
 
 
-def _colosseum(mdp: MDP, cf: ContinuousForm | None, gamma: float, discounted: bool, max_iter: int) -> MeasureResult:
+def _colosseum(
+    mdp: MDP, cf: ContinuousForm | None, gamma: float, discounted: bool, max_iter: int, values=None
+) -> MeasureResult:
     if mdp.episodic:
         res = _colosseum_on(cf.succ, cf.succ_p, cf.R, cf.row_mask, cf.action_mask, gamma, discounted, max_iter)
     else:
         res = _colosseum_on(
-            mdp.succ, mdp.succ_p, mdp.R, mdp.state_mask, mdp.action_mask, gamma, discounted, max_iter
+            mdp.succ, mdp.succ_p, mdp.R, mdp.state_mask, mdp.action_mask, gamma, discounted, max_iter, values
         )
     det = deterministic_base(mdp)
     return MeasureResult.make(jnp.where(det, 0.0, res.value), res.converged | det)
 
 
-@functools.partial(jax.jit, static_argnames=("variant", "discounted", "max_iter"))
-def _value_norm(mdp, cf, gamma, variant, discounted, max_iter):
+def optimal_values(mdp: MDP, gamma, variant: str, max_iter: int = 1_000_000):
+    """``(Q, V, converged)`` of a continuous MDP as each variant defines them: exact (``"paper"``,
+    :func:`~jaxmdp.dynamic_programming.solve_discounted`) or the reference's value iteration (``"colosseum"``).
+    Shared by the value norm and the gap sum."""
+    if variant == "paper":
+        sol = dp.solve_discounted(mdp, gamma)
+        return sol.Q, sol.V, sol.converged
+    jacobi = uses_jacobi(mdp.succ_p, mdp.state_mask, mdp.action_mask)
+    return reference_value_iteration(
+        mdp.succ, mdp.succ_p, mdp.R, gamma, jacobi=jacobi, row_mask=mdp.state_mask, max_iter=max_iter
+    )
+
+
+def value_norm_from(mdp, cf, gamma, variant, discounted, max_iter, values=None) -> MeasureResult:
+    """Traceable core of :func:`value_norm`; ``values`` = :func:`optimal_values` (continuous) if already known."""
     if variant == "paper":
         if mdp.episodic:
             return _paper_episodic(mdp, gamma if discounted else 1.0)
-        return _paper_continuous(mdp, gamma, discounted)
-    return _colosseum(mdp, cf, gamma, discounted, max_iter)
+        return _paper_continuous(mdp, gamma, discounted, values)
+    return _colosseum(mdp, cf, gamma, discounted, max_iter, values)
+
+
+_value_norm = functools.partial(jax.jit, static_argnames=("variant", "discounted", "max_iter"))(value_norm_from)
 
 
 def value_norm(

@@ -142,3 +142,33 @@ def test_colosseum_episodic_never_reached_state_is_infinite():
     assert float(res.value) == np.inf and bool(res.converged)
     # The paper's time-augmented MDP only has the reachable pairs (0, 0) and (1, 1): diameter 1.
     assert float(hardness.diameter(m).value) == 1.0
+
+
+def np_sparse_reference(T):
+    """measures.md §3.1, the reference's solver above 1000 states, written sequentially (targets in index order)."""
+    S = T.shape[0]
+    D = -np.inf
+    for e in range(S):
+        ET = np.zeros(S)
+        keep = np.arange(S) != e
+        while True:
+            Z = np.where(keep, ET, 0.0)
+            new = np.where(keep, np.min(1.0 + T @ Z, axis=1), 0.0)
+            diff = np.max(np.abs(new - ET))
+            ET = new
+            if diff < 1e-3 or (diff < 0.05 and ET.max() - 1 < D):
+                break
+        D = max(D, ET.max())
+    return max(0.0, D)
+
+
+def test_colosseum_sparse_path_replays_the_sequential_early_exit():
+    from hardness.diameter import _continuous_colosseum_sparse
+
+    for seed in range(3):
+        rng = np.random.default_rng(40 + seed)
+        T = dense_random(rng, 8, 2, sparsity=0.3)
+        T = 0.6 * T + 0.4 * np.eye(8)[:, None, :]  # laziness: slow enough that the early exit matters
+        m = jaxmdp.custom_mdp(T.astype(np.float32), np.zeros((8, 2)))
+        got = jax.jit(lambda m: _continuous_colosseum_sparse(m, hardness.strongly_connected(m), 100_000))(m)
+        np.testing.assert_allclose(float(got.value), np_sparse_reference(np.asarray(m.T, np.float64)), rtol=1e-5)
