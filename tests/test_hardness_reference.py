@@ -3,10 +3,11 @@
 Two routes, both skipped cleanly without ../shared:
 
 * from the fixtures' own arrays (``custom_mdp`` on ``T``, the reward entries and ``P0``; the reference's episodic
-  graph order for the continuous form), for all 41 fixtures now. Fixtures of one family and setting are stacked and
-  run in one vmapped call, which also checks that padding changes nothing;
-* through ``jaxmdp.make`` for the registered families (RiverSwim on this branch; the others skip until they land),
-  which also checks the construction-recorded successor/start orders behind the reset quirk.
+  graph order for the continuous form), for all 41 fixtures now, one stacked vmapped call per family and setting
+  (which also checks that padding changes nothing);
+* through ``jaxmdp.make`` for the registered families (the others skip until they land): the construction-recorded
+  successor/start orders behind the reset quirk and the deterministic flags for every fixture, and all three
+  measures end to end for RiverSwim (one compilation per MDP, so only for that small family).
 """
 
 import itertools
@@ -27,6 +28,8 @@ KEYS = ("diameter", "value_norm", "sum_reciprocals_suboptimality_gaps")
 
 
 def groups():
+    """One stacked batch per family and setting: one compilation each, similar sizes (little padding), and slowly
+    converging fixtures (FrozenLake episodic) do not hold the others back."""
     entries = reference_index()
     if not entries:
         return [pytest.param(None, marks=pytest.mark.skip(reason="../shared/reference is not available"))]
@@ -83,7 +86,21 @@ def built():
 
 
 @pytest.mark.parametrize("entry", reference_params())
-def test_family_built(entry, built):
+def test_family_built_episodic_order_and_flags(entry, built):
+    """What the family path adds to the fixture-array route: the construction-recorded successor and start orders
+    give the reference's episodic-graph order (hence its continuous form and reset quirk), and the deterministic
+    flags of the value-norm shortcut. (The arrays themselves are compared in test_reference_parity.)"""
+    m = built(entry)
+    ref = load_reference(entry)
+    assert bool(hardness.deterministic_base(m)) == (
+        bool(ref["all_transitions_deterministic"]) and bool(ref["all_rewards_deterministic"])
+    )
+    if entry["setting"] == "episodic":
+        np.testing.assert_array_equal(episodic.episodic_graph_order(m), ref["episodic_graph_nodes"])
+
+
+@pytest.mark.parametrize("entry", [e for e in reference_params() if e.values[0] is None or e.values[0]["family"] == "RiverSwim"])
+def test_family_built_end_to_end(entry, built):
     m = built(entry)
     values = (
         hardness.diameter(m, variant="colosseum").value,
