@@ -1,1 +1,27 @@
-"""Hardness measures of MDPs (see the hardness issue)."""
+"""Hardness measures of MDPs (paper §2.2): diameter, environmental value norm, sum of reciprocal sub-optimality gaps.
+
+Every measure takes one :class:`jaxmdp.MDP` and returns a :class:`MeasureResult` (``value``, ``converged``,
+``finite``); ``jax.vmap`` runs it over a stacked batch (:func:`jaxmdp.stack`), and padding changes nothing.
+``variant="paper"`` (default) computes the paper's definitions exactly; ``variant="colosseum"`` reproduces the
+reference package's procedures and numbers (measures.md). :func:`normalize` is the min-max scaling of App. E.
+"""
+
+from hardness.diameter import diameter, strongly_connected
+from hardness.gaps import suboptimality_gaps, sum_reciprocal_gaps
+from hardness.measures import HardnessMeasures, measures, normalize
+from hardness.result import MeasureResult
+from hardness.value_norm import chain_bias, deterministic_base, value_norm
+
+__all__ = [
+    "MeasureResult",
+    "HardnessMeasures",
+    "diameter",
+    "value_norm",
+    "sum_reciprocal_gaps",
+    "measures",
+    "normalize",
+    "suboptimality_gaps",
+    "strongly_connected",
+    "deterministic_base",
+    "chain_bias",
+]

@@ -287,12 +287,18 @@ def build_mdp(fam: Family, common: CommonParams) -> MDP:
             H_min = fam.minimum_horizon(_eccentricity(fam, possible_starts))
             H = H_min if common.H is None else max(H_min, common.H)
 
+    # The reference's episodic graph (families.md §1.8) walks each node's successors in edge-creation order and the
+    # starts in sampler order; record both so jaxmdp.episodic can reproduce its pair order (and its reset quirk).
+    successor_order = tuple(
+        tuple(dict.fromkeys(index[n2] for b in range(A) for n2, p in lists[(n, b)] if p > 0)) for n in nodes
+    )
+    start_order = tuple(dict.fromkeys(index[n] for n, p in zip(starts, start_probs) if p > 0))
     info = MDPInfo(
         family=fam.name,
         params=common.as_params() + fam.params() + ((("H", H),) if H is not None else ()),
         node_labels=tuple(fam.node_label(n) for n in nodes),
         node_fields=fam.node_fields,
         node_values=tuple(fam.node_values(n) for n in nodes),
-        layout=fam.layout(),
+        layout=fam.layout() + (("successor_order", successor_order), ("start_order", start_order)),
     )
     return custom_mdp(T, P0=P0, H=H, reward_mean=reward_mean, reward_conc=reward_conc, info=info)
