@@ -13,33 +13,9 @@ import pytest
 import jaxmdp
 from jaxmdp import indicators
 from conftest import random_mdp
-
-
-def np_finite_horizon_eval(T, R, pi, H):
-    """V_0 of a time-indexed policy pi[H, S, A] by backward induction with explicit loops."""
-    S, A, _ = T.shape
-    V = np.zeros(S)
-    for h in reversed(range(H)):
-        Vn = np.zeros(S)
-        for s in range(S):
-            for a in range(A):
-                Vn[s] += pi[h, s, a] * (R[s, a] + T[s, a] @ V)
-        V = Vn
-    return V
-
-
-def np_gain(T, R, pi):
-    """Gain of a stationary policy of an ergodic chain: stationary distribution by a least-squares solve."""
-    S = T.shape[0]
-    P = np.einsum("sa,sat->st", pi, T)
-    r = (pi * R).sum(-1)
-    M = np.vstack([P.T - np.eye(S), np.ones((1, S))])
-    mu = np.linalg.lstsq(M, np.r_[np.zeros(S), 1.0], rcond=None)[0]
-    return float(mu @ r)
-
-
-def one_hot(actions, A):
-    return np.eye(A)[np.asarray(actions)]
+from numpy_reference import finite_horizon_eval as np_finite_horizon_eval
+from numpy_reference import gain_ergodic as np_gain
+from numpy_reference import one_hot
 
 
 @pytest.fixture(scope="module")

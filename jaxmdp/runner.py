@@ -1,0 +1,785 @@
+"""The lockstep experiment runner: many (MDP, hyperparameters, seed) members in one compiled program.
+
+A run drives a flat batch of ``B`` *members* (a :class:`Grid`), each with its own MDP, hyperparameters and key,
+through ``n_steps`` agent/MDP interaction steps (paper §3.3 and App. A.1; measures.md §6.1):
+
+* the time loop is a ``lax.fori_loop`` over steps whose body ``vmap``s ``jaxmdp.step`` and the agent's
+  ``act``/``update`` over the batch;
+* planning (``agent.plan``) runs under a ``lax.cond`` whose predicate is unbatched, "some member needs to plan", and
+  ``jnp.where`` keeps the result only for the members that asked, so planning is paid at boundaries only;
+* indicator logging (:mod:`jaxmdp.indicators`, exact policy evaluation of ``agent.policy``) runs under a
+  ``lax.cond`` on "this is a log step": after every ``log_period`` steps and after the last step. A log made after
+  ``c`` steps covers the ``k = c - c_prev`` steps since the previous log (the paper's approximation; ``log_period=1``
+  is the exact mode): ``cumulative_regret += k r_c`` and likewise for the normalised regret and the expected reward.
+  The cumulative (sampled) reward is summed every step. All sums are compensated (Kahan) so that float32 keeps
+  its precision over long runs;
+* memory is flat in ``n_steps``: the carry holds running sums only, and a run emits a fixed number of records
+  (``n_records`` evenly spaced snapshots, the last one after step ``n_steps``).
+
+The host runs the compiled loop in chunks (:func:`run`), shows progress, appends each chunk's records to a CSV and
+can checkpoint the carry so that an interrupted run resumes without losing finished work. Every random draw comes
+from the member's key folded with the step index, so a run's results do not depend on how it was chunked or whether
+it was resumed. Learning always runs for ``n_steps`` steps; compute time is reported beside the results (the
+reference instead stops learning after a wall-clock budget, benchmark.md §2).
+
+Step bookkeeping (differs from the reference's off-by-one, measures.md §6.1, which logs at loop index ``t`` with
+``t + 1`` steps done but labels and charges ``t``): the record labelled ``steps = c`` is made after exactly ``c``
+interaction steps and agent updates, every cumulative quantity covers exactly those ``c`` steps, and the indicator
+of a log evaluates the policy estimate after the ``c``-th update.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import hashlib
+import itertools
+import json
+import os
+import sys
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any, Literal
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+from jaxmdp import env
+from jaxmdp.agent_interface import Agent, Transition, spec_of
+from jaxmdp.batching import stack
+from jaxmdp.indicators import (
+    AGENT_COLUMNS,
+    CSV_COLUMNS,
+    IndicatorConstants,
+    baseline_columns,
+    indicator_constants,
+    instantaneous,
+    normalized_reward,
+)
+from jaxmdp.mdp import MDP
+
+__all__ = ["Grid", "grid", "product", "RunResult", "run", "record_steps", "MEMBER_COLUMNS"]
+
+Variant = Literal["paper", "colosseum"]
+
+#: Columns that identify a member in the CSV, before the reference's columns.
+MEMBER_COLUMNS = ("member", "mdp", "hparams", "seed")
+
+# Sub-keys of a member's key: environment, actions, planning, initialisation.
+_N_SUBKEYS = 4
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The grid of members
+# ---------------------------------------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class Grid:
+    """A flat batch of ``B`` members.
+
+    Attributes:
+      mdps: the distinct MDPs as one stacked batch ``[M]`` (metadata stripped); member ``i`` faces
+        ``mdps[mdp_index[i]]``. Keeping distinct MDPs once (instead of one padded copy per member) keeps memory
+        proportional to ``M``, not ``B``.
+      mdp_index: ``[B]`` index of each member's MDP.
+      hparams: the members' hyperparameters, one stacked pytree with leading axis ``B``.
+      key_data: ``[B, 2]`` raw threefry key data of each member (``jax.random.key_data`` of its key).
+      hparams_index: ``[B]`` label of each member's hyperparameter set (for the output).
+      seeds: ``[B]`` label of each member's seed (for the output; ``-1`` when keys were given directly).
+      mdp_labels: one label per distinct MDP (for the output).
+    """
+
+    mdps: MDP
+    mdp_index: np.ndarray
+    hparams: Any
+    key_data: np.ndarray
+    hparams_index: np.ndarray
+    seeds: np.ndarray
+    mdp_labels: tuple[str, ...]
+
+    @property
+    def n_members(self) -> int:
+        return int(self.mdp_index.shape[0])
+
+    @property
+    def episodic(self) -> bool:
+        return self.mdps.episodic
+
+
+def _as_stacked(mdps: MDP | Sequence[MDP]) -> tuple[MDP, tuple[str, ...]]:
+    if isinstance(mdps, MDP):
+        if mdps.T.ndim == 3:
+            mdps = [mdps]
+        elif mdps.T.ndim == 4:
+            labels = tuple(_label(m) for m in mdps.info.members) or tuple(f"mdp{i}" for i in range(mdps.T.shape[0]))
+            return mdps.strip(), labels
+        else:
+            raise ValueError(f"mdps must be an MDP, a stacked batch of MDPs or a sequence of MDPs; T has shape "
+                             f"{mdps.T.shape}")
+    mdps = list(mdps)
+    if not mdps or not all(isinstance(m, MDP) for m in mdps):
+        raise ValueError("mdps must be a non-empty sequence of MDPs")
+    return stack(mdps).strip(), tuple(_label(m.info) if isinstance(m, MDP) else str(m) for m in mdps)
+
+
+def _label(info: Any) -> str:
+    info = getattr(info, "info", info)
+    params = ",".join(f"{k}={v}" for k, v in info.params if not str(k).endswith("distribution"))
+    return f"{info.family}({params})" if params else info.family
+
+
+def _stack_hparams(hparams_list: Sequence[Any]) -> Any:
+    try:
+        return jax.tree.map(lambda *xs: np.stack([np.asarray(x) for x in xs]), *hparams_list)
+    except ValueError as err:
+        raise ValueError(f"all hyperparameter sets must have the same structure and static fields: {err}") from None
+
+
+def _key_data(keys: Any, n: int) -> np.ndarray:
+    keys = jnp.asarray(keys) if not isinstance(keys, jax.Array) else keys
+    if jax.dtypes.issubdtype(keys.dtype, jax.dtypes.prng_key):
+        if jax.random.key_impl(keys) != jax.random.key_impl(jax.random.key(0)):
+            raise ValueError("keys must use the default threefry2x32 implementation")
+        keys = jax.random.key_data(keys)
+    data = np.asarray(keys)
+    if data.shape != (n, 2) or data.dtype != np.uint32:
+        raise ValueError(f"keys must be {n} typed keys or uint32 key data of shape ({n}, 2); got {data.shape} "
+                         f"{data.dtype}")
+    return data
+
+
+def grid(
+    mdps: MDP | Sequence[MDP],
+    hparams: Any,
+    keys: Any,
+    *,
+    mdp_index: Sequence[int] | None = None,
+    hparams_index: Sequence[int] | None = None,
+    seeds: Sequence[int] | None = None,
+) -> Grid:
+    """A grid from explicit members.
+
+    Args:
+      mdps: one MDP, a stacked batch (:func:`jaxmdp.stack`) or a sequence of MDPs: the distinct MDPs.
+      hparams: the members' hyperparameters stacked along a leading axis ``B`` (one set per member).
+      keys: ``B`` keys (typed keys of ``jax.random.key`` or raw ``uint32[B, 2]`` data).
+      mdp_index: member ``i`` faces MDP ``mdp_index[i]`` (default: ``arange(B)`` if there are ``B`` MDPs, or all
+        zeros for a single MDP).
+      hparams_index, seeds: labels written to the output (default ``arange(B)`` and ``-1``).
+    """
+    stacked, labels = _as_stacked(mdps)
+    M = stacked.T.shape[0]
+    leaves = jax.tree.leaves(hparams)
+    sizes = {np.shape(x)[0] if np.ndim(x) else None for x in leaves}
+    if None in sizes or len(sizes) > 1:
+        raise ValueError("hparams must be a stacked pytree: every leaf with the same leading (member) axis")
+    keys_arr = keys if isinstance(keys, jax.Array) else np.asarray(keys)
+    B = sizes.pop() if sizes else int(np.shape(keys_arr)[0])
+    if mdp_index is None:
+        if M not in (1, B):
+            raise ValueError(f"mdp_index is needed to assign {M} MDPs to {B} members")
+        mdp_index = np.zeros(B, np.int32) if M == 1 else np.arange(B, dtype=np.int32)
+    mdp_index = np.asarray(mdp_index, np.int32)
+    if mdp_index.shape != (B,) or mdp_index.min() < 0 or mdp_index.max() >= M:
+        raise ValueError(f"mdp_index must be {B} integers in [0, {M}); got shape {mdp_index.shape}")
+    hp_index = np.arange(B) if hparams_index is None else np.asarray(hparams_index)
+    seeds_arr = np.full(B, -1) if seeds is None else np.asarray(seeds)
+    if hp_index.shape != (B,) or seeds_arr.shape != (B,):
+        raise ValueError(f"hparams_index and seeds must have shape ({B},)")
+    return Grid(
+        mdps=stacked,
+        mdp_index=mdp_index,
+        hparams=jax.tree.map(np.asarray, hparams),
+        key_data=_key_data(keys_arr, B),
+        hparams_index=hp_index.astype(np.int64),
+        seeds=seeds_arr.astype(np.int64),
+        mdp_labels=labels,
+    )
+
+
+def product(
+    mdps: MDP | Sequence[MDP],
+    hparams: Sequence[Any],
+    seeds: Sequence[int],
+) -> Grid:
+    """The full product MDPs x hyperparameter sets x seeds, MDP-major then hyperparameters then seed.
+
+    Member ``(m, p, n)`` faces MDP ``m`` with hyperparameter set ``p`` and key ``jax.random.key(seeds[n])``: as in the
+    reference, the seed alone defines the agent's randomness, so members that differ only by MDP or
+    hyperparameters share their random numbers (common random numbers make comparisons sharper).
+    """
+    stacked, labels = _as_stacked(mdps)
+    M = stacked.T.shape[0]
+    hparams = list(hparams)
+    seeds = [int(s) for s in seeds]
+    if not hparams:
+        raise ValueError("hparams must hold at least one hyperparameter set")
+    if not seeds or any(s < 0 for s in seeds):
+        raise ValueError(f"seeds must be a non-empty list of non-negative integers; got {seeds}")
+    idx = np.asarray(list(itertools.product(range(M), range(len(hparams)), range(len(seeds)))), np.int64)
+    hp_all = _stack_hparams(hparams)
+    member_hparams = jax.tree.map(lambda x: x[idx[:, 1]], hp_all)
+    seed_arr = np.asarray(seeds)[idx[:, 2]]
+    key_data = np.asarray(jax.vmap(lambda s: jax.random.key_data(jax.random.key(s)))(jnp.asarray(seed_arr)))
+    return Grid(
+        mdps=stacked,
+        mdp_index=idx[:, 0].astype(np.int32),
+        hparams=member_hparams,
+        key_data=key_data,
+        hparams_index=idx[:, 1],
+        seeds=seed_arr.astype(np.int64),
+        mdp_labels=labels,
+    )
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The compiled program
+# ---------------------------------------------------------------------------------------------------------------
+
+
+class Sums(struct.PyTreeNode):
+    """Compensated running sums, one per member: ``value`` and Kahan ``compensation`` of each agent column."""
+
+    value: jax.Array  # [..., len(AGENT_COLUMNS)]
+    compensation: jax.Array
+
+
+def _kahan(s: Sums, x: jax.Array, mask: jax.Array | None = None) -> Sums:
+    y = x - s.compensation
+    total = s.value + y
+    comp = (total - s.value) - y
+    if mask is not None:
+        total = jnp.where(mask, total, s.value)
+        comp = jnp.where(mask, comp, s.compensation)
+    return Sums(value=total, compensation=comp)
+
+
+class Carry(struct.PyTreeNode):
+    """Everything the time loop carries. ``t``: steps done; ``last_log``: steps at the previous log."""
+
+    t: jax.Array
+    last_log: jax.Array
+    key_data: jax.Array  # [B, 4, 2]
+    env_state: env.EnvState
+    episode_start: jax.Array  # start state of the episode the next action belongs to
+    last_start: jax.Array  # start state of the episode of the last action taken
+    agent_state: Any
+    sums: Sums
+
+
+class Schedule(struct.PyTreeNode):
+    """Traced run settings (so one compiled program serves any ``n_steps`` and periods)."""
+
+    n_steps: jax.Array
+    log_period: jax.Array
+    record_period: jax.Array
+
+
+def _member(mdps: MDP, i: jax.Array) -> MDP:
+    return jax.tree.map(lambda x: x[i], mdps)
+
+
+def _keys(key_data: jax.Array, which: int, t: jax.Array) -> jax.Array:
+    """Per-member key ``which`` of a member for step ``t`` (vectorised over members)."""
+    base = jax.random.wrap_key_data(key_data[:, which])
+    return jax.vmap(jax.random.fold_in, in_axes=(0, None))(base, t)
+
+
+def _where_members(mask: jax.Array, new: Any, old: Any) -> Any:
+    return jax.tree.map(lambda a, b: jnp.where(mask.reshape(mask.shape + (1,) * (a.ndim - 1)), a, b), new, old)
+
+
+def _init_program(agent: Agent) -> Callable:
+    def init(mdps: MDP, mdp_index: jax.Array, hparams: Any, key_data: jax.Array, n_steps: jax.Array) -> Carry:
+        sub = jax.vmap(lambda k: jax.random.key_data(jax.random.split(jax.random.wrap_key_data(k), _N_SUBKEYS)))(
+            key_data
+        )
+        init_key = lambda tag: jax.vmap(  # noqa: E731
+            lambda k: jax.random.fold_in(jax.random.wrap_key_data(k[3]), tag)
+        )(sub)
+
+        def one(i, hp, k_reset, k_init, k_plan):
+            m = _member(mdps, i)
+            obs, env_state = env.reset(k_reset, m)
+            state = agent.init(k_init, spec_of(m, n_steps), hp)
+            state = agent.plan(k_plan, state)
+            return obs, env_state, state
+
+        obs, env_state, state = jax.vmap(one)(mdp_index, hparams, init_key(0), init_key(1), init_key(2))
+        B = mdp_index.shape[0]
+        zeros = jnp.zeros((B, len(AGENT_COLUMNS)), mdps.dtype)
+        return Carry(
+            t=jnp.zeros((), jnp.int32),
+            last_log=jnp.zeros((), jnp.int32),
+            key_data=sub,
+            env_state=env_state,
+            episode_start=obs,
+            last_start=obs,
+            agent_state=state,
+            sums=Sums(value=zeros, compensation=zeros),
+        )
+
+    return jax.jit(init)
+
+
+def _chunk_program(agent: Agent, variant: Variant, capacity: int) -> Callable:
+    """``chunk(carry, mdps, mdp_index, consts, schedule, n) -> (carry, steps[capacity], values[capacity, B, 4],
+    n_written)``: ``n`` more steps (traced), recording at most ``capacity`` snapshots."""
+
+    def chunk(carry: Carry, mdps: MDP, mdp_index: jax.Array, consts: IndicatorConstants, sched: Schedule, n):
+        B = mdp_index.shape[0]
+        dtype = mdps.dtype
+
+        def plan_step(c: Carry) -> Carry:
+            needs = jax.vmap(agent.needs_plan)(c.agent_state)
+
+            def do_plan(state):
+                keys = _keys(c.key_data, 2, c.t + 1)
+                return _where_members(needs, jax.vmap(agent.plan)(keys, state), state)
+
+            return c.replace(agent_state=jax.lax.cond(jnp.any(needs), do_plan, lambda s: s, c.agent_state))
+
+        def interact(c: Carry) -> Carry:
+            k_env, k_act = _keys(c.key_data, 0, c.t), _keys(c.key_data, 1, c.t)
+
+            def one(i, ke, ka, env_state, state):
+                m = _member(mdps, i)
+                obs, h = env_state.state, env_state.h
+                action = agent.act(ka, state, obs, h)
+                obs2, env_state2, reward, terminated, _, info = env.step(ke, env_state, action, m)
+                tr = Transition(
+                    obs=obs, action=action, reward=reward, next_obs=info["final_observation"], h=h,
+                    terminated=terminated,
+                )
+                return obs2, env_state2, agent.update(state, tr), reward, terminated
+
+            obs2, env_state, state, reward, terminated = jax.vmap(one)(
+                mdp_index, k_env, k_act, c.env_state, c.agent_state
+            )
+            zeros = jnp.zeros_like(reward)
+            rewards = jnp.stack([zeros, reward, zeros, zeros], axis=-1)
+            return c.replace(
+                t=c.t + 1,
+                env_state=env_state,
+                agent_state=state,
+                last_start=c.episode_start,
+                episode_start=jnp.where(terminated, obs2, c.episode_start),
+                sums=_kahan(c.sums, rewards.astype(dtype)),
+            )
+
+        def log(c: Carry) -> Carry:
+            policy = jax.vmap(agent.policy)(c.agent_state)
+            inst = jax.vmap(lambda i, k, p, s, s0: instantaneous(_member(mdps, i), k, p, s, s0, variant))(
+                mdp_index, consts, policy, c.env_state.state, c.last_start
+            )
+            k = (c.t - c.last_log).astype(dtype)
+            zeros = jnp.zeros_like(inst.regret)
+            x = jnp.stack([inst.regret, zeros, inst.expected_reward, inst.normalized_regret], axis=-1) * k
+            # The reward column (index 1) is summed every step; leave it untouched here.
+            mask = jnp.asarray([True, False, True, True])
+            return c.replace(last_log=c.t, sums=_kahan(c.sums, x.astype(dtype), mask))
+
+        def body(_, loop):
+            c, steps, values, j = loop
+            c = interact(plan_step(c))
+            is_log = (c.t % sched.log_period == 0) | (c.t == sched.n_steps)
+            c = jax.lax.cond(is_log, log, lambda c: c, c)
+            is_record = (c.t % sched.record_period == 0) | (c.t == sched.n_steps)
+
+            def record(args):
+                steps, values, j = args
+                return steps.at[j].set(c.t), values.at[j].set(c.sums.value), j + 1
+
+            steps, values, j = jax.lax.cond(is_record, record, lambda a: a, (steps, values, j))
+            return c, steps, values, j
+
+        steps0 = jnp.zeros((capacity,), jnp.int32)
+        values0 = jnp.zeros((capacity, B, len(AGENT_COLUMNS)), dtype)
+        return jax.lax.fori_loop(0, n, body, (carry, steps0, values0, jnp.zeros((), jnp.int32)))
+
+    return jax.jit(chunk)
+
+
+def _constants_program(variant: Variant) -> Callable:
+    return jax.jit(jax.vmap(lambda m: indicator_constants(m, variant)))
+
+
+# Compiled programs, keyed by the agent's identity and the static settings; jit caches per input shape below that.
+# The agent is stored beside its program so that its id cannot be reused by another object while the entry exists.
+_PROGRAMS: dict[tuple, tuple[Callable, Any]] = {}
+
+
+def _program(kind: str, agent: Agent | None, *static) -> Callable:
+    key = (kind, id(agent), *static)
+    if key not in _PROGRAMS:
+        if kind == "init":
+            fn = _init_program(agent)
+        elif kind == "chunk":
+            fn = _chunk_program(agent, *static)
+        else:
+            fn = _constants_program(*static)
+        _PROGRAMS[key] = (fn, agent)
+    return _PROGRAMS[key][0]
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Host driver
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def record_steps(n_steps: int, log_period: int = 100, n_records: int = 100) -> tuple[int, np.ndarray]:
+    """The record period and the step counts at which records are made.
+
+    Records are made every ``record_period`` steps, a multiple of ``log_period`` chosen so that there are at most
+    ``n_records`` of them, and after the last step.
+    """
+    n_logs = -(-n_steps // log_period)
+    record_period = log_period * -(-n_logs // n_records)
+    steps = np.arange(record_period, n_steps + 1, record_period)
+    if steps.size == 0 or steps[-1] != n_steps:
+        steps = np.append(steps, n_steps)
+    return record_period, steps
+
+
+@dataclasses.dataclass
+class RunResult:
+    """Records of a run.
+
+    Attributes:
+      steps: ``[R]`` step counts of the records.
+      values: ``[R, B, 4]`` running sums (:data:`jaxmdp.indicators.AGENT_COLUMNS`) at each record.
+      constants: the members' :class:`~jaxmdp.indicators.IndicatorConstants` (numpy, leading axis ``B``).
+      grid: the members.
+      agent: the agent's name.
+      compile_s: seconds spent compiling (initialisation and loop programs).
+      run_s: seconds spent running the loop (compilation excluded), over every session of a resumed run.
+      n_steps, log_period, record_period, variant: the settings.
+      agent_state: the members' final agent states (numpy, leading axis ``B``).
+    """
+
+    steps: np.ndarray
+    values: np.ndarray
+    constants: Any
+    grid: Grid
+    agent: str
+    compile_s: float
+    run_s: float
+    n_steps: int
+    log_period: int
+    record_period: int
+    variant: str
+    agent_state: Any = None
+
+    @property
+    def agent_steps_per_second(self) -> float:
+        """Interaction steps per second summed over members (the lockstep throughput)."""
+        done = int(self.steps[-1]) if self.steps.size else 0
+        return done * self.grid.n_members / self.run_s if self.run_s > 0 else float("nan")
+
+    def column(self, name: str) -> np.ndarray:
+        """One CSV column as ``[R, B]`` (float64)."""
+        return _columns(self.steps, self.values, self.constants, self.run_s)[name]
+
+    def rows(self) -> list[list[Any]]:
+        """All CSV rows (member columns, then the reference's columns), record-major."""
+        return _rows(self.grid, self.steps, self.values, self.constants, self._steps_per_member_second())
+
+    def _steps_per_member_second(self) -> np.ndarray:
+        return np.full(self.steps.shape, int(self.steps[-1]) / self.run_s if self.run_s > 0 else np.nan)
+
+    def write_csv(self, path: str | os.PathLike) -> None:
+        """Write every record to one CSV (``member, mdp, hparams, seed`` and the reference's columns)."""
+        with open(path, "w", newline="") as f:
+            writer = csv.writer(f)
+            writer.writerow(MEMBER_COLUMNS + CSV_COLUMNS)
+            writer.writerows(_format_row(r) for r in self.rows())
+
+
+def _columns(steps, values, constants, run_s) -> dict[str, np.ndarray]:
+    steps = np.asarray(steps, np.float64)[:, None]
+    v = np.asarray(values, np.float64)
+    opt, wst, rnd = (np.asarray(x, np.float64)[None, :] for x in (constants.optimal, constants.worst, constants.random))
+    cols = {name: v[..., i] for i, name in enumerate(AGENT_COLUMNS)}
+    cols["steps"] = np.broadcast_to(steps, v.shape[:2])
+    cols["normalized_cumulative_reward"] = normalized_reward(cols["cumulative_reward"], steps, opt, wst)
+    cols["normalized_cumulative_expected_reward"] = normalized_reward(cols["cumulative_expected_reward"], steps, opt, wst)
+    cols.update(baseline_columns(steps, opt, wst, rnd))
+    return cols
+
+
+def _rows(g: Grid, steps, values, constants, per_second) -> list[list[Any]]:
+    cols = _columns(steps, values, constants, 0.0)
+    rows = []
+    for r in range(len(steps)):
+        for b in range(g.n_members):
+            rows.append(
+                [b, g.mdp_labels[g.mdp_index[b]], int(g.hparams_index[b]), int(g.seeds[b]), int(steps[r])]
+                + [cols[name][r, b] for name in CSV_COLUMNS[1:-1]]
+                + [per_second[r]]
+            )
+    return rows
+
+
+def _format_row(row: list[Any]) -> list[str]:
+    out = []
+    for x in row:
+        if isinstance(x, str):
+            out.append(x)
+        elif isinstance(x, (int, np.integer)):
+            out.append(str(int(x)))
+        else:
+            out.append(f"{float(x):.9g}")
+    return out
+
+
+def _append_rows(path: Path, rows: list[list[Any]]) -> None:
+    with open(path, "a", newline="") as f:
+        csv.writer(f).writerows(_format_row(r) for r in rows)
+
+
+def _check_positive_int(name: str, value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name} must be a positive integer; got {value!r}")
+    return int(value)
+
+
+def _validate(agent: Agent, g: Grid, variant: str) -> None:
+    if not isinstance(agent, Agent):
+        raise ValueError(f"agent must be a jaxmdp.agent_interface.Agent; got {type(agent).__name__}")
+    if not isinstance(g, Grid):
+        raise ValueError("grid must be a jaxmdp.runner.Grid (see runner.grid and runner.product)")
+    if variant not in ("paper", "colosseum"):
+        raise ValueError(f"variant must be 'paper' or 'colosseum'; got {variant!r}")
+    if agent.episodic != g.episodic:
+        kind = lambda e: "episodic" if e else "continuous"  # noqa: E731
+        raise ValueError(
+            f"agent {agent.name!r} is {kind(agent.episodic)} but the MDPs are {kind(g.episodic)}; use a "
+            f"{kind(g.episodic)} agent"
+        )
+    agent.check_hparams(g.hparams)
+
+
+def _check_shapes(agent: Agent, g: Grid, n_steps: int) -> None:
+    """Abstract evaluation (no compilation) of one member: the agent's policy and action must fit the MDP."""
+    m = _member(g.mdps, 0)
+    hp = jax.tree.map(lambda x: x[0], g.hparams)
+    key = jax.random.key(0)
+    S, A, H = m.n_states, m.n_actions, m.H
+    try:
+        state = jax.eval_shape(agent.init, key, spec_of(m, n_steps), hp)
+        policy = jax.eval_shape(agent.policy, state)
+        action = jax.eval_shape(agent.act, key, state, jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32))
+    except (TypeError, ValueError, IndexError) as err:
+        raise ValueError(f"agent {agent.name!r} does not fit MDPs with S={S}, A={A}, H={H}: {err}") from err
+    allowed = [(H, S, A), (S, A)] if H is not None else [(S, A)]
+    if policy.shape not in allowed:
+        raise ValueError(
+            f"agent {agent.name!r} returns a policy of shape {policy.shape} for MDPs with S={S}, A={A}"
+            f"{f', H={H}' if H else ''}; expected one of {allowed}"
+        )
+    if action.shape != () or not jnp.issubdtype(action.dtype, jnp.integer):
+        raise ValueError(f"agent {agent.name!r} must return one integer action; got {action.shape} {action.dtype}")
+
+
+def _fingerprint(agent: Agent, g: Grid, n_steps: int, log_period: int, record_period: int, variant: str) -> str:
+    h = hashlib.sha256()
+    for x in jax.tree.leaves(g.mdps) + jax.tree.leaves(g.hparams) + [g.mdp_index, g.key_data]:
+        a = np.ascontiguousarray(np.asarray(x))
+        h.update(str((a.shape, a.dtype)).encode())
+        h.update(a.tobytes())
+    h.update(repr((agent.name, n_steps, log_period, record_period, variant)).encode())
+    return h.hexdigest()
+
+
+def _save_checkpoint(path: Path, carry: Carry, steps: np.ndarray, values: np.ndarray, meta: dict) -> None:
+    leaves = jax.tree.leaves(carry)
+    arrays = {f"leaf{i}": np.asarray(x) for i, x in enumerate(leaves)}
+    arrays["record_steps"] = steps
+    arrays["record_values"] = values
+    arrays["meta"] = np.asarray(json.dumps(meta))
+    tmp = path.with_name(path.name + ".tmp.npz")
+    np.savez(tmp, **arrays)
+    os.replace(tmp, path)
+
+
+def _load_checkpoint(path: Path, like: Carry, fingerprint: str) -> tuple[Carry, np.ndarray, np.ndarray, dict]:
+    with np.load(path) as z:
+        meta = json.loads(str(z["meta"]))
+        if meta.get("fingerprint") != fingerprint:
+            raise ValueError(
+                f"checkpoint {path} belongs to a different run (agent, grid, n_steps, periods or variant differ)"
+            )
+        leaves, treedef = jax.tree.flatten(like)
+        new = []
+        for i, ref in enumerate(leaves):
+            a = z[f"leaf{i}"]
+            if a.shape != ref.shape or a.dtype != ref.dtype:
+                raise ValueError(f"checkpoint {path} does not match this run's state (leaf {i}: {a.shape} {a.dtype})")
+            new.append(jnp.asarray(a))
+        return jax.tree.unflatten(treedef, new), z["record_steps"], z["record_values"], meta
+
+
+def _progress(done: int, total: int, elapsed: float, members: int) -> None:
+    rate = done * members / elapsed if elapsed > 0 else float("nan")
+    print(f"\r  {done}/{total} steps ({100 * done / total:5.1f}%), {rate / 1e6:.2f} M agent-steps/s", end="",
+          file=sys.stderr, flush=True)
+
+
+def run(
+    agent: Agent,
+    grid: Grid,
+    n_steps: int,
+    *,
+    log_period: int = 100,
+    n_records: int = 100,
+    variant: Variant = "paper",
+    chunk_steps: int | None = None,
+    csv_path: str | os.PathLike | None = None,
+    checkpoint_path: str | os.PathLike | None = None,
+    resume: bool = True,
+    progress: bool = False,
+    stop_after_chunks: int | None = None,
+) -> RunResult:
+    """Run ``agent`` on every member of ``grid`` for ``n_steps`` steps in lockstep (see the module docstring).
+
+    Args:
+      agent: the agent (see :mod:`jaxmdp.agent_interface`).
+      grid: the members (:func:`grid` or :func:`product`).
+      n_steps: interaction steps per member (the optimisation horizon ``T`` given to the agent).
+      log_period: steps between indicator logs (the reference's ``log_performance_indicators_every``, 100);
+        ``1`` is the exact mode.
+      n_records: at most this many snapshots per member (:func:`record_steps`); memory does not grow with
+        ``n_steps``.
+      variant: ``"paper"`` (default) or ``"colosseum"`` indicators (:mod:`jaxmdp.indicators`).
+      chunk_steps: steps per host-side chunk (default: about 20 chunks, at least one record period each).
+      csv_path: append each chunk's records to this CSV (``member, mdp, hparams, seed`` + the reference's columns).
+      checkpoint_path: save the loop's state after each chunk (``.npz``); with ``resume=True`` an existing
+        checkpoint of the same run is continued (records already written are kept).
+      progress: print progress to stderr.
+      stop_after_chunks: stop after this many chunks of this call (to test interruption; the result then holds the
+        records so far).
+
+    Raises:
+      ValueError: before anything compiles, for an episodic agent on continuous MDPs (or the reverse), an agent
+        whose policy or action does not fit the MDPs' ``S``/``A``/``H``, non-positive ``n_steps``, ``log_period`` or
+        ``n_records``, hyperparameters outside their domain (``agent.check_hparams``) or a checkpoint of another
+        run.
+    """
+    n_steps = _check_positive_int("n_steps", n_steps)
+    log_period = _check_positive_int("log_period", log_period)
+    n_records = _check_positive_int("n_records", n_records)
+    if chunk_steps is not None:
+        chunk_steps = _check_positive_int("chunk_steps", chunk_steps)
+    if n_steps >= 2**31 - 1:
+        raise ValueError(f"n_steps must be below 2**31 - 1; got {n_steps}")
+    _validate(agent, grid, variant)
+    _check_shapes(agent, grid, n_steps)
+
+    record_period, all_record_steps = record_steps(n_steps, log_period, n_records)
+    if chunk_steps is None:
+        chunk_steps = max(record_period, -(-n_steps // 20))
+    chunk_steps = min(chunk_steps, n_steps)
+    capacity = chunk_steps // record_period + 2
+    B = grid.n_members
+
+    mdps = grid.mdps
+    mdp_index = jnp.asarray(grid.mdp_index)
+    hparams = jax.tree.map(jnp.asarray, grid.hparams)
+    key_data = jnp.asarray(grid.key_data)
+    sched = Schedule(
+        n_steps=jnp.asarray(n_steps, jnp.int32),
+        log_period=jnp.asarray(log_period, jnp.int32),
+        record_period=jnp.asarray(record_period, jnp.int32),
+    )
+
+    compile_s = 0.0
+    t0 = time.perf_counter()
+    unique_consts = _program("constants", None, variant)(mdps)
+    consts = jax.tree.map(lambda x: x[mdp_index], unique_consts)
+    init_jit = _program("init", agent)
+    init_fn = init_jit.lower(mdps, mdp_index, hparams, key_data, sched.n_steps).compile()
+    chunk_fn = _program("chunk", agent, variant, capacity)
+    carry_shape = jax.eval_shape(init_jit, mdps, mdp_index, hparams, key_data, sched.n_steps)
+    chunk_exe = chunk_fn.lower(carry_shape, mdps, mdp_index, consts, sched, jnp.int32(0)).compile()
+    jax.block_until_ready(consts)
+    compile_s += time.perf_counter() - t0
+
+    fingerprint = _fingerprint(agent, grid, n_steps, log_period, record_period, variant)
+    ckpt = Path(checkpoint_path) if checkpoint_path is not None else None
+    csv_file = Path(csv_path) if csv_path is not None else None
+    steps_done = np.zeros((0,), np.int64)
+    values_done = np.zeros((0, B, len(AGENT_COLUMNS)), np.dtype(mdps.dtype))
+    elapsed_before = 0.0
+    consts_np = jax.tree.map(np.asarray, consts)
+
+    if ckpt is not None and resume and ckpt.exists():
+        carry, steps_done, values_done, meta = _load_checkpoint(ckpt, carry_shape, fingerprint)
+        elapsed_before = float(meta["run_s"])
+        if csv_file is not None:
+            _truncate_csv(csv_file, int(carry.t))
+    else:
+        carry = init_fn(mdps, mdp_index, hparams, key_data, sched.n_steps)
+        jax.block_until_ready(carry)
+        if csv_file is not None:
+            csv_file.parent.mkdir(parents=True, exist_ok=True)
+            _truncate_csv(csv_file, -1)
+
+    t_start = time.perf_counter()
+    chunks = 0
+    while int(carry.t) < n_steps:
+        n = min(chunk_steps, n_steps - int(carry.t))
+        carry, steps, values, j = chunk_exe(carry, mdps, mdp_index, consts, sched, jnp.int32(n))
+        j = int(j)
+        steps, values = np.asarray(steps[:j]), np.asarray(values[:j])
+        elapsed = elapsed_before + time.perf_counter() - t_start
+        steps_done = np.concatenate([steps_done, steps])
+        values_done = np.concatenate([values_done, values])
+        if csv_file is not None and j:
+            per_second = np.full((j,), int(carry.t) / elapsed)
+            _append_rows(csv_file, _rows(grid, steps, values, consts_np, per_second))
+        if ckpt is not None:
+            meta = {"fingerprint": fingerprint, "run_s": elapsed, "t": int(carry.t), "agent": agent.name}
+            _save_checkpoint(ckpt, carry, steps_done, values_done, meta)
+        if progress:
+            _progress(int(carry.t), n_steps, elapsed, B)
+        chunks += 1
+        if stop_after_chunks is not None and chunks >= stop_after_chunks and int(carry.t) < n_steps:
+            break
+    if progress:
+        print(file=sys.stderr)
+    run_s = elapsed_before + time.perf_counter() - t_start
+    assert steps_done.size == 0 or set(steps_done.tolist()) <= set(all_record_steps.tolist())
+    return RunResult(
+        steps=steps_done,
+        values=values_done,
+        constants=consts_np,
+        grid=grid,
+        agent=agent.name,
+        compile_s=compile_s,
+        run_s=run_s,
+        n_steps=n_steps,
+        log_period=log_period,
+        record_period=record_period,
+        variant=variant,
+        agent_state=jax.tree.map(np.asarray, carry.agent_state),
+    )
+
+
+def _truncate_csv(path: Path, t: int) -> None:
+    """Drop rows written after the checkpoint at step ``t`` (a crash between writing rows and checkpointing)."""
+    header = list(MEMBER_COLUMNS + CSV_COLUMNS)
+    rows = []
+    if path.exists():
+        with open(path, newline="") as f:
+            reader = csv.reader(f)
+            if next(reader, None) == header:
+                col = header.index("steps")
+                rows = [r for r in reader if len(r) == len(header) and int(r[col]) <= t]
+    with open(path, "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(header)
+        writer.writerows(rows)
