@@ -320,3 +320,46 @@ def test_grid_errors():
         runner.grid(mdps[0], hp, jax.random.split(jax.random.key(0), 2))
     with pytest.raises(ValueError, match="episodic"):
         runner.product([river_swim(False), river_swim(True)], [agent.default_hparams], seeds=[0])
+
+
+def test_colosseum_episodic_variant_uses_the_latest_episode_start():
+    # Two equally likely start states whose regrets differ. The expected numbers replay the runner's documented key
+    # schedule (member key split in 4: environment, actions, planning, initialisation; step t uses
+    # fold_in(environment key, t)) with jaxmdp.step, and track the start state of each step's episode.
+    T = np.zeros((3, 2, 3))
+    T[:, 0, 2] = 1.0  # action 0 -> state 2
+    T[:, 1, 0] = 1.0  # action 1 -> state 0
+    R = np.array([[0.0, 1.0], [0.2, 0.0], [0.5, 0.1]])
+    H = 2
+    mdp = jaxmdp.custom_mdp(T, R=R, P0=[0.5, 0.5, 0.0], H=H)
+    agent = SCRIPTED[True]
+    n_steps, period = 50, 3
+    res = runner.run(agent, runner.product([mdp], [ScriptedHParams()], seeds=[11]), n_steps, log_period=period,
+                     n_records=n_steps, variant="colosseum")
+    paper = runner.run(agent, runner.product([mdp], [ScriptedHParams()], seeds=[11]), n_steps, log_period=period,
+                       n_records=n_steps)
+
+    v_opt, v_min = finite_horizon_optimal(T, R, H), finite_horizon_optimal(T, R, H, -1.0)
+    sub = jax.random.split(jax.random.key(11), 4)
+    step = jax.jit(jaxmdp.step)
+    obs, st = jaxmdp.reset(jax.random.fold_in(sub[3], 0), mdp)
+    start, acc, last, starts_seen = int(obs), np.zeros(2), 0, set()
+    want = {}
+    for t in range(n_steps):
+        a = scripted_action(t, 2)
+        obs, st, _, term, _, _ = step(jax.random.fold_in(sub[0], t), st, a, mdp)
+        s0 = start
+        if bool(term):
+            start = int(obs)
+        c = t + 1
+        if c % period == 0 or c == n_steps:
+            v = finite_horizon_eval(T, R, one_hot(np.full(3, scripted_action(c, 2)), 2), H)
+            gap = max(v_opt[s0] - v[s0], 0.0)
+            acc += np.array([gap / H, gap / (v_opt[s0] - v_min[s0])]) * (c - last)
+            last = c
+            starts_seen.add(s0)
+        want[c] = acc.copy()
+    assert starts_seen == {0, 1}
+    got = res.values[:, 0][:, [0, 3]]
+    np.testing.assert_allclose(got, np.array([want[int(c)] for c in res.steps]), rtol=1e-5, atol=1e-5)
+    assert not np.allclose(got, paper.values[:, 0][:, [0, 3]], atol=1e-3)
