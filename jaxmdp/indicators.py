@@ -43,6 +43,8 @@ __all__ = [
     "IndicatorConstants",
     "Instant",
     "indicator_constants",
+    "policy_values",
+    "instant_from_values",
     "instantaneous",
     "CSV_COLUMNS",
     "AGENT_COLUMNS",
@@ -139,6 +141,50 @@ def _safe_ratio(num: jax.Array, den: jax.Array, scale: jax.Array) -> jax.Array:
     return jnp.where(degenerate, 0.0, num / jnp.where(degenerate, 1.0, den))
 
 
+def policy_values(mdp: MDP, policy: jax.Array) -> jax.Array:
+    """The expensive half of an indicator: ``V^pi_0(s)`` for every state (episodic, finite-horizon evaluation) or the
+    gain ``rho^pi(s)`` from every state (continuous, :func:`~jaxmdp.dynamic_programming.gain_vector`), ``[S]``."""
+    if mdp.episodic:
+        return dp.finite_horizon_policy_evaluation(mdp, policy)[1][0]
+    return dp.gain_vector(mdp, policy)
+
+
+def instant_from_values(
+    mdp: MDP,
+    consts: IndicatorConstants,
+    values: jax.Array,
+    state: jax.Array,
+    episode_start: jax.Array,
+    variant: Variant = "paper",
+) -> Instant:
+    """The cheap half: the indicators of a policy whose :func:`policy_values` are ``values`` (module docstring)."""
+    _check_variant(variant)
+    if mdp.episodic:
+        horizon = mdp.horizon.astype(mdp.dtype)
+        if variant == "paper":
+            gap = jnp.maximum(mdp.P0 @ (consts.optimal_start_values - values), 0.0)
+            span = mdp.P0 @ (consts.optimal_start_values - consts.worst_start_values)
+            scale = mdp.P0 @ consts.optimal_start_values
+        else:
+            gap = jnp.maximum(consts.optimal_start_values[episode_start] - values[episode_start], 0.0)
+            span = consts.optimal_start_values[episode_start] - consts.worst_start_values[episode_start]
+            scale = consts.optimal_start_values[episode_start]
+        return Instant(
+            regret=gap / horizon,
+            normalized_regret=_safe_ratio(gap, span, scale),
+            expected_reward=(mdp.P0 @ values) / horizon,
+        )
+    rho = values[state]
+    regret = jnp.maximum(consts.optimal - rho, 0.0)
+    if variant == "colosseum":
+        regret = jnp.where(regret <= COLOSSEUM_REGRET_ATOL, 0.0, regret)
+    return Instant(
+        regret=regret,
+        normalized_regret=_safe_ratio(regret, consts.optimal - consts.worst, consts.optimal),
+        expected_reward=rho,
+    )
+
+
 def instantaneous(
     mdp: MDP,
     consts: IndicatorConstants,
@@ -157,33 +203,7 @@ def instantaneous(
       episode_start: start state of the most recent episode (used by the colosseum episodic variant).
       variant: ``"paper"`` (default) or ``"colosseum"``.
     """
-    _check_variant(variant)
-    if mdp.episodic:
-        _, V = dp.finite_horizon_policy_evaluation(mdp, policy)
-        v_pi = V[0]
-        horizon = mdp.horizon.astype(mdp.dtype)
-        if variant == "paper":
-            gap = jnp.maximum(mdp.P0 @ (consts.optimal_start_values - v_pi), 0.0)
-            span = mdp.P0 @ (consts.optimal_start_values - consts.worst_start_values)
-            scale = mdp.P0 @ consts.optimal_start_values
-        else:
-            gap = jnp.maximum(consts.optimal_start_values[episode_start] - v_pi[episode_start], 0.0)
-            span = consts.optimal_start_values[episode_start] - consts.worst_start_values[episode_start]
-            scale = consts.optimal_start_values[episode_start]
-        return Instant(
-            regret=gap / horizon,
-            normalized_regret=_safe_ratio(gap, span, scale),
-            expected_reward=(mdp.P0 @ v_pi) / horizon,
-        )
-    rho = dp.gain_vector(mdp, policy)[state]
-    regret = jnp.maximum(consts.optimal - rho, 0.0)
-    if variant == "colosseum":
-        regret = jnp.where(regret <= COLOSSEUM_REGRET_ATOL, 0.0, regret)
-    return Instant(
-        regret=regret,
-        normalized_regret=_safe_ratio(regret, consts.optimal - consts.worst, consts.optimal),
-        expected_reward=rho,
-    )
+    return instant_from_values(mdp, consts, policy_values(mdp, policy), state, episode_start, variant)
 
 
 def baseline_columns(
