@@ -56,8 +56,9 @@ from jaxmdp.indicators import (
     IndicatorConstants,
     baseline_columns,
     indicator_constants,
-    instantaneous,
+    instant_from_values,
     normalized_reward,
+    policy_values,
 )
 from jaxmdp.mdp import MDP
 
@@ -242,20 +243,19 @@ def product(
 
 
 class Sums(struct.PyTreeNode):
-    """Compensated running sums, one per member: ``value`` and Kahan ``compensation`` of each agent column."""
+    """Compensated running sums: ``value`` and Kahan ``compensation``."""
 
-    value: jax.Array  # [..., len(AGENT_COLUMNS)]
+    value: jax.Array
     compensation: jax.Array
 
+    @classmethod
+    def zeros(cls, shape: tuple[int, ...], dtype: Any) -> "Sums":
+        return cls(value=jnp.zeros(shape, dtype), compensation=jnp.zeros(shape, dtype))
 
-def _kahan(s: Sums, x: jax.Array, mask: jax.Array | None = None) -> Sums:
-    y = x - s.compensation
-    total = s.value + y
-    comp = (total - s.value) - y
-    if mask is not None:
-        total = jnp.where(mask, total, s.value)
-        comp = jnp.where(mask, comp, s.compensation)
-    return Sums(value=total, compensation=comp)
+    def add(self, x: jax.Array) -> "Sums":
+        y = x - self.compensation
+        total = self.value + y
+        return Sums(value=total, compensation=(total - self.value) - y)
 
 
 class Carry(struct.PyTreeNode):
@@ -268,7 +268,10 @@ class Carry(struct.PyTreeNode):
     episode_start: jax.Array  # start state of the episode the next action belongs to
     last_start: jax.Array  # start state of the episode of the last action taken
     agent_state: Any
-    sums: Sums
+    reward: Sums  # [B] cumulative sampled reward, summed every step
+    logged: Sums  # [B, 3] cumulative regret, expected reward and normalised regret, summed at logs
+    policy_cache: jax.Array  # [B, ...] the policy evaluated at the previous log (NaN before the first)
+    value_cache: jax.Array  # [B, S] its values (V_0 or the gain from every state)
 
 
 class Schedule(struct.PyTreeNode):
@@ -311,7 +314,7 @@ def _init_program(agent: Agent) -> Callable:
 
         obs, env_state, state = jax.vmap(one)(mdp_index, hparams, init_key(0), init_key(1), init_key(2))
         B = mdp_index.shape[0]
-        zeros = jnp.zeros((B, len(AGENT_COLUMNS)), mdps.dtype)
+        policy = jax.eval_shape(jax.vmap(agent.policy), state)
         return Carry(
             t=jnp.zeros((), jnp.int32),
             last_log=jnp.zeros((), jnp.int32),
@@ -320,15 +323,22 @@ def _init_program(agent: Agent) -> Callable:
             episode_start=obs,
             last_start=obs,
             agent_state=state,
-            sums=Sums(value=zeros, compensation=zeros),
+            reward=Sums.zeros((B,), mdps.dtype),
+            logged=Sums.zeros((B, 3), mdps.dtype),
+            policy_cache=jnp.full(policy.shape, jnp.nan, policy.dtype),
+            value_cache=jnp.zeros((B, mdps.n_states), mdps.dtype),
         )
 
     return jax.jit(init)
 
 
-def _chunk_program(agent: Agent, variant: Variant, capacity: int) -> Callable:
+def _chunk_program(agent: Agent, variant: Variant, capacity: int, n_shards: int, carry_treedef: Any) -> Callable:
     """``chunk(carry, mdps, mdp_index, consts, schedule, n) -> (carry, steps[capacity], values[capacity, B, 4],
-    n_written)``: ``n`` more steps (traced), recording at most ``capacity`` snapshots."""
+    n_written)``: ``n`` more steps (traced), recording at most ``capacity`` snapshots.
+
+    With ``n_shards > 1`` the members are split over that many local devices with ``shard_map``; each shard runs its
+    own loop (its own "some member needs to plan" predicate), so shards never communicate.
+    """
 
     def chunk(carry: Carry, mdps: MDP, mdp_index: jax.Array, consts: IndicatorConstants, sched: Schedule, n):
         B = mdp_index.shape[0]
@@ -360,28 +370,34 @@ def _chunk_program(agent: Agent, variant: Variant, capacity: int) -> Callable:
             obs2, env_state, state, reward, terminated = jax.vmap(one)(
                 mdp_index, k_env, k_act, c.env_state, c.agent_state
             )
-            zeros = jnp.zeros_like(reward)
-            rewards = jnp.stack([zeros, reward, zeros, zeros], axis=-1)
             return c.replace(
                 t=c.t + 1,
                 env_state=env_state,
                 agent_state=state,
                 last_start=c.episode_start,
                 episode_start=jnp.where(terminated, obs2, c.episode_start),
-                sums=_kahan(c.sums, rewards.astype(dtype)),
+                reward=c.reward.add(reward.astype(dtype)),
             )
 
         def log(c: Carry) -> Carry:
+            # Policy evaluation is the expensive half of an indicator; a member whose policy is unchanged since the
+            # previous log reuses its values (exactly: they cover every state), and the evaluation is skipped
+            # altogether when no member's policy changed.
             policy = jax.vmap(agent.policy)(c.agent_state)
-            inst = jax.vmap(lambda i, k, p, s, s0: instantaneous(_member(mdps, i), k, p, s, s0, variant))(
-                mdp_index, consts, policy, c.env_state.state, c.last_start
+            changed = jnp.any((policy != c.policy_cache).reshape(B, -1), axis=1)
+
+            def evaluate(cache):
+                values = jax.vmap(lambda i, p: policy_values(_member(mdps, i), p))(mdp_index, policy)
+                return jnp.where(changed[:, None], values.astype(dtype), cache)
+
+            values = jax.lax.cond(jnp.any(changed), evaluate, lambda cache: cache, c.value_cache)
+            inst = jax.vmap(lambda i, k, v, s, s0: instant_from_values(_member(mdps, i), k, v, s, s0, variant))(
+                mdp_index, consts, values, c.env_state.state, c.last_start
             )
+            c = c.replace(policy_cache=policy, value_cache=values)
             k = (c.t - c.last_log).astype(dtype)
-            zeros = jnp.zeros_like(inst.regret)
-            x = jnp.stack([inst.regret, zeros, inst.expected_reward, inst.normalized_regret], axis=-1) * k
-            # The reward column (index 1) is summed every step; leave it untouched here.
-            mask = jnp.asarray([True, False, True, True])
-            return c.replace(last_log=c.t, sums=_kahan(c.sums, x.astype(dtype), mask))
+            x = jnp.stack([inst.regret, inst.expected_reward, inst.normalized_regret], axis=-1) * k
+            return c.replace(last_log=c.t, logged=c.logged.add(x.astype(dtype)))
 
         def body(_, loop):
             c, steps, values, j = loop
@@ -392,7 +408,10 @@ def _chunk_program(agent: Agent, variant: Variant, capacity: int) -> Callable:
 
             def record(args):
                 steps, values, j = args
-                return steps.at[j].set(c.t), values.at[j].set(c.sums.value), j + 1
+                # The order of AGENT_COLUMNS: regret, reward, expected reward, normalised regret.
+                logged = c.logged.value
+                row = jnp.stack([logged[:, 0], c.reward.value, logged[:, 1], logged[:, 2]], axis=-1)
+                return steps.at[j].set(c.t), values.at[j].set(row), j + 1
 
             steps, values, j = jax.lax.cond(is_record, record, lambda a: a, (steps, values, j))
             return c, steps, values, j
@@ -401,7 +420,15 @@ def _chunk_program(agent: Agent, variant: Variant, capacity: int) -> Callable:
         values0 = jnp.zeros((capacity, B, len(AGENT_COLUMNS)), dtype)
         return jax.lax.fori_loop(0, n, body, (carry, steps0, values0, jnp.zeros((), jnp.int32)))
 
-    return jax.jit(chunk)
+    if n_shards == 1:
+        return jax.jit(chunk)
+    P = jax.sharding.PartitionSpec
+    mesh = jax.sharding.Mesh(np.asarray(jax.local_devices()[:n_shards]), ("members",))
+    # Per-member leaves carry the member axis first; the scalars (step counters) are the same on every shard.
+    carry_specs = jax.tree.unflatten(carry_treedef[0], [P() if nd == 0 else P("members") for nd in carry_treedef[1]])
+    in_specs = (carry_specs, P(), P("members"), P("members"), P(), P())
+    out_specs = (carry_specs, P(), P(None, "members"), P())
+    return jax.jit(jax.shard_map(chunk, mesh=mesh, in_specs=in_specs, out_specs=out_specs, check_vma=False))
 
 
 def _constants_program(variant: Variant) -> Callable:
@@ -541,6 +568,17 @@ def _append_rows(path: Path, rows: list[list[Any]]) -> None:
         csv.writer(f).writerows(_format_row(r) for r in rows)
 
 
+def _n_shards(n_members: int, shards: int | None) -> int:
+    available = jax.local_device_count()
+    if shards is None:
+        return max(d for d in range(1, available + 1) if n_members % d == 0)
+    shards = _check_positive_int("shards", shards)
+    if shards > available or n_members % shards:
+        raise ValueError(f"shards must divide the {n_members} members and be at most the {available} local devices; "
+                         f"got {shards}")
+    return shards
+
+
 def _check_positive_int(name: str, value: Any) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
         raise ValueError(f"{name} must be a positive integer; got {value!r}")
@@ -643,6 +681,7 @@ def run(
     resume: bool = True,
     progress: bool = False,
     stop_after_chunks: int | None = None,
+    shards: int | None = None,
 ) -> RunResult:
     """Run ``agent`` on every member of ``grid`` for ``n_steps`` steps in lockstep (see the module docstring).
 
@@ -662,6 +701,9 @@ def run(
       progress: print progress to stderr.
       stop_after_chunks: stop after this many chunks of this call (to test interruption; the result then holds the
         records so far).
+      shards: split the members over this many local devices (default: as many as divide the batch, up to
+        ``jax.local_device_count()``). XLA runs one lockstep loop on one core; to use every core of a CPU, start
+        Python with ``XLA_FLAGS=--xla_force_host_platform_device_count=<cores>`` (before JAX is imported).
 
     Raises:
       ValueError: before anything compiles, for an episodic agent on continuous MDPs (or the reverse), an agent
@@ -676,6 +718,7 @@ def run(
         chunk_steps = _check_positive_int("chunk_steps", chunk_steps)
     if n_steps >= 2**31 - 1:
         raise ValueError(f"n_steps must be below 2**31 - 1; got {n_steps}")
+    n_shards = _n_shards(grid.n_members, shards)
     _validate(agent, grid, variant)
     _check_shapes(agent, grid, n_steps)
 
@@ -702,8 +745,9 @@ def run(
     consts = jax.tree.map(lambda x: x[mdp_index], unique_consts)
     init_jit = _program("init", agent)
     init_fn = init_jit.lower(mdps, mdp_index, hparams, key_data, sched.n_steps).compile()
-    chunk_fn = _program("chunk", agent, variant, capacity)
     carry_shape = jax.eval_shape(init_jit, mdps, mdp_index, hparams, key_data, sched.n_steps)
+    leaves, treedef = jax.tree.flatten(carry_shape)
+    chunk_fn = _program("chunk", agent, variant, capacity, n_shards, (treedef, tuple(x.ndim for x in leaves)))
     chunk_exe = chunk_fn.lower(carry_shape, mdps, mdp_index, consts, sched, jnp.int32(0)).compile()
     jax.block_until_ready(consts)
     compile_s += time.perf_counter() - t0
