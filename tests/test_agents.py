@@ -245,3 +245,14 @@ def test_episodic_q_learning_finds_the_optimal_policy(mdp_name, bernstein):
     hp = agent.default_hparams.replace(bernstein=bernstein, c_1=0.9415278732894797 if bernstein else 0.02)
     mdp = bandit(H=3) if mdp_name == "bandit" else chain(True)
     check_learned(*learn(agent, mdp, hp, 8_000))
+
+
+def test_greedy_policy_equals_dp_greedy():
+    from agents.tabular import greedy_policy
+    from jaxmdp import dynamic_programming as dp
+
+    rng = np.random.default_rng(0)
+    q = jnp.asarray(rng.integers(0, 3, size=(4, 5, 3)).astype(np.float32))  # many exact ties
+    for mask in ([True, True, True], [False, True, True], [True, False, True]):
+        mask = jnp.asarray(mask)
+        np.testing.assert_array_equal(greedy_policy(q, mask), dp.greedy(q, mask))

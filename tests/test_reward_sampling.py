@@ -1,5 +1,5 @@
-"""The bulk-candidate Beta / log-Gamma sampler against the exact distributions (scipy), including tiny shapes and
-the fallback rounds."""
+"""Reward sampling: the bulk-candidate Beta / log-Gamma sampler against the exact distributions (scipy), including
+tiny shapes and the fallback rounds, and the environment's point-mass fast path."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from scipy import special, stats
 
+import jaxmdp
 from jaxmdp.beta_sampling import sample_beta, sample_log_gamma
 
 N = 100_000
@@ -58,3 +59,17 @@ def test_tiny_shapes_stay_finite():
     x = np.asarray(betas(jnp.float32(0.01), jnp.float32(0.11), 4))
     assert np.all(np.isfinite(x)) and abs(x.mean() - 0.01 / 0.12) < 6 * stats.beta(0.01, 0.11).std() / np.sqrt(N)
     assert 0.4 < np.mean(x < 0.5) < 0.99
+
+
+def test_deterministic_reward_flag_skips_only_the_draw():
+    # On an MDP with point-mass rewards, stochastic_rewards=False gives the same trajectory as the default.
+    m = jaxmdp.make("RiverSwim", episodic=True, seed=0, size=4, randomize_actions=False, p_lazy=0.3)
+    keys = jax.random.split(jax.random.key(5), 50)
+    state = jaxmdp.reset(keys[0], m)[1]
+    fast = jax.jit(lambda k, s, a: jaxmdp.step(k, s, a, m, stochastic_rewards=False))
+    slow = jax.jit(lambda k, s, a: jaxmdp.step(k, s, a, m))
+    s1 = s2 = state
+    for i, k in enumerate(keys):
+        o1, s1, r1, t1, _, _ = fast(k, s1, i % 2)
+        o2, s2, r2, t2, _, _ = slow(k, s2, i % 2)
+        assert (int(o1), float(r1), bool(t1)) == (int(o2), float(r2), bool(t2))
