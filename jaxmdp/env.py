@@ -55,13 +55,25 @@ def sample_next_state(key: jax.Array, mdp: MDP, state: jax.Array, action: jax.Ar
     return mdp.succ[state, action, k].astype(jnp.int32)
 
 
-def sample_reward(key: jax.Array, mdp: MDP, state: jax.Array, action: jax.Array, next_state: jax.Array) -> jax.Array:
+def sample_reward(
+    key: jax.Array,
+    mdp: MDP,
+    state: jax.Array,
+    action: jax.Array,
+    next_state: jax.Array,
+    *,
+    stochastic_rewards: bool = True,
+) -> jax.Array:
     """Draw the reward of ``(state, action, next_state)``: Beta(mean*conc, (1-mean)*conc) if ``conc > 0``, else mean.
 
     Beta draws use :func:`jaxmdp.beta_sampling.sample_beta` (exact; several times faster than ``jax.random.beta``
-    under ``vmap``, where the reward draw dominated the cost of a step).
+    under ``vmap``, where the reward draw dominated the cost of a step). Under ``vmap`` both branches are computed
+    for every member, so a caller that knows (on the host) that no transition has a Beta reward can pass the static
+    ``stochastic_rewards=False`` to skip the draw; the result is then the mean, which is exact for such MDPs.
     """
     mean = mdp.reward_mean[state, action, next_state]
+    if not stochastic_rewards:
+        return mean
     conc = mdp.reward_conc[state, action, next_state]
     stochastic = conc > 0
     alpha = jnp.where(stochastic, mean * conc, 1.0)
@@ -77,17 +89,18 @@ def reset(key: jax.Array, mdp: MDP) -> tuple[jax.Array, EnvState]:
 
 
 def step(
-    key: jax.Array, state: EnvState, action: jax.Array, mdp: MDP
+    key: jax.Array, state: EnvState, action: jax.Array, mdp: MDP, *, stochastic_rewards: bool = True
 ) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, jax.Array, dict[str, Any]]:
     """Take ``action``: returns ``(obs, state, reward, terminated, truncated, info)`` with auto-reset.
 
     ``info`` holds ``final_observation`` (the state reached by this action, before any reset) and ``discount``
-    (0 on termination, else 1).
+    (0 on termination, else 1). ``stochastic_rewards=False`` (static) promises that every reward is a point mass
+    and skips the Beta draw (see :func:`sample_reward`).
     """
     k_next, k_reward, k_reset = jax.random.split(key, 3)
     action = jnp.asarray(action, jnp.int32)
     s_next = sample_next_state(k_next, mdp, state.state, action)
-    reward = sample_reward(k_reward, mdp, state.state, action, s_next)
+    reward = sample_reward(k_reward, mdp, state.state, action, s_next, stochastic_rewards=stochastic_rewards)
     h_next = state.h + 1
     terminated = (h_next >= mdp.horizon) if mdp.episodic else jnp.zeros((), bool)
     s_reset = _sample_start(k_reset, mdp)
