@@ -283,6 +283,9 @@ class Schedule(struct.PyTreeNode):
 
 
 def _member(mdps: MDP, i: jax.Array) -> MDP:
+    """Member ``i``'s MDP. A grid of a single distinct MDP skips the gather (an unbatched MDP under ``vmap``)."""
+    if mdps.T.shape[0] == 1:
+        return jax.tree.map(lambda x: x[0], mdps)
     return jax.tree.map(lambda x: x[i], mdps)
 
 
@@ -332,12 +335,15 @@ def _init_program(agent: Agent) -> Callable:
     return jax.jit(init)
 
 
-def _chunk_program(agent: Agent, variant: Variant, capacity: int, n_shards: int, carry_treedef: Any) -> Callable:
+def _chunk_program(
+    agent: Agent, variant: Variant, capacity: int, n_shards: int, carry_treedef: Any, stochastic_rewards: bool
+) -> Callable:
     """``chunk(carry, mdps, mdp_index, consts, schedule, n) -> (carry, steps[capacity], values[capacity, B, 4],
     n_written)``: ``n`` more steps (traced), recording at most ``capacity`` snapshots.
 
     With ``n_shards > 1`` the members are split over that many local devices with ``shard_map``; each shard runs its
     own loop (its own "some member needs to plan" predicate), so shards never communicate.
+    ``stochastic_rewards=False`` (no Beta reward anywhere in the grid, checked on the host) skips the reward draw.
     """
 
     def chunk(carry: Carry, mdps: MDP, mdp_index: jax.Array, consts: IndicatorConstants, sched: Schedule, n):
@@ -360,7 +366,9 @@ def _chunk_program(agent: Agent, variant: Variant, capacity: int, n_shards: int,
                 m = _member(mdps, i)
                 obs, h = env_state.state, env_state.h
                 action = agent.act(ka, state, obs, h)
-                obs2, env_state2, reward, terminated, _, info = env.step(ke, env_state, action, m)
+                obs2, env_state2, reward, terminated, _, info = env.step(
+                    ke, env_state, action, m, stochastic_rewards=stochastic_rewards
+                )
                 tr = Transition(
                     obs=obs, action=action, reward=reward, next_obs=info["final_observation"], h=h,
                     terminated=terminated,
@@ -747,7 +755,10 @@ def run(
     init_fn = init_jit.lower(mdps, mdp_index, hparams, key_data, sched.n_steps).compile()
     carry_shape = jax.eval_shape(init_jit, mdps, mdp_index, hparams, key_data, sched.n_steps)
     leaves, treedef = jax.tree.flatten(carry_shape)
-    chunk_fn = _program("chunk", agent, variant, capacity, n_shards, (treedef, tuple(x.ndim for x in leaves)))
+    stochastic_rewards = bool(np.any(np.asarray(mdps.reward_conc) > 0))
+    chunk_fn = _program(
+        "chunk", agent, variant, capacity, n_shards, (treedef, tuple(x.ndim for x in leaves)), stochastic_rewards
+    )
     chunk_exe = chunk_fn.lower(carry_shape, mdps, mdp_index, consts, sched, jnp.int32(0)).compile()
     jax.block_until_ready(consts)
     compile_s += time.perf_counter() - t0
