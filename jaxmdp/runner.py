@@ -30,15 +30,10 @@ of a log evaluates the policy estimate after the ``c``-th update.
 
 from __future__ import annotations
 
-import csv
-import dataclasses
-import hashlib
-import itertools
-import json
 import os
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal
 
@@ -49,192 +44,33 @@ from flax import struct
 
 from jaxmdp import env
 from jaxmdp.agent_interface import Agent, Transition, spec_of
-from jaxmdp.batching import stack
+from jaxmdp.grid import Grid, grid, product, stack_hparams
 from jaxmdp.indicators import (
     AGENT_COLUMNS,
-    CSV_COLUMNS,
     IndicatorConstants,
-    baseline_columns,
     indicator_constants,
     instant_from_values,
-    normalized_reward,
     policy_values,
 )
 from jaxmdp.mdp import MDP
+from jaxmdp.run_output import (
+    MEMBER_COLUMNS,
+    RunResult,
+    append_rows,
+    fingerprint,
+    load_checkpoint,
+    record_steps,
+    csv_rows,
+    save_checkpoint,
+    truncate_csv,
+)
 
-__all__ = ["Grid", "grid", "product", "RunResult", "run", "record_steps", "MEMBER_COLUMNS"]
+__all__ = ["Grid", "grid", "product", "stack_hparams", "RunResult", "run", "record_steps", "MEMBER_COLUMNS"]
 
 Variant = Literal["paper", "colosseum"]
 
-#: Columns that identify a member in the CSV, before the reference's columns.
-MEMBER_COLUMNS = ("member", "mdp", "hparams", "seed")
-
 # Sub-keys of a member's key: environment, actions, planning, initialisation.
 _N_SUBKEYS = 4
-
-
-# ---------------------------------------------------------------------------------------------------------------
-# The grid of members
-# ---------------------------------------------------------------------------------------------------------------
-
-
-@dataclasses.dataclass(frozen=True)
-class Grid:
-    """A flat batch of ``B`` members.
-
-    Attributes:
-      mdps: the distinct MDPs as one stacked batch ``[M]`` (metadata stripped); member ``i`` faces
-        ``mdps[mdp_index[i]]``. Keeping distinct MDPs once (instead of one padded copy per member) keeps memory
-        proportional to ``M``, not ``B``.
-      mdp_index: ``[B]`` index of each member's MDP.
-      hparams: the members' hyperparameters, one stacked pytree with leading axis ``B``.
-      key_data: ``[B, 2]`` raw threefry key data of each member (``jax.random.key_data`` of its key).
-      hparams_index: ``[B]`` label of each member's hyperparameter set (for the output).
-      seeds: ``[B]`` label of each member's seed (for the output; ``-1`` when keys were given directly).
-      mdp_labels: one label per distinct MDP (for the output).
-    """
-
-    mdps: MDP
-    mdp_index: np.ndarray
-    hparams: Any
-    key_data: np.ndarray
-    hparams_index: np.ndarray
-    seeds: np.ndarray
-    mdp_labels: tuple[str, ...]
-
-    @property
-    def n_members(self) -> int:
-        return int(self.mdp_index.shape[0])
-
-    @property
-    def episodic(self) -> bool:
-        return self.mdps.episodic
-
-
-def _as_stacked(mdps: MDP | Sequence[MDP]) -> tuple[MDP, tuple[str, ...]]:
-    if isinstance(mdps, MDP):
-        if mdps.T.ndim == 3:
-            mdps = [mdps]
-        elif mdps.T.ndim == 4:
-            labels = tuple(_label(m) for m in mdps.info.members) or tuple(f"mdp{i}" for i in range(mdps.T.shape[0]))
-            return mdps.strip(), labels
-        else:
-            raise ValueError(f"mdps must be an MDP, a stacked batch of MDPs or a sequence of MDPs; T has shape "
-                             f"{mdps.T.shape}")
-    mdps = list(mdps)
-    if not mdps or not all(isinstance(m, MDP) for m in mdps):
-        raise ValueError("mdps must be a non-empty sequence of MDPs")
-    return stack(mdps).strip(), tuple(_label(m.info) if isinstance(m, MDP) else str(m) for m in mdps)
-
-
-def _label(info: Any) -> str:
-    info = getattr(info, "info", info)
-    params = ",".join(f"{k}={v}" for k, v in info.params if not str(k).endswith("distribution"))
-    return f"{info.family}({params})" if params else info.family
-
-
-def _stack_hparams(hparams_list: Sequence[Any]) -> Any:
-    try:
-        return jax.tree.map(lambda *xs: np.stack([np.asarray(x) for x in xs]), *hparams_list)
-    except ValueError as err:
-        raise ValueError(f"all hyperparameter sets must have the same structure and static fields: {err}") from None
-
-
-def _key_data(keys: Any, n: int) -> np.ndarray:
-    keys = jnp.asarray(keys) if not isinstance(keys, jax.Array) else keys
-    if jax.dtypes.issubdtype(keys.dtype, jax.dtypes.prng_key):
-        if jax.random.key_impl(keys) != jax.random.key_impl(jax.random.key(0)):
-            raise ValueError("keys must use the default threefry2x32 implementation")
-        keys = jax.random.key_data(keys)
-    data = np.asarray(keys)
-    if data.shape != (n, 2) or data.dtype != np.uint32:
-        raise ValueError(f"keys must be {n} typed keys or uint32 key data of shape ({n}, 2); got {data.shape} "
-                         f"{data.dtype}")
-    return data
-
-
-def grid(
-    mdps: MDP | Sequence[MDP],
-    hparams: Any,
-    keys: Any,
-    *,
-    mdp_index: Sequence[int] | None = None,
-    hparams_index: Sequence[int] | None = None,
-    seeds: Sequence[int] | None = None,
-) -> Grid:
-    """A grid from explicit members.
-
-    Args:
-      mdps: one MDP, a stacked batch (:func:`jaxmdp.stack`) or a sequence of MDPs: the distinct MDPs.
-      hparams: the members' hyperparameters stacked along a leading axis ``B`` (one set per member).
-      keys: ``B`` keys (typed keys of ``jax.random.key`` or raw ``uint32[B, 2]`` data).
-      mdp_index: member ``i`` faces MDP ``mdp_index[i]`` (default: ``arange(B)`` if there are ``B`` MDPs, or all
-        zeros for a single MDP).
-      hparams_index, seeds: labels written to the output (default ``arange(B)`` and ``-1``).
-    """
-    stacked, labels = _as_stacked(mdps)
-    M = stacked.T.shape[0]
-    leaves = jax.tree.leaves(hparams)
-    sizes = {np.shape(x)[0] if np.ndim(x) else None for x in leaves}
-    if None in sizes or len(sizes) > 1:
-        raise ValueError("hparams must be a stacked pytree: every leaf with the same leading (member) axis")
-    keys_arr = keys if isinstance(keys, jax.Array) else np.asarray(keys)
-    B = sizes.pop() if sizes else int(np.shape(keys_arr)[0])
-    if mdp_index is None:
-        if M not in (1, B):
-            raise ValueError(f"mdp_index is needed to assign {M} MDPs to {B} members")
-        mdp_index = np.zeros(B, np.int32) if M == 1 else np.arange(B, dtype=np.int32)
-    mdp_index = np.asarray(mdp_index, np.int32)
-    if mdp_index.shape != (B,) or mdp_index.min() < 0 or mdp_index.max() >= M:
-        raise ValueError(f"mdp_index must be {B} integers in [0, {M}); got shape {mdp_index.shape}")
-    hp_index = np.arange(B) if hparams_index is None else np.asarray(hparams_index)
-    seeds_arr = np.full(B, -1) if seeds is None else np.asarray(seeds)
-    if hp_index.shape != (B,) or seeds_arr.shape != (B,):
-        raise ValueError(f"hparams_index and seeds must have shape ({B},)")
-    return Grid(
-        mdps=stacked,
-        mdp_index=mdp_index,
-        hparams=jax.tree.map(np.asarray, hparams),
-        key_data=_key_data(keys_arr, B),
-        hparams_index=hp_index.astype(np.int64),
-        seeds=seeds_arr.astype(np.int64),
-        mdp_labels=labels,
-    )
-
-
-def product(
-    mdps: MDP | Sequence[MDP],
-    hparams: Sequence[Any],
-    seeds: Sequence[int],
-) -> Grid:
-    """The full product MDPs x hyperparameter sets x seeds, MDP-major then hyperparameters then seed.
-
-    Member ``(m, p, n)`` faces MDP ``m`` with hyperparameter set ``p`` and key ``jax.random.key(seeds[n])``: as in the
-    reference, the seed alone defines the agent's randomness, so members that differ only by MDP or
-    hyperparameters share their random numbers (common random numbers make comparisons sharper).
-    """
-    stacked, labels = _as_stacked(mdps)
-    M = stacked.T.shape[0]
-    hparams = list(hparams)
-    seeds = [int(s) for s in seeds]
-    if not hparams:
-        raise ValueError("hparams must hold at least one hyperparameter set")
-    if not seeds or any(s < 0 for s in seeds):
-        raise ValueError(f"seeds must be a non-empty list of non-negative integers; got {seeds}")
-    idx = np.asarray(list(itertools.product(range(M), range(len(hparams)), range(len(seeds)))), np.int64)
-    hp_all = _stack_hparams(hparams)
-    member_hparams = jax.tree.map(lambda x: x[idx[:, 1]], hp_all)
-    seed_arr = np.asarray(seeds)[idx[:, 2]]
-    key_data = np.asarray(jax.vmap(lambda s: jax.random.key_data(jax.random.key(s)))(jnp.asarray(seed_arr)))
-    return Grid(
-        mdps=stacked,
-        mdp_index=idx[:, 0].astype(np.int32),
-        hparams=member_hparams,
-        key_data=key_data,
-        hparams_index=idx[:, 1],
-        seeds=seed_arr.astype(np.int64),
-        mdp_labels=labels,
-    )
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -466,116 +302,6 @@ def _program(kind: str, agent: Agent | None, *static) -> Callable:
 # ---------------------------------------------------------------------------------------------------------------
 
 
-def record_steps(n_steps: int, log_period: int = 100, n_records: int = 100) -> tuple[int, np.ndarray]:
-    """The record period and the step counts at which records are made.
-
-    Records are made every ``record_period`` steps, a multiple of ``log_period`` chosen so that there are at most
-    ``n_records`` of them, and after the last step.
-    """
-    n_logs = -(-n_steps // log_period)
-    record_period = log_period * -(-n_logs // n_records)
-    steps = np.arange(record_period, n_steps + 1, record_period)
-    if steps.size == 0 or steps[-1] != n_steps:
-        steps = np.append(steps, n_steps)
-    return record_period, steps
-
-
-@dataclasses.dataclass
-class RunResult:
-    """Records of a run.
-
-    Attributes:
-      steps: ``[R]`` step counts of the records.
-      values: ``[R, B, 4]`` running sums (:data:`jaxmdp.indicators.AGENT_COLUMNS`) at each record.
-      constants: the members' :class:`~jaxmdp.indicators.IndicatorConstants` (numpy, leading axis ``B``).
-      grid: the members.
-      agent: the agent's name.
-      compile_s: seconds spent compiling (initialisation and loop programs).
-      run_s: seconds spent running the loop (compilation excluded), over every session of a resumed run.
-      n_steps, log_period, record_period, variant: the settings.
-      agent_state: the members' final agent states (numpy, leading axis ``B``).
-    """
-
-    steps: np.ndarray
-    values: np.ndarray
-    constants: Any
-    grid: Grid
-    agent: str
-    compile_s: float
-    run_s: float
-    n_steps: int
-    log_period: int
-    record_period: int
-    variant: str
-    agent_state: Any = None
-
-    @property
-    def agent_steps_per_second(self) -> float:
-        """Interaction steps per second summed over members (the lockstep throughput)."""
-        done = int(self.steps[-1]) if self.steps.size else 0
-        return done * self.grid.n_members / self.run_s if self.run_s > 0 else float("nan")
-
-    def column(self, name: str) -> np.ndarray:
-        """One CSV column as ``[R, B]`` (float64)."""
-        return _columns(self.steps, self.values, self.constants, self.run_s)[name]
-
-    def rows(self) -> list[list[Any]]:
-        """All CSV rows (member columns, then the reference's columns), record-major."""
-        return _rows(self.grid, self.steps, self.values, self.constants, self._steps_per_member_second())
-
-    def _steps_per_member_second(self) -> np.ndarray:
-        return np.full(self.steps.shape, int(self.steps[-1]) / self.run_s if self.run_s > 0 else np.nan)
-
-    def write_csv(self, path: str | os.PathLike) -> None:
-        """Write every record to one CSV (``member, mdp, hparams, seed`` and the reference's columns)."""
-        with open(path, "w", newline="") as f:
-            writer = csv.writer(f)
-            writer.writerow(MEMBER_COLUMNS + CSV_COLUMNS)
-            writer.writerows(_format_row(r) for r in self.rows())
-
-
-def _columns(steps, values, constants, run_s) -> dict[str, np.ndarray]:
-    steps = np.asarray(steps, np.float64)[:, None]
-    v = np.asarray(values, np.float64)
-    opt, wst, rnd = (np.asarray(x, np.float64)[None, :] for x in (constants.optimal, constants.worst, constants.random))
-    cols = {name: v[..., i] for i, name in enumerate(AGENT_COLUMNS)}
-    cols["steps"] = np.broadcast_to(steps, v.shape[:2])
-    cols["normalized_cumulative_reward"] = normalized_reward(cols["cumulative_reward"], steps, opt, wst)
-    cols["normalized_cumulative_expected_reward"] = normalized_reward(cols["cumulative_expected_reward"], steps, opt, wst)
-    cols.update(baseline_columns(steps, opt, wst, rnd))
-    return cols
-
-
-def _rows(g: Grid, steps, values, constants, per_second) -> list[list[Any]]:
-    cols = _columns(steps, values, constants, 0.0)
-    rows = []
-    for r in range(len(steps)):
-        for b in range(g.n_members):
-            rows.append(
-                [b, g.mdp_labels[g.mdp_index[b]], int(g.hparams_index[b]), int(g.seeds[b]), int(steps[r])]
-                + [cols[name][r, b] for name in CSV_COLUMNS[1:-1]]
-                + [per_second[r]]
-            )
-    return rows
-
-
-def _format_row(row: list[Any]) -> list[str]:
-    out = []
-    for x in row:
-        if isinstance(x, str):
-            out.append(x)
-        elif isinstance(x, (int, np.integer)):
-            out.append(str(int(x)))
-        else:
-            out.append(f"{float(x):.9g}")
-    return out
-
-
-def _append_rows(path: Path, rows: list[list[Any]]) -> None:
-    with open(path, "a", newline="") as f:
-        csv.writer(f).writerows(_format_row(r) for r in rows)
-
-
 def _n_shards(n_members: int, shards: int | None) -> int:
     available = jax.local_device_count()
     if shards is None:
@@ -629,44 +355,6 @@ def _check_shapes(agent: Agent, g: Grid, n_steps: int) -> None:
         )
     if action.shape != () or not jnp.issubdtype(action.dtype, jnp.integer):
         raise ValueError(f"agent {agent.name!r} must return one integer action; got {action.shape} {action.dtype}")
-
-
-def _fingerprint(agent: Agent, g: Grid, n_steps: int, log_period: int, record_period: int, variant: str) -> str:
-    h = hashlib.sha256()
-    for x in jax.tree.leaves(g.mdps) + jax.tree.leaves(g.hparams) + [g.mdp_index, g.key_data]:
-        a = np.ascontiguousarray(np.asarray(x))
-        h.update(str((a.shape, a.dtype)).encode())
-        h.update(a.tobytes())
-    h.update(repr((agent.name, n_steps, log_period, record_period, variant)).encode())
-    return h.hexdigest()
-
-
-def _save_checkpoint(path: Path, carry: Carry, steps: np.ndarray, values: np.ndarray, meta: dict) -> None:
-    leaves = jax.tree.leaves(carry)
-    arrays = {f"leaf{i}": np.asarray(x) for i, x in enumerate(leaves)}
-    arrays["record_steps"] = steps
-    arrays["record_values"] = values
-    arrays["meta"] = np.asarray(json.dumps(meta))
-    tmp = path.with_name(path.name + ".tmp.npz")
-    np.savez(tmp, **arrays)
-    os.replace(tmp, path)
-
-
-def _load_checkpoint(path: Path, like: Carry, fingerprint: str) -> tuple[Carry, np.ndarray, np.ndarray, dict]:
-    with np.load(path) as z:
-        meta = json.loads(str(z["meta"]))
-        if meta.get("fingerprint") != fingerprint:
-            raise ValueError(
-                f"checkpoint {path} belongs to a different run (agent, grid, n_steps, periods or variant differ)"
-            )
-        leaves, treedef = jax.tree.flatten(like)
-        new = []
-        for i, ref in enumerate(leaves):
-            a = z[f"leaf{i}"]
-            if a.shape != ref.shape or a.dtype != ref.dtype:
-                raise ValueError(f"checkpoint {path} does not match this run's state (leaf {i}: {a.shape} {a.dtype})")
-            new.append(jnp.asarray(a))
-        return jax.tree.unflatten(treedef, new), z["record_steps"], z["record_values"], meta
 
 
 def _progress(done: int, total: int, elapsed: float, members: int) -> None:
@@ -763,7 +451,7 @@ def run(
     jax.block_until_ready(consts)
     compile_s += time.perf_counter() - t0
 
-    fingerprint = _fingerprint(agent, grid, n_steps, log_period, record_period, variant)
+    run_id = fingerprint(agent.name, grid, n_steps, log_period, record_period, variant)
     ckpt = Path(checkpoint_path) if checkpoint_path is not None else None
     csv_file = Path(csv_path) if csv_path is not None else None
     steps_done = np.zeros((0,), np.int64)
@@ -772,16 +460,16 @@ def run(
     consts_np = jax.tree.map(np.asarray, consts)
 
     if ckpt is not None and resume and ckpt.exists():
-        carry, steps_done, values_done, meta = _load_checkpoint(ckpt, carry_shape, fingerprint)
+        carry, steps_done, values_done, meta = load_checkpoint(ckpt, carry_shape, run_id)
         elapsed_before = float(meta["run_s"])
         if csv_file is not None:
-            _truncate_csv(csv_file, int(carry.t))
+            truncate_csv(csv_file, int(carry.t))
     else:
         carry = init_fn(mdps, mdp_index, hparams, key_data, sched.n_steps)
         jax.block_until_ready(carry)
         if csv_file is not None:
             csv_file.parent.mkdir(parents=True, exist_ok=True)
-            _truncate_csv(csv_file, -1)
+            truncate_csv(csv_file, -1)
 
     t_start = time.perf_counter()
     chunks = 0
@@ -795,10 +483,10 @@ def run(
         values_done = np.concatenate([values_done, values])
         if csv_file is not None and j:
             per_second = np.full((j,), int(carry.t) / elapsed)
-            _append_rows(csv_file, _rows(grid, steps, values, consts_np, per_second))
+            append_rows(csv_file, csv_rows(grid, steps, values, consts_np, per_second))
         if ckpt is not None:
-            meta = {"fingerprint": fingerprint, "run_s": elapsed, "t": int(carry.t), "agent": agent.name}
-            _save_checkpoint(ckpt, carry, steps_done, values_done, meta)
+            meta = {"fingerprint": run_id, "run_s": elapsed, "t": int(carry.t), "agent": agent.name}
+            save_checkpoint(ckpt, carry, steps_done, values_done, meta)
         if progress:
             _progress(int(carry.t), n_steps, elapsed, B)
         chunks += 1
@@ -824,17 +512,3 @@ def run(
     )
 
 
-def _truncate_csv(path: Path, t: int) -> None:
-    """Drop rows written after the checkpoint at step ``t`` (a crash between writing rows and checkpointing)."""
-    header = list(MEMBER_COLUMNS + CSV_COLUMNS)
-    rows = []
-    if path.exists():
-        with open(path, newline="") as f:
-            reader = csv.reader(f)
-            if next(reader, None) == header:
-                col = header.index("steps")
-                rows = [r for r in reader if len(r) == len(header) and int(r[col]) <= t]
-    with open(path, "w", newline="") as f:
-        writer = csv.writer(f)
-        writer.writerow(header)
-        writer.writerows(rows)

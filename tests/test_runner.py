@@ -187,10 +187,10 @@ def test_vmapped_grid_equals_single_runs(two_mdps):
     agent = agents.get("q_learning_continuous")
     hps = [agent.default_hparams, agent.default_hparams.replace(h_weight=0.5)]
     keys = jax.random.split(jax.random.key(7), 2)
-    g = runner.grid(list(two_mdps), runner._stack_hparams(hps), keys)
+    g = runner.grid(list(two_mdps), runner.stack_hparams(hps), keys)
     batch = runner.run(agent, g, 600, n_records=3)
     for b in range(2):
-        single = runner.grid(two_mdps[b], runner._stack_hparams([hps[b]]), keys[b:b + 1])
+        single = runner.grid(two_mdps[b], runner.stack_hparams([hps[b]]), keys[b:b + 1])
         one = runner.run(agent, single, 600, n_records=3)
         np.testing.assert_allclose(batch.values[:, b], one.values[:, 0], rtol=1e-6, atol=1e-6)
         S = two_mdps[b].n_states
@@ -313,7 +313,7 @@ def test_grid_errors():
         runner.product(mdps, [agent.default_hparams], seeds=[-1])
     with pytest.raises(ValueError, match="hparams"):
         runner.product(mdps, [], seeds=[0])
-    hp = runner._stack_hparams([agent.default_hparams] * 3)
+    hp = runner.stack_hparams([agent.default_hparams] * 3)
     with pytest.raises(ValueError, match="mdp_index"):
         runner.grid(mdps, hp, jax.random.split(jax.random.key(0), 3))
     with pytest.raises(ValueError, match="keys"):
