@@ -57,10 +57,10 @@ from jaxmdp.run_output import (
     MEMBER_COLUMNS,
     RunResult,
     append_rows,
+    csv_rows,
     fingerprint,
     load_checkpoint,
     record_steps,
-    csv_rows,
     save_checkpoint,
     truncate_csv,
 )
