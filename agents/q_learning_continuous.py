@@ -42,7 +42,8 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from agents.tabular import check_interval, greedy_policy, greedy_random_ties, valid_counts
+from agents.tabular import check_interval, greedy_random_ties, valid_counts
+from jaxmdp import dynamic_programming as dp
 from jaxmdp.agent_interface import Agent, MDPSpec, Transition
 
 __all__ = ["QLearningContinuousHParams", "QLearningContinuousState", "Q_LEARNING_CONTINUOUS", "constants"]
@@ -142,7 +143,7 @@ def act(key: jax.Array, state: QLearningContinuousState, obs: jax.Array, h: jax.
 
 def policy(state: QLearningContinuousState) -> jax.Array:
     """Greedy one-hot policy of ``Q_hat``, ``[S, A]`` (lowest-index ties)."""
-    return greedy_policy(state.Q_hat, state.action_mask)
+    return dp.greedy(state.Q_hat, state.action_mask)
 
 
 Q_LEARNING_CONTINUOUS = Agent(

@@ -40,7 +40,8 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from agents.tabular import check_interval, greedy_policy, greedy_random_ties, valid_counts
+from agents.tabular import check_interval, greedy_random_ties, valid_counts
+from jaxmdp import dynamic_programming as dp
 from jaxmdp.agent_interface import Agent, MDPSpec, Transition
 
 __all__ = ["QLearningEpisodicHParams", "QLearningEpisodicState", "Q_LEARNING_EPISODIC"]
@@ -164,7 +165,7 @@ def act(key: jax.Array, state: QLearningEpisodicState, obs: jax.Array, h: jax.Ar
 
 def policy(state: QLearningEpisodicState) -> jax.Array:
     """Greedy one-hot policy of ``Q``, ``[H, S, A]`` (lowest-index ties)."""
-    return greedy_policy(state.Q, state.action_mask)
+    return dp.greedy(state.Q, state.action_mask)
 
 
 Q_LEARNING_EPISODIC = Agent(

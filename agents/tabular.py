@@ -9,7 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["greedy_random_ties", "greedy_policy", "check_interval", "valid_counts"]
+__all__ = ["greedy_random_ties", "check_interval", "valid_counts"]
 
 
 def greedy_random_ties(key: jax.Array, q: jax.Array, action_mask: jax.Array) -> jax.Array:
@@ -20,23 +20,6 @@ def greedy_random_ties(key: jax.Array, q: jax.Array, action_mask: jax.Array) -> 
     tied = jnp.where(jnp.any(tied), tied, action_mask)
     u = jax.random.uniform(key, q.shape)
     return jnp.argmax(jnp.where(tied, u, -1.0)).astype(jnp.int32)
-
-
-def greedy_policy(q: jax.Array, action_mask: jax.Array) -> jax.Array:
-    """One-hot greedy policy of ``q[..., A]`` over the valid actions, ties to the lowest index.
-
-    The same policy as :func:`jaxmdp.dynamic_programming.greedy` (``atol = 0``), computed with one compare-and-select
-    pass per action instead of an ``argmax`` reduction, which XLA runs several times slower on CPU for the short
-    action axis (the policy estimate is evaluated for every member at every log).
-    """
-    A = q.shape[-1]
-    best = jnp.where(action_mask[0], q[..., 0], -jnp.inf)
-    index = jnp.zeros(q.shape[:-1], jnp.int32)
-    for a in range(1, A):
-        better = action_mask[a] & (q[..., a] > best)
-        best = jnp.where(better, q[..., a], best)
-        index = jnp.where(better, a, index)
-    return (index[..., None] == jnp.arange(A)).astype(q.dtype)
 
 
 def valid_counts(state_mask: jax.Array, action_mask: jax.Array, dtype: Any = jnp.float32) -> tuple[jax.Array, jax.Array]:

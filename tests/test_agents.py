@@ -247,12 +247,18 @@ def test_episodic_q_learning_finds_the_optimal_policy(mdp_name, bernstein):
     check_learned(*learn(agent, mdp, hp, 8_000))
 
 
-def test_greedy_policy_equals_dp_greedy():
-    from agents.tabular import greedy_policy
+@pytest.mark.parametrize("A", [2, 3, 20])  # 20: above the unrolling threshold of dp.greedy
+def test_greedy_policy_estimate_against_numpy(A):
+    # dp.greedy gives the agents' policy estimates: one-hot on the lowest valid index within atol of the best.
     from jaxmdp import dynamic_programming as dp
 
-    rng = np.random.default_rng(0)
-    q = jnp.asarray(rng.integers(0, 3, size=(4, 5, 3)).astype(np.float32))  # many exact ties
-    for mask in ([True, True, True], [False, True, True], [True, False, True]):
-        mask = jnp.asarray(mask)
-        np.testing.assert_array_equal(greedy_policy(q, mask), dp.greedy(q, mask))
+    rng = np.random.default_rng(A)
+    # Exact float32 values: ties, and near-ties 2^-20 apart that atol = 2^-19 merges.
+    q = (rng.integers(0, 3, size=(6, 7, A)) + rng.choice([0.0, 2.0**-20], size=(6, 7, A))).astype(np.float32)
+    for mask in (np.ones(A, bool), rng.random(A) < 0.6):
+        mask[rng.integers(A)] = True
+        for atol in (0.0, 2.0**-19):
+            qm = np.where(mask, q, -np.inf)
+            want = np.argmax(qm >= qm.max(-1, keepdims=True) - atol, axis=-1)
+            got = np.asarray(dp.greedy(jnp.asarray(q), jnp.asarray(mask), atol))
+            np.testing.assert_array_equal(got, np.eye(A)[want])
