@@ -56,6 +56,13 @@ class Grid:
 
 
 def _as_stacked(mdps: MDP | Sequence[MDP]) -> tuple[MDP, tuple[str, ...]]:
+    stacked, labels = _stack_with_labels(mdps)
+    if len(set(labels)) < len(labels):  # e.g. several custom MDPs: number them so the output stays unambiguous
+        labels = tuple(f"{label}#{i}" for i, label in enumerate(labels))
+    return stacked, labels
+
+
+def _stack_with_labels(mdps: MDP | Sequence[MDP]) -> tuple[MDP, tuple[str, ...]]:
     if isinstance(mdps, MDP):
         if mdps.T.ndim == 3:
             mdps = [mdps]
@@ -68,7 +75,7 @@ def _as_stacked(mdps: MDP | Sequence[MDP]) -> tuple[MDP, tuple[str, ...]]:
     mdps = list(mdps)
     if not mdps or not all(isinstance(m, MDP) for m in mdps):
         raise ValueError("mdps must be a non-empty sequence of MDPs")
-    return stack(mdps).strip(), tuple(_label(m.info) if isinstance(m, MDP) else str(m) for m in mdps)
+    return stack(mdps).strip(), tuple(_label(m.info) for m in mdps)
 
 
 def _label(info: Any) -> str:

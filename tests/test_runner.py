@@ -363,3 +363,10 @@ def test_colosseum_episodic_variant_uses_the_latest_episode_start():
     got = res.values[:, 0][:, [0, 3]]
     np.testing.assert_allclose(got, np.array([want[int(c)] for c in res.steps]), rtol=1e-5, atol=1e-5)
     assert not np.allclose(got, paper.values[:, 0][:, [0, 3]], atol=1e-3)
+
+
+def test_mdp_labels_are_unambiguous():
+    custom = [jaxmdp.custom_mdp(np.full((2, 2, 2), 0.5), R=np.eye(2) * r) for r in (0.1, 0.2)]
+    assert runner.product(custom, [ScriptedHParams()], seeds=[0]).mdp_labels == ("custom#0", "custom#1")
+    labels = runner.product([river_swim(False), river_swim(False, p_lazy=0.5)], [ScriptedHParams()], [0]).mdp_labels
+    assert len(set(labels)) == 2 and "p_lazy=0.5" in labels[1]
