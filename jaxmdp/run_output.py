@@ -62,7 +62,7 @@ class RunResult:
       constants: the members' :class:`~jaxmdp.indicators.IndicatorConstants` (numpy, leading axis ``B``).
       grid: the members.
       agent: the agent's name.
-      compile_s: seconds spent compiling (initialisation and loop programs).
+      compile_s: seconds spent compiling (initialisation and loop programs) and computing the indicator constants.
       run_s: seconds spent running the loop (compilation excluded), over every session of a resumed run.
       n_steps, log_period, record_period, variant: the settings.
       agent_state: the members' final agent states (numpy, leading axis ``B``).

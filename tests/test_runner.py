@@ -370,3 +370,13 @@ def test_mdp_labels_are_unambiguous():
     assert runner.product(custom, [ScriptedHParams()], seeds=[0]).mdp_labels == ("custom#0", "custom#1")
     labels = runner.product([river_swim(False), river_swim(False, p_lazy=0.5)], [ScriptedHParams()], [0]).mdp_labels
     assert len(set(labels)) == 2 and "p_lazy=0.5" in labels[1]
+
+
+def test_not_an_agent_or_grid():
+    g = runner.product([river_swim(False)], [ScriptedHParams()], seeds=[0])
+    with pytest.raises(ValueError, match="Agent"):
+        runner.run("q_learning", g, 10)
+    with pytest.raises(ValueError, match="Grid"):
+        runner.run(SCRIPTED[False], [river_swim(False)], 10)
+    with pytest.raises(ValueError, match="shards"):
+        runner.run(SCRIPTED[False], g, 10, shards=2)
