@@ -1,1 +1,29 @@
-"""Tabular agents as pure functions over pytrees (see the agents issue)."""
+"""Tabular agents as pure functions over pytrees (see the agents issue).
+
+``AGENTS`` maps each agent's name to its :class:`jaxmdp.agent_interface.Agent`; :func:`get` looks one up.
+"""
+
+from __future__ import annotations
+
+import difflib
+
+from agents.q_learning_continuous import Q_LEARNING_CONTINUOUS
+from agents.q_learning_episodic import Q_LEARNING_EPISODIC
+from agents.random_agent import RANDOM_CONTINUOUS, RANDOM_EPISODIC
+from jaxmdp.agent_interface import Agent
+
+AGENTS: dict[str, Agent] = {
+    a.name: a for a in (RANDOM_EPISODIC, RANDOM_CONTINUOUS, Q_LEARNING_EPISODIC, Q_LEARNING_CONTINUOUS)
+}
+
+
+def get(name: str) -> Agent:
+    """The registered agent ``name``; ``ValueError`` with the closest names when unknown."""
+    if name not in AGENTS:
+        close = difflib.get_close_matches(name, list(AGENTS), n=3, cutoff=0.5)
+        hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
+        raise ValueError(f"unknown agent {name!r}{hint} Registered: {', '.join(AGENTS)}")
+    return AGENTS[name]
+
+
+__all__ = ["AGENTS", "get"]

@@ -30,6 +30,9 @@ from jaxmdp.mdp import MDP
 
 Model = MDP | jax.Array
 
+# Up to this many actions greedy() unrolls its passes over the action axis (see there).
+_UNROLLED_GREEDY_MAX_ACTIONS = 16
+
 __all__ = [
     "expected_next_values",
     "q_values",
@@ -94,10 +97,19 @@ def greedy(Q: jax.Array, action_mask: jax.Array | None = None, atol: float = 0.0
     """
     if action_mask is not None:
         Q = jnp.where(action_mask, Q, -jnp.inf)
-    best = jnp.max(Q, axis=-1, keepdims=True)
-    tied = Q >= best - atol
-    a = jnp.argmax(tied, axis=-1)
-    return jax.nn.one_hot(a, Q.shape[-1], dtype=Q.dtype)
+    A = Q.shape[-1]
+    if A > _UNROLLED_GREEDY_MAX_ACTIONS:
+        best = jnp.max(Q, axis=-1, keepdims=True)
+        return jax.nn.one_hot(jnp.argmax(Q >= best - atol, axis=-1), A, dtype=Q.dtype)
+    # Few actions: elementwise passes over the action axis. XLA runs the variadic argmax reduction several times
+    # slower on CPU, and a lockstep run evaluates a greedy policy for every member at every log.
+    best = Q[..., 0]
+    for a in range(1, A):
+        best = jnp.maximum(best, Q[..., a])
+    index = jnp.zeros(Q.shape[:-1], jnp.int32)
+    for a in reversed(range(A)):
+        index = jnp.where(Q[..., a] >= best - atol, a, index)
+    return jax.nn.one_hot(index, A, dtype=Q.dtype)
 
 
 def uniform_policy(model: Model, shape: tuple[int, ...] = ()) -> jax.Array:

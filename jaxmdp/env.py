@@ -20,6 +20,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from jaxmdp.beta_sampling import sample_beta
 from jaxmdp.mdp import MDP
 
 __all__ = ["EnvState", "reset", "step", "sample_action", "sample_next_state", "sample_reward"]
@@ -55,8 +56,19 @@ def sample_next_state(key: jax.Array, mdp: MDP, state: jax.Array, action: jax.Ar
     return _next_from_uniform(jax.random.uniform(key, dtype=mdp.dtype), mdp, state, action)
 
 
-def sample_reward(key: jax.Array, mdp: MDP, state: jax.Array, action: jax.Array, next_state: jax.Array) -> jax.Array:
-    """Draw the reward of ``(state, action, next_state)``: Beta(mean*conc, (1-mean)*conc) if ``conc > 0``, else mean."""
+def sample_reward(
+    key: jax.Array,
+    mdp: MDP,
+    state: jax.Array,
+    action: jax.Array,
+    next_state: jax.Array,
+) -> jax.Array:
+    """Draw the reward of ``(state, action, next_state)``: Beta(mean*conc, (1-mean)*conc) if ``conc > 0``, else mean.
+
+    Beta draws use :func:`jaxmdp.beta_sampling.sample_beta` (exact; several times faster than ``jax.random.beta``
+    under ``vmap``, where the reward draw dominated the cost of a step). MDPs whose static ``stochastic_rewards`` is
+    False (no Beta reward anywhere, recorded at construction) compile no draw at all: the reward is the mean.
+    """
     mean = mdp.reward_mean[state, action, next_state]
     if not mdp.stochastic_rewards:  # static: no Beta anywhere, no draw compiled
         return mean
@@ -64,7 +76,7 @@ def sample_reward(key: jax.Array, mdp: MDP, state: jax.Array, action: jax.Array,
     stochastic = conc > 0
     alpha = jnp.where(stochastic, mean * conc, 1.0)
     beta = jnp.where(stochastic, (1.0 - mean) * conc, 1.0)
-    draw = jax.random.beta(key, alpha, beta, dtype=mdp.dtype)
+    draw = sample_beta(key, alpha, beta, dtype=mdp.dtype)
     return jnp.where(stochastic, draw, mean)
 
 

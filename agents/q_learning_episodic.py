@@ -1,0 +1,180 @@
+"""Q-learning with UCB-Hoeffding or UCB-Bernstein bonuses, episodic (Jin, Allen-Zhu, Bubeck & Jordan 2018, "Is
+Q-learning provably efficient?", Algorithms 1 and 2; paper §3.3; agents.md §2).
+
+Tables ``Q_h(s, a)``, ``V_h(s)`` and counts ``N_h(s, a)`` for ``h = 0 .. H-1`` (``V_H = 0``), initialised
+optimistically to ``Q = V = H`` and ``N = 0``; ``iota = ln(S A T / p)`` with ``T`` the total number of steps. After
+the step ``(s, a, r, s')`` taken at in-episode step ``h``:
+
+* ``t = N_h(s, a) <- N_h(s, a) + 1`` and ``alpha_t = max(min_at, (H + 1) / (H + t))``;
+* Hoeffding bonus ``b_t = c_1 sqrt(H^3 iota / t)``;
+* Bernstein bonus: with ``W_t`` the empirical variance of the next-state values ``V_{h+1}(s')`` seen at this
+  ``(h, s, a)`` (running sums of ``V`` and ``V^2``),
+  ``beta_t = min(c_1 (sqrt(H / t (W_t + H) iota) + sqrt(H^7 S A) iota / t), c_2 sqrt(H^3 iota / t))`` and
+  ``b_t = (beta_t - (1 - alpha_t) beta_{t-1}) / (2 alpha_t)`` (``beta_0 = 0``);
+* ``Q_h(s, a) <- (1 - alpha_t) Q_h(s, a) + alpha_t (r + V_{h+1}(s') + b_t)`` and
+  ``V_h(s) <- min(H, max_a Q_h(s, a))``.
+
+The last step of an episode reads ``V_H = 0``. Actions are greedy in ``Q_h(s, .)`` with exact ties broken at random;
+the policy estimate (for regret) is greedy in ``Q`` with ties to the lowest action index, ``[H, S, A]``. ``S`` and
+``A`` count the real (unpadded) states and actions; ``H`` is the member's own horizon.
+
+Hyperparameters: ``c_1``, ``c_2``, ``min_at``, ``p`` and ``bernstein`` (1: Bernstein, 0: Hoeffding); the defaults are
+the benchmark's tuned values (agents.md §2). ``min_at`` floors the learning rate as in the reference; ``min_at = 0``
+gives Jin et al.'s schedule exactly.
+
+Differences from the reference (Colosseum), each a return to the published algorithm:
+
+* counts start at 0, so the first visit has ``t = 1`` and ``alpha_1 = 1`` (the reference starts at 1, [quirk]);
+* the update weighs the old value by ``1 - alpha_t`` and the target by ``alpha_t`` (the reference swaps them,
+  [quirk]);
+* the Bernstein variance term is ``H / t (W_t + H)`` with ``W_t`` the empirical variance (the reference uses
+  ``H (sum V^2 - sum V)^2 / t^2 + H``, [quirk]);
+* ``V`` starts at ``H`` (optimistic, as ``max_a Q`` of the initial table), not 0;
+* the policy estimate breaks ties towards the lowest index (the reference re-seeds 42, measures.md §1.4).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+from agents.tabular import check_interval, greedy_random_ties, valid_counts
+from jaxmdp import dynamic_programming as dp
+from jaxmdp.agent_interface import Agent, MDPSpec, Transition
+
+__all__ = ["QLearningEpisodicHParams", "QLearningEpisodicState", "Q_LEARNING_EPISODIC"]
+
+
+class QLearningEpisodicHParams(struct.PyTreeNode):
+    """Hyperparameters (numeric leaves, so a grid can vmap over them); defaults: agents.md §2, cached values."""
+
+    c_1: float | jax.Array = 0.9415278732894797
+    c_2: float | jax.Array = 0.013873778519317169
+    min_at: float | jax.Array = 0.07263563483119442
+    p: float | jax.Array = 0.05
+    bernstein: bool | jax.Array = True
+
+
+# Columns of the per-(h, s, a) table: one gather and one scatter per update instead of five (about 1.7x faster).
+_Q, _N, _SUM_V, _SUM_V2, _BETA = range(5)
+
+
+class QLearningEpisodicState(struct.PyTreeNode):
+    """Per-``(h, s, a)`` table ``[H, S, A, 5]`` holding ``Q``, the count ``N`` (as a float, exact up to 2^24), the
+    Bernstein statistics (running sums of the next values and their squares, last ``beta``), ``V[H + 1, S]`` and the
+    member's constants (horizon ``H``, ``iota``, ``S A``)."""
+
+    table: jax.Array
+    V: jax.Array
+    horizon: jax.Array
+    iota: jax.Array
+    n_pairs: jax.Array
+    action_mask: jax.Array
+    hparams: QLearningEpisodicHParams
+
+    @property
+    def Q(self) -> jax.Array:
+        return self.table[..., _Q]
+
+    @property
+    def N(self) -> jax.Array:
+        return self.table[..., _N].astype(jnp.int32)
+
+    @property
+    def beta(self) -> jax.Array:
+        return self.table[..., _BETA]
+
+
+def check_hparams(hparams: QLearningEpisodicHParams) -> None:
+    """Domains: ``c_1, c_2 > 0``, ``0 <= min_at <= 1``, ``0 < p < 1``, ``bernstein`` in {0, 1}."""
+    check_interval("c_1", hparams.c_1, 0.0, low_open=True)
+    check_interval("c_2", hparams.c_2, 0.0, low_open=True)
+    check_interval("min_at", hparams.min_at, 0.0, 1.0)
+    check_interval("p", hparams.p, 0.0, 1.0, low_open=True, high_open=True)
+    b = np.asarray(hparams.bernstein)
+    if not np.all((b == 0) | (b == 1)):
+        raise ValueError(f"bernstein must be True (UCB-Bernstein) or False (UCB-Hoeffding); got {hparams.bernstein}")
+
+
+def init(key: jax.Array, spec: MDPSpec, hparams: QLearningEpisodicHParams) -> QLearningEpisodicState:
+    del key
+    H, S, A = spec.H, spec.n_states, spec.n_actions
+    horizon = spec.horizon.astype(jnp.float32)
+    live = (jnp.arange(H) < spec.horizon)[:, None]
+    n_s, n_a = valid_counts(spec.state_mask, spec.action_mask)
+    V = jnp.concatenate([jnp.where(live, horizon, 0.0) * jnp.ones((H, S)), jnp.zeros((1, S))])
+    table = jnp.zeros((H, S, A, 5), jnp.float32).at[..., _Q].set(V[:H, :, None])
+    hparams = jax.tree.map(lambda x: jnp.asarray(x, jnp.float32), hparams)
+    return QLearningEpisodicState(
+        table=table,
+        V=V,
+        horizon=horizon,
+        iota=jnp.log(n_s * n_a * spec.n_steps.astype(jnp.float32) / hparams.p),
+        n_pairs=n_s * n_a,
+        action_mask=spec.action_mask,
+        hparams=hparams,
+    )
+
+
+def bonus(
+    state: QLearningEpisodicState,
+    t: jax.Array,
+    sum_v: jax.Array,
+    sum_v2: jax.Array,
+    beta_prev: jax.Array,
+    alpha: jax.Array,
+) -> tuple[jax.Array, jax.Array]:
+    """The bonus ``b_t`` of the ``t``-th visit and the new ``beta_t``.
+
+    ``sum_v``/``sum_v2``: sums of the ``t`` next-state values seen so far and of their squares (this visit
+    included); ``beta_prev = beta_{t-1}``. Hoeffding ignores the statistics (``beta`` is then irrelevant).
+    """
+    hp, H, iota = state.hparams, state.horizon, state.iota
+    hoeffding = hp.c_1 * jnp.sqrt(H**3 * iota / t)
+    W = jnp.maximum(sum_v2 / t - (sum_v / t) ** 2, 0.0)
+    beta = jnp.minimum(
+        hp.c_1 * (jnp.sqrt(H / t * (W + H) * iota) + jnp.sqrt(H**7 * state.n_pairs) * iota / t),
+        hp.c_2 * jnp.sqrt(H**3 * iota / t),
+    )
+    bernstein = (beta - (1.0 - alpha) * beta_prev) / (2.0 * alpha)
+    return jnp.where(hp.bernstein > 0, bernstein, hoeffding), beta
+
+
+def update(state: QLearningEpisodicState, tr: Transition) -> QLearningEpisodicState:
+    """One Q-learning step at ``(h, s, a)`` (module docstring)."""
+    h, s, a = tr.h, tr.obs, tr.action
+    row = state.table[h, s, a]
+    t = row[_N] + 1.0
+    H = state.horizon
+    alpha = jnp.maximum(state.hparams.min_at, (H + 1.0) / (H + t))
+    v_next = state.V[h + 1, tr.next_obs]
+    sum_v, sum_v2 = row[_SUM_V] + v_next, row[_SUM_V2] + v_next**2
+    b, beta = bonus(state, t, sum_v, sum_v2, row[_BETA], alpha)
+    q = (1.0 - alpha) * row[_Q] + alpha * (tr.reward + v_next + b)
+    table = state.table.at[h, s, a].set(jnp.stack([q, t, sum_v, sum_v2, beta]))
+    q_row = jnp.where(state.action_mask, table[h, s, :, _Q], -jnp.inf)
+    return state.replace(table=table, V=state.V.at[h, s].set(jnp.minimum(H, jnp.max(q_row))))
+
+
+def act(key: jax.Array, state: QLearningEpisodicState, obs: jax.Array, h: jax.Array) -> jax.Array:
+    """Greedy in ``Q_h(obs, .)``, exact ties at random."""
+    return greedy_random_ties(key, state.table[h, obs, :, _Q], state.action_mask)
+
+
+def policy(state: QLearningEpisodicState) -> jax.Array:
+    """Greedy one-hot policy of ``Q``, ``[H, S, A]`` (lowest-index ties)."""
+    return dp.greedy(state.Q, state.action_mask)
+
+
+Q_LEARNING_EPISODIC = Agent(
+    name="q_learning_episodic",
+    episodic=True,
+    default_hparams=QLearningEpisodicHParams(),
+    init=init,
+    act=act,
+    update=update,
+    policy=policy,
+    check_hparams=check_hparams,
+)

@@ -1,0 +1,210 @@
+"""What a lockstep run produces: records of the running sums, the reference's CSV columns, and checkpoints.
+
+A record holds, for every member, the four running sums the runner accumulates
+(:data:`jaxmdp.indicators.AGENT_COLUMNS`); every other column of the reference's CSV (benchmark.md §2) follows from
+them, the step count and the member's :class:`~jaxmdp.indicators.IndicatorConstants`.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import hashlib
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxmdp.grid import Grid
+from jaxmdp.indicators import AGENT_COLUMNS, CSV_COLUMNS, baseline_columns, normalized_reward
+
+__all__ = [
+    "RunResult",
+    "record_steps",
+    "MEMBER_COLUMNS",
+    "csv_rows",
+    "append_rows",
+    "truncate_csv",
+    "fingerprint",
+    "save_checkpoint",
+    "load_checkpoint",
+]
+
+#: Columns that identify a member in the CSV, before the reference's columns.
+MEMBER_COLUMNS = ("member", "mdp", "hparams", "seed")
+
+
+def record_steps(n_steps: int, log_period: int = 100, n_records: int = 100) -> tuple[int, np.ndarray]:
+    """The record period and the step counts at which records are made.
+
+    Records are made every ``record_period`` steps, a multiple of ``log_period`` chosen so that there are at most
+    ``n_records`` of them, and after the last step.
+    """
+    n_logs = -(-n_steps // log_period)
+    record_period = log_period * -(-n_logs // n_records)
+    steps = np.arange(record_period, n_steps + 1, record_period)
+    if steps.size == 0 or steps[-1] != n_steps:
+        steps = np.append(steps, n_steps)
+    return record_period, steps
+
+
+@dataclasses.dataclass
+class RunResult:
+    """Records of a run.
+
+    Attributes:
+      steps: ``[R]`` step counts of the records.
+      values: ``[R, B, 4]`` running sums (:data:`jaxmdp.indicators.AGENT_COLUMNS`) at each record.
+      constants: the members' :class:`~jaxmdp.indicators.IndicatorConstants` (numpy, leading axis ``B``).
+      grid: the members.
+      agent: the agent's name.
+      compile_s: seconds spent compiling (initialisation and loop programs) and computing the indicator constants.
+      run_s: seconds spent running the loop (compilation excluded), over every session of a resumed run.
+      n_steps, log_period, record_period, variant: the settings.
+      agent_state: the members' final agent states (numpy, leading axis ``B``).
+    """
+
+    steps: np.ndarray
+    values: np.ndarray
+    constants: Any
+    grid: Grid
+    agent: str
+    compile_s: float
+    run_s: float
+    n_steps: int
+    log_period: int
+    record_period: int
+    variant: str
+    agent_state: Any = None
+
+    @property
+    def agent_steps_per_second(self) -> float:
+        """Interaction steps per second summed over members (the lockstep throughput)."""
+        done = int(self.steps[-1]) if self.steps.size else 0
+        return done * self.grid.n_members / self.run_s if self.run_s > 0 else float("nan")
+
+    def column(self, name: str) -> np.ndarray:
+        """One CSV column as ``[R, B]`` (float64)."""
+        return _columns(self.steps, self.values, self.constants)[name]
+
+    def rows(self) -> list[list[Any]]:
+        """All CSV rows (member columns, then the reference's columns), record-major."""
+        return csv_rows(self.grid, self.steps, self.values, self.constants, self._steps_per_member_second())
+
+    def _steps_per_member_second(self) -> np.ndarray:
+        return np.full(self.steps.shape, int(self.steps[-1]) / self.run_s if self.run_s > 0 else np.nan)
+
+    def write_csv(self, path: str | os.PathLike) -> None:
+        """Write every record to one CSV (``member, mdp, hparams, seed`` and the reference's columns)."""
+        with open(path, "w", newline="") as f:
+            writer = csv.writer(f)
+            writer.writerow(MEMBER_COLUMNS + CSV_COLUMNS)
+            writer.writerows(format_row(r) for r in self.rows())
+
+
+def _columns(steps, values, constants) -> dict[str, np.ndarray]:
+    steps = np.asarray(steps, np.float64)[:, None]
+    v = np.asarray(values, np.float64)
+    opt, wst, rnd = (np.asarray(x, np.float64)[None, :] for x in (constants.optimal, constants.worst, constants.random))
+    cols = {name: v[..., i] for i, name in enumerate(AGENT_COLUMNS)}
+    cols["steps"] = np.broadcast_to(steps, v.shape[:2])
+    cols["normalized_cumulative_reward"] = normalized_reward(cols["cumulative_reward"], steps, opt, wst)
+    cols["normalized_cumulative_expected_reward"] = normalized_reward(cols["cumulative_expected_reward"], steps, opt, wst)
+    cols.update(baseline_columns(steps, opt, wst, rnd))
+    return cols
+
+
+def csv_rows(g: Grid, steps, values, constants, per_second) -> list[list[Any]]:
+    """CSV rows (member columns, then the reference's) of records ``steps``/``values``, record-major."""
+    cols = _columns(steps, values, constants)
+    out = []
+    for r in range(len(steps)):
+        for b in range(g.n_members):
+            out.append(
+                [b, g.mdp_labels[g.mdp_index[b]], int(g.hparams_index[b]), int(g.seeds[b]), int(steps[r])]
+                + [cols[name][r, b] for name in CSV_COLUMNS[1:-1]]
+                + [per_second[r]]
+            )
+    return out
+
+
+def format_row(row: list[Any]) -> list[str]:
+    """CSV fields of a row: integers as integers, floats with 9 significant digits (float32 round-trips)."""
+    out = []
+    for x in row:
+        if isinstance(x, str):
+            out.append(x)
+        elif isinstance(x, (int, np.integer)):
+            out.append(str(int(x)))
+        else:
+            out.append(f"{float(x):.9g}")
+    return out
+
+
+def append_rows(path: Path, rows: list[list[Any]]) -> None:
+    """Append rows to a CSV file."""
+    with open(path, "a", newline="") as f:
+        csv.writer(f).writerows(format_row(r) for r in rows)
+
+
+def fingerprint(agent_name: str, g: Grid, n_steps: int, log_period: int, record_period: int, variant: str) -> str:
+    """A hash of everything that defines a run's results (MDPs, hyperparameters, keys and settings): a checkpoint
+    resumes only the run that made it."""
+    h = hashlib.sha256()
+    for x in jax.tree.leaves(g.mdps) + jax.tree.leaves(g.hparams) + [g.mdp_index, g.key_data]:
+        a = np.ascontiguousarray(np.asarray(x))
+        h.update(str((a.shape, a.dtype)).encode())
+        h.update(a.tobytes())
+    h.update(repr((agent_name, n_steps, log_period, record_period, variant)).encode())
+    return h.hexdigest()
+
+
+def save_checkpoint(path: Path, carry: Any, steps: np.ndarray, values: np.ndarray, meta: dict) -> None:
+    """Save the loop's carry, the records so far and ``meta`` to ``path`` (``.npz``), atomically (write + rename)."""
+    leaves = jax.tree.leaves(carry)
+    arrays = {f"leaf{i}": np.asarray(x) for i, x in enumerate(leaves)}
+    arrays["record_steps"] = steps
+    arrays["record_values"] = values
+    arrays["meta"] = np.asarray(json.dumps(meta))
+    tmp = path.with_name(path.name + ".tmp.npz")
+    np.savez(tmp, **arrays)
+    os.replace(tmp, path)
+
+
+def load_checkpoint(path: Path, like: Any, expected: str) -> tuple[Any, np.ndarray, np.ndarray, dict]:
+    """``(carry, record steps, record values, meta)`` from ``path``; ``ValueError`` unless the checkpoint's
+    fingerprint is ``expected`` and its arrays match the structure of ``like``."""
+    with np.load(path) as z:
+        meta = json.loads(str(z["meta"]))
+        if meta.get("fingerprint") != expected:
+            raise ValueError(
+                f"checkpoint {path} belongs to a different run (agent, grid, n_steps, periods or variant differ)"
+            )
+        leaves, treedef = jax.tree.flatten(like)
+        new = []
+        for i, ref in enumerate(leaves):
+            a = z[f"leaf{i}"]
+            if a.shape != ref.shape or a.dtype != ref.dtype:
+                raise ValueError(f"checkpoint {path} does not match this run's state (leaf {i}: {a.shape} {a.dtype})")
+            new.append(jnp.asarray(a))
+        return jax.tree.unflatten(treedef, new), z["record_steps"], z["record_values"], meta
+
+
+def truncate_csv(path: Path, t: int) -> None:
+    """Drop rows written after the checkpoint at step ``t`` (a crash between writing rows and checkpointing)."""
+    header = list(MEMBER_COLUMNS + CSV_COLUMNS)
+    rows = []
+    if path.exists():
+        with open(path, newline="") as f:
+            reader = csv.reader(f)
+            if next(reader, None) == header:
+                col = header.index("steps")
+                rows = [r for r in reader if len(r) == len(header) and int(r[col]) <= t]
+    with open(path, "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(header)
+        writer.writerows(rows)

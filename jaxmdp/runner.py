@@ -1,0 +1,508 @@
+"""The lockstep experiment runner: many (MDP, hyperparameters, seed) members in one compiled program.
+
+A run drives a flat batch of ``B`` *members* (a :class:`Grid`), each with its own MDP, hyperparameters and key,
+through ``n_steps`` agent/MDP interaction steps (paper §3.3 and App. A.1; measures.md §6.1):
+
+* the time loop is a ``lax.fori_loop`` over steps whose body ``vmap``s ``jaxmdp.step`` and the agent's
+  ``act``/``update`` over the batch;
+* planning (``agent.plan``) runs under a ``lax.cond`` whose predicate is unbatched, "some member needs to plan", and
+  ``jnp.where`` keeps the result only for the members that asked, so planning is paid at boundaries only;
+* indicator logging (:mod:`jaxmdp.indicators`, exact policy evaluation of ``agent.policy``) runs under a
+  ``lax.cond`` on "this is a log step": after every ``log_period`` steps and after the last step. A log made after
+  ``c`` steps covers the ``k = c - c_prev`` steps since the previous log (the paper's approximation; ``log_period=1``
+  is the exact mode): ``cumulative_regret += k r_c`` and likewise for the normalised regret and the expected reward.
+  The cumulative (sampled) reward is summed every step. All sums are compensated (Kahan) so that float32 keeps
+  its precision over long runs;
+* memory is flat in ``n_steps``: the carry holds running sums only, and a run emits a fixed number of records
+  (``n_records`` evenly spaced snapshots, the last one after step ``n_steps``).
+
+The host runs the compiled loop in chunks (:func:`run`), shows progress, appends each chunk's records to a CSV and
+can checkpoint the carry so that an interrupted run resumes without losing finished work. Every random draw comes
+from the member's key folded with the step index, so a run's results do not depend on how it was chunked or whether
+it was resumed. Learning always runs for ``n_steps`` steps; compute time is reported beside the results (the
+reference instead stops learning after a wall-clock budget, benchmark.md §2).
+
+Step bookkeeping (differs from the reference's off-by-one, measures.md §6.1, which logs at loop index ``t`` with
+``t + 1`` steps done but labels and charges ``t``): the record labelled ``steps = c`` is made after exactly ``c``
+interaction steps and agent updates, every cumulative quantity covers exactly those ``c`` steps, and the indicator
+of a log evaluates the policy estimate after the ``c``-th update.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, Literal
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+from jaxmdp import env
+from jaxmdp.agent_interface import Agent, Transition, spec_of
+from jaxmdp.grid import Grid, grid, product, stack_hparams
+from jaxmdp.indicators import (
+    AGENT_COLUMNS,
+    IndicatorConstants,
+    indicator_constants,
+    instant_from_values,
+    policy_values,
+)
+from jaxmdp.mdp import MDP
+from jaxmdp.run_output import (
+    MEMBER_COLUMNS,
+    RunResult,
+    append_rows,
+    csv_rows,
+    fingerprint,
+    load_checkpoint,
+    record_steps,
+    save_checkpoint,
+    truncate_csv,
+)
+
+__all__ = ["Grid", "grid", "product", "stack_hparams", "RunResult", "run", "record_steps", "MEMBER_COLUMNS"]
+
+Variant = Literal["paper", "colosseum"]
+
+# Sub-keys of a member's key: environment, actions, planning, initialisation.
+_N_SUBKEYS = 4
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The compiled program
+# ---------------------------------------------------------------------------------------------------------------
+
+
+class Sums(struct.PyTreeNode):
+    """Compensated running sums: ``value`` and Kahan ``compensation``."""
+
+    value: jax.Array
+    compensation: jax.Array
+
+    @classmethod
+    def zeros(cls, shape: tuple[int, ...], dtype: Any) -> "Sums":
+        return cls(value=jnp.zeros(shape, dtype), compensation=jnp.zeros(shape, dtype))
+
+    def add(self, x: jax.Array) -> "Sums":
+        y = x - self.compensation
+        total = self.value + y
+        return Sums(value=total, compensation=(total - self.value) - y)
+
+
+class Carry(struct.PyTreeNode):
+    """Everything the time loop carries. ``t``: steps done; ``last_log``: steps at the previous log."""
+
+    t: jax.Array
+    last_log: jax.Array
+    key_data: jax.Array  # [B, 4, 2]
+    env_state: env.EnvState
+    episode_start: jax.Array  # start state of the episode the next action belongs to
+    last_start: jax.Array  # start state of the episode of the last action taken
+    agent_state: Any
+    reward: Sums  # [B] cumulative sampled reward, summed every step
+    logged: Sums  # [B, 3] cumulative regret, expected reward and normalised regret, summed at logs
+    policy_cache: jax.Array  # [B, ...] the policy evaluated at the previous log (NaN before the first)
+    value_cache: jax.Array  # [B, S] its values (V_0 or the gain from every state)
+
+
+class Schedule(struct.PyTreeNode):
+    """Traced run settings (so one compiled program serves any ``n_steps`` and periods)."""
+
+    n_steps: jax.Array
+    log_period: jax.Array
+    record_period: jax.Array
+
+
+def _member(mdps: MDP, i: jax.Array) -> MDP:
+    """Member ``i``'s MDP. A grid of a single distinct MDP skips the gather (an unbatched MDP under ``vmap``)."""
+    if mdps.T.shape[0] == 1:
+        return jax.tree.map(lambda x: x[0], mdps)
+    return jax.tree.map(lambda x: x[i], mdps)
+
+
+def _keys(key_data: jax.Array, which: int, t: jax.Array) -> jax.Array:
+    """Per-member key ``which`` of a member for step ``t`` (vectorised over members)."""
+    base = jax.random.wrap_key_data(key_data[:, which])
+    return jax.vmap(jax.random.fold_in, in_axes=(0, None))(base, t)
+
+
+def _where_members(mask: jax.Array, new: Any, old: Any) -> Any:
+    return jax.tree.map(lambda a, b: jnp.where(mask.reshape(mask.shape + (1,) * (a.ndim - 1)), a, b), new, old)
+
+
+def _init_program(agent: Agent) -> Callable:
+    def init(mdps: MDP, mdp_index: jax.Array, hparams: Any, key_data: jax.Array, n_steps: jax.Array) -> Carry:
+        sub = jax.vmap(lambda k: jax.random.key_data(jax.random.split(jax.random.wrap_key_data(k), _N_SUBKEYS)))(
+            key_data
+        )
+        init_key = lambda tag: jax.vmap(  # noqa: E731
+            lambda k: jax.random.fold_in(jax.random.wrap_key_data(k[3]), tag)
+        )(sub)
+
+        def one(i, hp, k_reset, k_init, k_plan):
+            m = _member(mdps, i)
+            obs, env_state = env.reset(k_reset, m)
+            state = agent.init(k_init, spec_of(m, n_steps), hp)
+            state = agent.plan(k_plan, state)
+            return obs, env_state, state
+
+        obs, env_state, state = jax.vmap(one)(mdp_index, hparams, init_key(0), init_key(1), init_key(2))
+        B = mdp_index.shape[0]
+        policy = jax.eval_shape(jax.vmap(agent.policy), state)
+        return Carry(
+            t=jnp.zeros((), jnp.int32),
+            last_log=jnp.zeros((), jnp.int32),
+            key_data=sub,
+            env_state=env_state,
+            episode_start=obs,
+            last_start=obs,
+            agent_state=state,
+            reward=Sums.zeros((B,), mdps.dtype),
+            logged=Sums.zeros((B, 3), mdps.dtype),
+            policy_cache=jnp.full(policy.shape, jnp.nan, policy.dtype),
+            value_cache=jnp.zeros((B, mdps.n_states), mdps.dtype),
+        )
+
+    return jax.jit(init)
+
+
+def _chunk_program(
+    agent: Agent, variant: Variant, capacity: int, n_shards: int, carry_treedef: Any
+) -> Callable:
+    """``chunk(carry, mdps, mdp_index, consts, schedule, n) -> (carry, steps[capacity], values[capacity, B, 4],
+    n_written)``: ``n`` more steps (traced), recording at most ``capacity`` snapshots.
+
+    With ``n_shards > 1`` the members are split over that many local devices with ``shard_map``; each shard runs its
+    own loop (its own "some member needs to plan" predicate), so shards never communicate. A grid whose stacked MDPs
+    have no Beta reward anywhere (static ``MDP.stochastic_rewards``) compiles no reward draw.
+    """
+
+    def chunk(carry: Carry, mdps: MDP, mdp_index: jax.Array, consts: IndicatorConstants, sched: Schedule, n):
+        B = mdp_index.shape[0]
+        dtype = mdps.dtype
+
+        def plan_step(c: Carry) -> Carry:
+            needs = jax.vmap(agent.needs_plan)(c.agent_state)
+
+            def do_plan(state):
+                keys = _keys(c.key_data, 2, c.t + 1)
+                return _where_members(needs, jax.vmap(agent.plan)(keys, state), state)
+
+            return c.replace(agent_state=jax.lax.cond(jnp.any(needs), do_plan, lambda s: s, c.agent_state))
+
+        def interact(c: Carry) -> Carry:
+            k_env, k_act = _keys(c.key_data, 0, c.t), _keys(c.key_data, 1, c.t)
+
+            def one(i, ke, ka, env_state, state):
+                m = _member(mdps, i)
+                obs, h = env_state.state, env_state.h
+                action = agent.act(ka, state, obs, h)
+                obs2, env_state2, reward, terminated, _, info = env.step(ke, env_state, action, m)
+                tr = Transition(
+                    obs=obs, action=action, reward=reward, next_obs=info["final_observation"], h=h,
+                    terminated=terminated,
+                )
+                return obs2, env_state2, agent.update(state, tr), reward, terminated
+
+            obs2, env_state, state, reward, terminated = jax.vmap(one)(
+                mdp_index, k_env, k_act, c.env_state, c.agent_state
+            )
+            return c.replace(
+                t=c.t + 1,
+                env_state=env_state,
+                agent_state=state,
+                last_start=c.episode_start,
+                episode_start=jnp.where(terminated, obs2, c.episode_start),
+                reward=c.reward.add(reward.astype(dtype)),
+            )
+
+        def log(c: Carry) -> Carry:
+            # Policy evaluation is the expensive half of an indicator; a member whose policy is unchanged since the
+            # previous log reuses its values (exactly: they cover every state), and the evaluation is skipped
+            # altogether when no member's policy changed.
+            policy = jax.vmap(agent.policy)(c.agent_state)
+            changed = jnp.any((policy != c.policy_cache).reshape(B, -1), axis=1)
+
+            def evaluate(cache):
+                values = jax.vmap(lambda i, p: policy_values(_member(mdps, i), p))(mdp_index, policy)
+                return jnp.where(changed[:, None], values.astype(dtype), cache)
+
+            values = jax.lax.cond(jnp.any(changed), evaluate, lambda cache: cache, c.value_cache)
+            inst = jax.vmap(lambda i, k, v, s, s0: instant_from_values(_member(mdps, i), k, v, s, s0, variant))(
+                mdp_index, consts, values, c.env_state.state, c.last_start
+            )
+            c = c.replace(policy_cache=policy, value_cache=values)
+            k = (c.t - c.last_log).astype(dtype)
+            x = jnp.stack([inst.regret, inst.expected_reward, inst.normalized_regret], axis=-1) * k
+            return c.replace(last_log=c.t, logged=c.logged.add(x.astype(dtype)))
+
+        def body(_, loop):
+            c, steps, values, j = loop
+            c = interact(plan_step(c))
+            is_log = (c.t % sched.log_period == 0) | (c.t == sched.n_steps)
+            c = jax.lax.cond(is_log, log, lambda c: c, c)
+            is_record = (c.t % sched.record_period == 0) | (c.t == sched.n_steps)
+
+            def record(args):
+                steps, values, j = args
+                # The order of AGENT_COLUMNS: regret, reward, expected reward, normalised regret.
+                logged = c.logged.value
+                row = jnp.stack([logged[:, 0], c.reward.value, logged[:, 1], logged[:, 2]], axis=-1)
+                return steps.at[j].set(c.t), values.at[j].set(row), j + 1
+
+            steps, values, j = jax.lax.cond(is_record, record, lambda a: a, (steps, values, j))
+            return c, steps, values, j
+
+        steps0 = jnp.zeros((capacity,), jnp.int32)
+        values0 = jnp.zeros((capacity, B, len(AGENT_COLUMNS)), dtype)
+        return jax.lax.fori_loop(0, n, body, (carry, steps0, values0, jnp.zeros((), jnp.int32)))
+
+    if n_shards == 1:
+        return jax.jit(chunk)
+    P = jax.sharding.PartitionSpec
+    mesh = jax.sharding.Mesh(np.asarray(jax.local_devices()[:n_shards]), ("members",))
+    # Per-member leaves carry the member axis first; the scalars (step counters) are the same on every shard.
+    carry_specs = jax.tree.unflatten(carry_treedef[0], [P() if nd == 0 else P("members") for nd in carry_treedef[1]])
+    in_specs = (carry_specs, P(), P("members"), P("members"), P(), P())
+    out_specs = (carry_specs, P(), P(None, "members"), P())
+    return jax.jit(jax.shard_map(chunk, mesh=mesh, in_specs=in_specs, out_specs=out_specs, check_vma=False))
+
+
+def _constants_program(variant: Variant) -> Callable:
+    return jax.jit(jax.vmap(lambda m: indicator_constants(m, variant)))
+
+
+# Compiled programs, keyed by the agent's identity and the static settings; jit caches per input shape below that.
+# The agent is stored beside its program so that its id cannot be reused by another object while the entry exists.
+_PROGRAMS: dict[tuple, tuple[Callable, Any]] = {}
+
+
+def _program(kind: str, agent: Agent | None, *static) -> Callable:
+    key = (kind, id(agent), *static)
+    if key not in _PROGRAMS:
+        if kind == "init":
+            fn = _init_program(agent)
+        elif kind == "chunk":
+            fn = _chunk_program(agent, *static)
+        else:
+            fn = _constants_program(*static)
+        _PROGRAMS[key] = (fn, agent)
+    return _PROGRAMS[key][0]
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Host driver
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def _n_shards(n_members: int, shards: int | None) -> int:
+    available = jax.local_device_count()
+    if shards is None:
+        return max(d for d in range(1, available + 1) if n_members % d == 0)
+    shards = _check_positive_int("shards", shards)
+    if shards > available or n_members % shards:
+        raise ValueError(f"shards must divide the {n_members} members and be at most the {available} local devices; "
+                         f"got {shards}")
+    return shards
+
+
+def _check_positive_int(name: str, value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name} must be a positive integer; got {value!r}")
+    return int(value)
+
+
+def _validate(agent: Agent, g: Grid, variant: str) -> None:
+    if not isinstance(agent, Agent):
+        raise ValueError(f"agent must be a jaxmdp.agent_interface.Agent; got {type(agent).__name__}")
+    if not isinstance(g, Grid):
+        raise ValueError("grid must be a jaxmdp.runner.Grid (see runner.grid and runner.product)")
+    if variant not in ("paper", "colosseum"):
+        raise ValueError(f"variant must be 'paper' or 'colosseum'; got {variant!r}")
+    if agent.episodic != g.episodic:
+        kind = lambda e: "episodic" if e else "continuous"  # noqa: E731
+        raise ValueError(
+            f"agent {agent.name!r} is {kind(agent.episodic)} but the MDPs are {kind(g.episodic)}; use a "
+            f"{kind(g.episodic)} agent"
+        )
+    agent.check_hparams(g.hparams)
+
+
+def _check_shapes(agent: Agent, g: Grid, n_steps: int) -> None:
+    """Abstract evaluation (no compilation) of one member: the agent's policy and action must fit the MDP."""
+    m = _member(g.mdps, 0)
+    hp = jax.tree.map(lambda x: x[0], g.hparams)
+    key = jax.random.key(0)
+    S, A, H = m.n_states, m.n_actions, m.H
+    try:
+        state = jax.eval_shape(agent.init, key, spec_of(m, n_steps), hp)
+        policy = jax.eval_shape(agent.policy, state)
+        action = jax.eval_shape(agent.act, key, state, jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32))
+    except (TypeError, ValueError, IndexError) as err:
+        raise ValueError(f"agent {agent.name!r} does not fit MDPs with S={S}, A={A}, H={H}: {err}") from err
+    allowed = [(H, S, A), (S, A)] if H is not None else [(S, A)]
+    if policy.shape not in allowed:
+        raise ValueError(
+            f"agent {agent.name!r} returns a policy of shape {policy.shape} for MDPs with S={S}, A={A}"
+            f"{f', H={H}' if H else ''}; expected one of {allowed}"
+        )
+    if action.shape != () or not jnp.issubdtype(action.dtype, jnp.integer):
+        raise ValueError(f"agent {agent.name!r} must return one integer action; got {action.shape} {action.dtype}")
+
+
+def _progress(done: int, total: int, elapsed: float, members: int) -> None:
+    rate = done * members / elapsed if elapsed > 0 else float("nan")
+    print(f"\r  {done}/{total} steps ({100 * done / total:5.1f}%), {rate / 1e6:.2f} M agent-steps/s", end="",
+          file=sys.stderr, flush=True)
+
+
+def run(
+    agent: Agent,
+    grid: Grid,
+    n_steps: int,
+    *,
+    log_period: int = 100,
+    n_records: int = 100,
+    variant: Variant = "paper",
+    chunk_steps: int | None = None,
+    csv_path: str | os.PathLike | None = None,
+    checkpoint_path: str | os.PathLike | None = None,
+    resume: bool = True,
+    progress: bool = False,
+    stop_after_chunks: int | None = None,
+    shards: int | None = None,
+) -> RunResult:
+    """Run ``agent`` on every member of ``grid`` for ``n_steps`` steps in lockstep (see the module docstring).
+
+    Args:
+      agent: the agent (see :mod:`jaxmdp.agent_interface`).
+      grid: the members (:func:`grid` or :func:`product`).
+      n_steps: interaction steps per member (the optimisation horizon ``T`` given to the agent).
+      log_period: steps between indicator logs (the reference's ``log_performance_indicators_every``, 100);
+        ``1`` is the exact mode.
+      n_records: at most this many snapshots per member (:func:`record_steps`); memory does not grow with
+        ``n_steps``.
+      variant: ``"paper"`` (default) or ``"colosseum"`` indicators (:mod:`jaxmdp.indicators`).
+      chunk_steps: steps per host-side chunk (default: about 20 chunks, at least one record period each).
+      csv_path: append each chunk's records to this CSV (``member, mdp, hparams, seed`` + the reference's columns).
+      checkpoint_path: save the loop's state after each chunk (``.npz``); with ``resume=True`` an existing
+        checkpoint of the same run is continued (records already written are kept).
+      progress: print progress to stderr.
+      stop_after_chunks: stop after this many chunks of this call (to test interruption; the result then holds the
+        records so far).
+      shards: split the members over this many local devices (default: as many as divide the batch, up to
+        ``jax.local_device_count()``). XLA runs one lockstep loop on one core; to use every core of a CPU, start
+        Python with ``XLA_FLAGS=--xla_force_host_platform_device_count=<cores>`` (before JAX is imported).
+
+    Raises:
+      ValueError: before anything compiles, for an episodic agent on continuous MDPs (or the reverse), an agent
+        whose policy or action does not fit the MDPs' ``S``/``A``/``H``, non-positive ``n_steps``, ``log_period`` or
+        ``n_records``, hyperparameters outside their domain (``agent.check_hparams``) or a checkpoint of another
+        run.
+    """
+    n_steps = _check_positive_int("n_steps", n_steps)
+    log_period = _check_positive_int("log_period", log_period)
+    n_records = _check_positive_int("n_records", n_records)
+    if chunk_steps is not None:
+        chunk_steps = _check_positive_int("chunk_steps", chunk_steps)
+    if n_steps >= 2**31 - 1:
+        raise ValueError(f"n_steps must be below 2**31 - 1; got {n_steps}")
+    _validate(agent, grid, variant)
+    n_shards = _n_shards(grid.n_members, shards)
+    _check_shapes(agent, grid, n_steps)
+
+    record_period, _ = record_steps(n_steps, log_period, n_records)
+    if chunk_steps is None:
+        chunk_steps = max(record_period, -(-n_steps // 20))
+    chunk_steps = min(chunk_steps, n_steps)
+    capacity = chunk_steps // record_period + 2
+    B = grid.n_members
+
+    mdps = grid.mdps
+    mdp_index = jnp.asarray(grid.mdp_index)
+    hparams = jax.tree.map(jnp.asarray, grid.hparams)
+    key_data = jnp.asarray(grid.key_data)
+    sched = Schedule(
+        n_steps=jnp.asarray(n_steps, jnp.int32),
+        log_period=jnp.asarray(log_period, jnp.int32),
+        record_period=jnp.asarray(record_period, jnp.int32),
+    )
+
+    compile_s = 0.0
+    t0 = time.perf_counter()
+    unique_consts = _program("constants", None, variant)(mdps)
+    consts = jax.tree.map(lambda x: x[mdp_index], unique_consts)
+    init_jit = _program("init", agent)
+    init_fn = init_jit.lower(mdps, mdp_index, hparams, key_data, sched.n_steps).compile()
+    carry_shape = jax.eval_shape(init_jit, mdps, mdp_index, hparams, key_data, sched.n_steps)
+    leaves, treedef = jax.tree.flatten(carry_shape)
+    chunk_fn = _program("chunk", agent, variant, capacity, n_shards, (treedef, tuple(x.ndim for x in leaves)))
+    chunk_exe = chunk_fn.lower(carry_shape, mdps, mdp_index, consts, sched, jnp.int32(0)).compile()
+    jax.block_until_ready(consts)
+    compile_s += time.perf_counter() - t0
+
+    run_id = fingerprint(agent.name, grid, n_steps, log_period, record_period, variant)
+    ckpt = Path(checkpoint_path) if checkpoint_path is not None else None
+    csv_file = Path(csv_path) if csv_path is not None else None
+    steps_done = np.zeros((0,), np.int64)
+    values_done = np.zeros((0, B, len(AGENT_COLUMNS)), np.dtype(mdps.dtype))
+    elapsed_before = 0.0
+    consts_np = jax.tree.map(np.asarray, consts)
+
+    if ckpt is not None and resume and ckpt.exists():
+        carry, steps_done, values_done, meta = load_checkpoint(ckpt, carry_shape, run_id)
+        elapsed_before = float(meta["run_s"])
+        if csv_file is not None:
+            truncate_csv(csv_file, int(carry.t))
+    else:
+        carry = init_fn(mdps, mdp_index, hparams, key_data, sched.n_steps)
+        jax.block_until_ready(carry)
+        if csv_file is not None:
+            csv_file.parent.mkdir(parents=True, exist_ok=True)
+            truncate_csv(csv_file, -1)
+
+    t_start = time.perf_counter()
+    chunks = 0
+    while int(carry.t) < n_steps:
+        n = min(chunk_steps, n_steps - int(carry.t))
+        carry, steps, values, j = chunk_exe(carry, mdps, mdp_index, consts, sched, jnp.int32(n))
+        j = int(j)
+        steps, values = np.asarray(steps[:j]), np.asarray(values[:j])
+        elapsed = elapsed_before + time.perf_counter() - t_start
+        steps_done = np.concatenate([steps_done, steps])
+        values_done = np.concatenate([values_done, values])
+        if csv_file is not None and j:
+            per_second = np.full((j,), int(carry.t) / elapsed)
+            append_rows(csv_file, csv_rows(grid, steps, values, consts_np, per_second))
+        if ckpt is not None:
+            meta = {"fingerprint": run_id, "run_s": elapsed, "t": int(carry.t), "agent": agent.name}
+            save_checkpoint(ckpt, carry, steps_done, values_done, meta)
+        if progress:
+            _progress(int(carry.t), n_steps, elapsed, B)
+        chunks += 1
+        if stop_after_chunks is not None and chunks >= stop_after_chunks and int(carry.t) < n_steps:
+            break
+    if progress:
+        print(file=sys.stderr)
+    run_s = elapsed_before + time.perf_counter() - t_start
+    return RunResult(
+        steps=steps_done,
+        values=values_done,
+        constants=consts_np,
+        grid=grid,
+        agent=agent.name,
+        compile_s=compile_s,
+        run_s=run_s,
+        n_steps=n_steps,
+        log_period=log_period,
+        record_period=record_period,
+        variant=variant,
+        agent_state=jax.tree.map(np.asarray, carry.agent_state),
+    )
+
+

@@ -1,0 +1,217 @@
+"""Throughput of every registered agent in the lockstep runner: agent-steps per second at 1, 64 and 1024 seeds.
+
+Each measurement runs ``runner.run`` (environment + agent + exact indicators every 100 steps, as the reference's
+benchmark) for ``--steps`` steps per seed on the benchmark MDPs of ``colosseum-timings.md``: RiverSwim (continuous
+communicating ``prms_0``, episodic communicating ``prms_0``), and Taxi / MiniGridEmpty when those families are
+registered. Compilation is timed separately. The reference's single-run throughput is printed beside ours.
+
+A profile at the largest seed count splits the time of each agent into environment (the random agent, no
+indicators), agent (the agent, no indicators, minus the environment) and indicators (the rest).
+
+The CPU backend runs one lockstep loop per device, so the script exposes one host device per core
+(``XLA_FLAGS=--xla_force_host_platform_device_count``) unless ``XLA_FLAGS`` already sets it; the runner shards the
+members over them. Writes ``results/bench_agents.md`` and ``results/bench_agents.csv``.
+
+Usage: ``python scripts/bench_agents.py [--quick] [--steps N] [--seeds 1,64,1024] [--agents a,b] [--repeats R]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+if "xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
+    os.environ["XLA_FLAGS"] = (
+        os.environ.get("XLA_FLAGS", "") + f" --xla_force_host_platform_device_count={os.cpu_count() or 1}"
+    ).strip()
+
+import csv  # noqa: E402
+import platform  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import jax  # noqa: E402
+
+import agents  # noqa: E402
+import jaxmdp  # noqa: E402
+from jaxmdp import runner  # noqa: E402
+
+# The benchmark MDPs of colosseum-timings.md (benchmark.md §3 scopes), keyed by (family, episodic).
+BENCH_MDPS = {
+    ("RiverSwim", False): dict(size=25, p_lazy=0.1, make_reward_stochastic=True, randomize_actions=False),
+    ("RiverSwim", True): dict(size=25, p_lazy=0.05, make_reward_stochastic=True, randomize_actions=False),
+    ("Taxi", False): dict(size=4, length=1, width=1, space=1, n_locations=3, p_lazy=0.01,
+                          make_reward_stochastic=True, randomize_actions=False),
+    ("Taxi", True): dict(size=4, length=1, width=1, space=1, n_locations=3, p_lazy=0.01,
+                         make_reward_stochastic=True, randomize_actions=False),
+    ("MiniGridEmpty", False): dict(size=8, p_lazy=0.3, n_starting_states=3, make_reward_stochastic=False,
+                                   randomize_actions=False),
+    ("MiniGridEmpty", True): dict(size=6, n_starting_states=3, make_reward_stochastic=True, randomize_actions=False),
+}
+
+# The reference's steps per second (one run, 20 000 steps, indicators every 100 steps; colosseum-timings.md).
+REFERENCE = {
+    ("q_learning_continuous", "RiverSwim"): "35.9k",
+    ("q_learning_continuous", "Taxi"): "21.2k",
+    ("q_learning_continuous", "MiniGridEmpty"): "23.5-25.3k",
+    ("ucrl2", "RiverSwim"): "5.7k",
+    ("ucrl2", "Taxi"): "1.9k",
+    ("ucrl2", "MiniGridEmpty"): "1.9k",
+    ("psrl_continuous", "RiverSwim"): "9.4k",
+    ("psrl_continuous", "Taxi"): "27",
+    ("psrl_continuous", "MiniGridEmpty"): "~2.6",
+    ("q_learning_episodic", "RiverSwim"): "17.4k",
+    ("q_learning_episodic", "Taxi"): "14.2-14.6k",
+    ("q_learning_episodic", "MiniGridEmpty"): "18.2-20.2k",
+    ("psrl_episodic", "RiverSwim"): "18.5k",
+    ("psrl_episodic", "Taxi"): "3.4k",
+    ("psrl_episodic", "MiniGridEmpty"): "2.9k",
+}
+NO_INDICATORS = 2**30  # a log period longer than any run: only the final log happens
+
+
+def measure(agent, mdp, seeds: int, steps: int, repeats: int, log_period: int = 100, shards=None) -> dict:
+    """Best-of-``repeats`` wall and CPU time per agent-step; the first call's compile time."""
+    g = runner.product([mdp], [agent.default_hparams], seeds=range(seeds))
+    first = runner.run(agent, g, steps, log_period=log_period, n_records=10, shards=shards)
+    walls, cpus = [first.run_s], []
+    for _ in range(repeats):
+        c0 = time.process_time()
+        res = runner.run(agent, g, steps, log_period=log_period, n_records=10, shards=shards)
+        cpus.append(time.process_time() - c0)
+        walls.append(res.run_s)
+    n = steps * seeds
+    return {
+        "compile_s": first.compile_s,
+        "steps_per_s": n / min(walls),
+        "cpu_ns_per_step": 1e9 * min(cpus) / n if cpus else float("nan"),
+        "regret": float(res.column("normalized_cumulative_regret")[-1].mean() / steps),
+    }
+
+
+def fmt_rate(x: float) -> str:
+    return f"{x / 1e6:.2f} M" if x >= 1e6 else f"{x / 1e3:.1f} k"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--steps", type=int, default=20_000, help="steps per seed (the reference timed 20 000)")
+    ap.add_argument("--seeds", default="1,64,1024")
+    ap.add_argument("--agents", default=",".join(agents.AGENTS))
+    ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--quick", action="store_true", help="4 000 steps, 1 repeat")
+    ap.add_argument("--max-seconds", type=float, default=120.0,
+                    help="skip a seed count whose predicted run time exceeds this")
+    ap.add_argument("--out", default="results")
+    args = ap.parse_args()
+    if args.quick:
+        args.steps, args.repeats = 4_000, 1
+    seed_counts = [int(s) for s in args.seeds.split(",")]
+    names = [n for n in args.agents.split(",") if n]
+    families = [f for f in ("RiverSwim", "Taxi", "MiniGridEmpty") if f in jaxmdp.families()]
+    load0 = os.getloadavg()
+    t0 = time.perf_counter()
+
+    rows, profile = [], []
+    for name in names:
+        agent = agents.get(name)
+        for family in families:
+            mdp = jaxmdp.make(family, episodic=agent.episodic, seed=0, **BENCH_MDPS[(family, agent.episodic)])
+            predicted = None
+            for seeds in seed_counts:
+                if predicted is not None and predicted * seeds > args.max_seconds:
+                    print(f"{name} {family} {seeds} seeds: skipped (predicted {predicted * seeds:.0f} s)",
+                          flush=True)
+                    rows.append(dict(agent=name, mdp=family, S=mdp.n_states, seeds=seeds, skipped=True))
+                    continue
+                m = measure(agent, mdp, seeds, args.steps, args.repeats)
+                predicted = args.steps / m["steps_per_s"]  # seconds per seed at this rate (optimistic)
+                rows.append(dict(agent=name, mdp=family, S=mdp.n_states, seeds=seeds, skipped=False, **m))
+                print(f"{name:24s} {family:14s} seeds={seeds:5d} {fmt_rate(m['steps_per_s'])} agent-steps/s "
+                      f"(compile {m['compile_s']:.1f} s, {m['cpu_ns_per_step']:.0f} CPU-ns/step)", flush=True)
+        # Profile at the largest seed count on RiverSwim: environment, agent, indicators.
+        seeds = seed_counts[-1]
+        if not any(r["agent"] == name and r["seeds"] == seeds and not r["skipped"] for r in rows):
+            continue
+        mdp = jaxmdp.make("RiverSwim", episodic=agent.episodic, seed=0, **BENCH_MDPS[("RiverSwim", agent.episodic)])
+        random_agent = agents.get("random_episodic" if agent.episodic else "random_continuous")
+        env = measure(random_agent, mdp, seeds, args.steps, args.repeats, log_period=NO_INDICATORS)
+        bare = measure(agent, mdp, seeds, args.steps, args.repeats, log_period=NO_INDICATORS)
+        full = measure(agent, mdp, seeds, args.steps, args.repeats)
+        one_core = measure(agent, mdp, seeds, args.steps, args.repeats, shards=1)
+        ns = lambda m: 1e9 / m["steps_per_s"]  # noqa: E731
+        profile.append(dict(
+            agent=name, seeds=seeds, env_ns=ns(env), agent_ns=ns(bare) - ns(env), indicators_ns=ns(full) - ns(bare),
+            total_ns=ns(full), env_cpu_ns=env["cpu_ns_per_step"],
+            agent_cpu_ns=bare["cpu_ns_per_step"] - env["cpu_ns_per_step"],
+            indicators_cpu_ns=full["cpu_ns_per_step"] - bare["cpu_ns_per_step"], total_cpu_ns=full["cpu_ns_per_step"],
+            one_core_steps_per_s=one_core["steps_per_s"], all_cores_steps_per_s=full["steps_per_s"],
+        ))
+        p = profile[-1]
+        print(f"  profile {name}: env {p['env_ns']:.0f} ns, agent {p['agent_ns']:.0f} ns, indicators "
+              f"{p['indicators_ns']:.0f} ns per agent-step; 1 core {fmt_rate(p['one_core_steps_per_s'])}/s",
+              flush=True)
+
+    write(Path(args.out), rows, profile, args, load0, time.perf_counter() - t0)
+
+
+def write(out: Path, rows: list[dict], profile: list[dict], args, load0, elapsed: float) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / "bench_agents.csv", "w", newline="") as f:
+        fields = ["agent", "mdp", "S", "seeds", "skipped", "steps_per_s", "compile_s", "cpu_ns_per_step", "regret"]
+        w = csv.DictWriter(f, fieldnames=fields, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(rows)
+    cpu = platform.processor() or platform.machine()
+    try:
+        cpu = next(line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    seed_counts = sorted({r["seeds"] for r in rows})
+    lines = [
+        "# Agent throughput in the lockstep runner",
+        "",
+        f"{args.steps} steps per seed, exact indicators every 100 steps, {jax.local_device_count()} host devices "
+        f"(one per core) on {os.cpu_count()} cores ({cpu}); jax {jax.__version__}. Best of {args.repeats + 1} runs. "
+        f"Load average before/after: {load0[0]:.1f} / {os.getloadavg()[0]:.1f} (other processes share the "
+        f"machine; treat absolute numbers as lower bounds). Total {elapsed:.0f} s.",
+        "",
+        "Agent-steps per second summed over seeds (compile time in brackets); the reference runs one seed per "
+        "process (colosseum-timings.md).",
+        "",
+        "| agent | MDP | S | " + " | ".join(f"{s} seeds" for s in seed_counts) + " | reference (1 seed) |",
+        "|---|---|---|" + "---|" * len(seed_counts) + "---|",
+    ]
+    keys = sorted({(r["agent"], r["mdp"], r["S"]) for r in rows}, key=lambda k: (list(agents.AGENTS).index(k[0])
+                                                                                 if k[0] in agents.AGENTS else 99, k[1]))
+    for agent, mdp, S in keys:
+        cells = []
+        for s in seed_counts:
+            r = next((r for r in rows if (r["agent"], r["mdp"], r["seeds"]) == (agent, mdp, s)), None)
+            cells.append("-" if r is None else "skipped" if r["skipped"] else
+                         f"{fmt_rate(r['steps_per_s'])} ({r['compile_s']:.1f} s)")
+        lines.append(f"| {agent} | {mdp} | {S} | " + " | ".join(cells) + f" | {REFERENCE.get((agent, mdp), '-')} |")
+    if profile:
+        lines += [
+            "",
+            f"Where the time goes on RiverSwim at {profile[0]['seeds']} seeds, per agent-step (wall ns, then CPU ns "
+            "over all threads): environment = random agent without indicators; agent = the agent without indicators "
+            "minus the environment; indicators = the rest. 1 core: the same run on one host device.",
+            "",
+            "| agent | env | agent | indicators | total | CPU env / agent / indicators | 1 core | all cores |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        for p in profile:
+            lines.append(
+                f"| {p['agent']} | {p['env_ns']:.0f} | {p['agent_ns']:.0f} | {p['indicators_ns']:.0f} | "
+                f"{p['total_ns']:.0f} | {p['env_cpu_ns']:.0f} / {p['agent_cpu_ns']:.0f} / "
+                f"{p['indicators_cpu_ns']:.0f} | {fmt_rate(p['one_core_steps_per_s'])} | "
+                f"{fmt_rate(p['all_cores_steps_per_s'])} |"
+            )
+    (out / "bench_agents.md").write_text("\n".join(lines) + "\n")
+    print(f"wrote {out / 'bench_agents.md'} and {out / 'bench_agents.csv'}")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,264 @@
+"""Random and Q-learning agents: update rules against hand computation in numpy, action masks, registry, and probe
+MDPs with known optimal policies (a one-state bandit and tiny chains) that each agent must solve within a budget."""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import agents
+import jaxmdp
+from agents import q_learning_continuous as qlc
+from agents import q_learning_episodic as qle
+from agents.tabular import greedy_random_ties
+from jaxmdp import runner
+from jaxmdp.agent_interface import Transition, spec_of
+
+
+def tr(s, a, r, s2, h=0):
+    return Transition(obs=jnp.int32(s), action=jnp.int32(a), reward=jnp.float32(r), next_obs=jnp.int32(s2),
+                      h=jnp.int32(h), terminated=jnp.bool_(False))
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Q-learning, episodic (Jin et al. 2018)
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def jin_reference(transitions, H, S, A, T, hp):
+    """Algorithms 1 and 2 of Jin et al. written out in numpy, one transition at a time."""
+    iota = math.log(S * A * T / hp["p"])
+    Q = np.full((H, S, A), float(H))
+    V = np.vstack([np.full((H, S), float(H)), np.zeros((1, S))])
+    N = np.zeros((H, S, A))
+    seen = {}
+    beta_prev = np.zeros((H, S, A))
+    for h, s, a, r, s2 in transitions:
+        N[h, s, a] += 1
+        t = N[h, s, a]
+        alpha = max(hp["min_at"], (H + 1) / (H + t))
+        seen.setdefault((h, s, a), []).append(V[h + 1, s2])
+        if hp["bernstein"]:
+            vals = np.array(seen[(h, s, a)])
+            W = np.mean((vals - vals.mean()) ** 2)
+            beta = min(hp["c_1"] * (math.sqrt(H / t * (W + H) * iota) + math.sqrt(H**7 * S * A) * iota / t),
+                       hp["c_2"] * math.sqrt(H**3 * iota / t))
+            b = (beta - (1 - alpha) * beta_prev[h, s, a]) / (2 * alpha)
+            beta_prev[h, s, a] = beta
+        else:
+            b = hp["c_1"] * math.sqrt(H**3 * iota / t)
+        Q[h, s, a] = (1 - alpha) * Q[h, s, a] + alpha * (r + V[h + 1, s2] + b)
+        V[h, s] = min(H, Q[h, s].max())
+    return Q, V, N
+
+
+@pytest.mark.parametrize("bernstein", [True, False])
+def test_jin_update_matches_numpy(bernstein):
+    mdp = jaxmdp.custom_mdp(np.full((3, 2, 3), 1 / 3), R=np.zeros((3, 2)), H=3)
+    hp = dict(c_1=0.3, c_2=0.8, min_at=0.05, p=0.05, bernstein=bernstein)
+    state = qle.init(jax.random.key(0), spec_of(mdp, 1000), qle.QLearningEpisodicHParams(**hp))
+    rng = np.random.default_rng(0)
+    # Repeated visits to a few (h, s, a) with varying next states, so the variance term and beta history matter.
+    transitions = [(int(rng.integers(0, 2)), int(rng.integers(0, 2)), 1, float(rng.random()), int(rng.integers(0, 3)))
+                   for _ in range(40)]
+    transitions = [(h + 1 if k % 3 == 0 else h, s, a, r, s2) for k, (h, s, a, r, s2) in enumerate(transitions)]
+    update = jax.jit(qle.update)
+    for h, s, a, r, s2 in transitions:
+        state = update(state, tr(s, a, r, s2, h))
+    Q, V, N = jin_reference(transitions, 3, 3, 2, 1000, hp)
+    np.testing.assert_allclose(state.Q, Q, rtol=2e-5)
+    np.testing.assert_allclose(state.V, V, rtol=2e-5)
+    np.testing.assert_array_equal(state.N, N)
+
+
+def test_jin_first_visit_overwrites_with_target():
+    # alpha_1 = 1 (counts start at 0): the first update replaces the optimistic H by r + V_{h+1}(s') + b_1.
+    mdp = jaxmdp.custom_mdp(np.full((2, 2, 2), 0.5), R=np.zeros((2, 2)), H=2)
+    hp = qle.QLearningEpisodicHParams(bernstein=False, c_1=0.1, min_at=0.0)
+    state = qle.init(jax.random.key(0), spec_of(mdp, 100), hp)
+    state = qle.update(state, tr(0, 1, 0.3, 1, h=1))
+    b1 = 0.1 * math.sqrt(2**3 * math.log(2 * 2 * 100 / 0.05))
+    assert float(state.Q[1, 0, 1]) == pytest.approx(0.3 + 0.0 + b1, rel=1e-6)  # V_H = 0 at the last step
+    assert float(state.V[1, 0]) == pytest.approx(min(2.0, max(2.0, 0.3 + b1)), rel=1e-6)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Optimistic Q-learning, continuous (Wei et al. 2020)
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def wei_constants(hw, sp, delta, S, A, T, exponent=1 / 3):
+    H = hw * min(math.sqrt(sp * T / (S * A)), (T / (S * A * math.log(4 * T / delta))) ** exponent)
+    return H, 1 - 1 / H, 4 * sp * math.sqrt(H * math.log(2 * T / delta))
+
+
+def test_wei_constants():
+    # The spec's derived values (agents.md §5: S=25, A=2, T=500 000 -> H = 8.2931, bonus at N=1 0.6005) come from
+    # the reference's delta = 0.95 and exponent 0.333; they check this reading of the formulas.
+    H, _, b = wei_constants(0.942, 0.014, 0.95, 25, 2, 500_000, exponent=0.333)
+    assert H == pytest.approx(8.2931, abs=1e-4) and b == pytest.approx(0.6005, abs=1e-4)
+    for delta, S, A in [(0.05, 25, 2), (0.95, 100, 5), (0.05, 400, 3)]:
+        hp = qlc.QLearningContinuousHParams(delta=delta)
+        H, gamma, scale, min_at = qlc.constants(hp, S, A, 500_000)
+        want = wei_constants(0.942, 0.014, delta, S, A, 500_000)
+        np.testing.assert_allclose([H, gamma, scale], want, rtol=1e-5)
+        assert float(min_at) == pytest.approx(0.073)
+    assert float(qlc.constants(qlc.QLearningContinuousHParams(min_at=0.005), 5, 2, 1000)[3]) == 0.0
+    assert float(qlc.constants(qlc.QLearningContinuousHParams(h_weight=1e-3), 5, 2, 1000)[0]) == 1.0  # floor
+
+
+def test_wei_update_matches_numpy():
+    mdp = jaxmdp.custom_mdp(np.full((3, 2, 3), 1 / 3), R=np.zeros((3, 2)))
+    hp = qlc.QLearningContinuousHParams(h_weight=1.0, span_approx_weight=0.5, min_at=0.2)
+    state = qlc.init(jax.random.key(0), spec_of(mdp, 2000), hp)
+    H, gamma, scale = wei_constants(1.0, 0.5, 0.05, 3, 2, 2000)
+    Q, Qh, V, N = np.full((3, 2), H), np.full((3, 2), H), np.full(3, H), np.zeros((3, 2))
+    rng = np.random.default_rng(1)
+    update = jax.jit(qlc.update)
+    for _ in range(60):
+        s, a, s2, r = int(rng.integers(0, 2)), int(rng.integers(0, 2)), int(rng.integers(0, 3)), float(rng.random())
+        state = update(state, tr(s, a, r, s2))
+        N[s, a] += 1
+        alpha = max(0.2, (H + 1) / (H + N[s, a]))
+        Q[s, a] = (1 - alpha) * Q[s, a] + alpha * (r + gamma * V[s2] + scale / math.sqrt(N[s, a]))
+        Qh[s, a] = min(Qh[s, a], Q[s, a])
+        V[s] = Qh[s].max()
+    np.testing.assert_allclose(state.Q, Q, rtol=1e-5)
+    np.testing.assert_allclose(state.Q_hat, Qh, rtol=1e-5)
+    np.testing.assert_allclose(state.V, V, rtol=1e-5)
+    np.testing.assert_array_equal(state.N, N)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Acting, masks, random agent, registry, hyperparameter domains
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def test_greedy_ties_are_uniform_over_valid_actions():
+    keys = jax.random.split(jax.random.key(0), 6000)
+    q = jnp.asarray([1.0, 0.5, 1.0, 1.0])
+    mask = jnp.asarray([True, True, True, False])
+    a = np.asarray(jax.vmap(greedy_random_ties, in_axes=(0, None, None))(keys, q, mask))
+    freq = np.bincount(a, minlength=4) / a.size
+    np.testing.assert_allclose(freq, [0.5, 0.0, 0.5, 0.0], atol=0.025)  # ~5 standard errors
+    nan = np.asarray(jax.vmap(greedy_random_ties, in_axes=(0, None, None))(keys[:500], q * jnp.nan, mask))
+    assert set(nan.tolist()) <= {0, 1, 2}
+
+
+@pytest.mark.parametrize("mask", [[True, True, True, False], [True, False, True, False]])
+def test_random_agent_acts_uniformly_on_valid_actions(mask):
+    agent = agents.get("random_continuous")
+    mdp = jaxmdp.custom_mdp(np.full((2, 4, 2), 0.5), R=np.zeros((2, 4))).replace(action_mask=jnp.asarray(mask))
+    state = agent.init(jax.random.key(0), spec_of(mdp, 10), agent.default_hparams)
+    keys = jax.random.split(jax.random.key(1), 6000)
+    a = np.asarray(jax.vmap(lambda k: agent.act(k, state, jnp.int32(0), jnp.int32(0)))(keys))
+    valid = np.flatnonzero(mask)
+    np.testing.assert_allclose(np.bincount(a, minlength=4)[valid] / a.size, 1 / valid.size, atol=0.03)
+    assert set(a.tolist()) <= set(valid.tolist())
+    np.testing.assert_allclose(agent.policy(state), np.broadcast_to(np.asarray(mask) / sum(mask), (2, 4)))
+    ep = agents.get("random_episodic")
+    mdp_e = jaxmdp.custom_mdp(np.full((2, 4, 2), 0.5), R=np.zeros((2, 4)), H=3)
+    assert ep.policy(ep.init(jax.random.key(0), spec_of(mdp_e, 10), ep.default_hparams)).shape == (3, 2, 4)
+
+
+def test_registry():
+    assert {"random_episodic", "random_continuous", "q_learning_episodic", "q_learning_continuous"} <= set(
+        agents.AGENTS)
+    for name, agent in agents.AGENTS.items():
+        assert agent.name == name and agents.get(name) is agent
+        agent.check_hparams(agent.default_hparams)
+    with pytest.raises(ValueError, match="did you mean 'q_learning_episodic'"):
+        agents.get("q_learning_episodc")
+
+
+@pytest.mark.parametrize("agent, field, value", [
+    ("q_learning_episodic", "c_1", 0.0),
+    ("q_learning_episodic", "c_2", -1.0),
+    ("q_learning_episodic", "min_at", 1.2),
+    ("q_learning_episodic", "p", 1.0),
+    ("q_learning_episodic", "bernstein", 0.5),
+    ("q_learning_continuous", "h_weight", 0.0),
+    ("q_learning_continuous", "span_approx_weight", float("nan")),
+    ("q_learning_continuous", "delta", 0.0),
+])
+def test_hparam_domains(agent, field, value):
+    a = agents.get(agent)
+    with pytest.raises(ValueError, match=field):
+        a.check_hparams(a.default_hparams.replace(**{field: value}))
+    # A stacked grid is checked entry by entry.
+    grid = jax.tree.map(lambda x: np.asarray([x, x]), a.default_hparams)
+    a.check_hparams(grid)
+    with pytest.raises(ValueError, match=field):
+        a.check_hparams(grid.replace(**{field: np.asarray([getattr(a.default_hparams, field), value])}))
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Probes with known answers: each agent's policy estimate must be optimal over the last quarter of the budget
+# (zero expected regret at every log there), for every seed.
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def bandit(H=None):
+    T = np.ones((1, 3, 1))
+    mean = np.array([0.2, 0.5, 0.8])[None, :, None]
+    return jaxmdp.custom_mdp(T, P0=[1.0], H=H, reward_mean=mean, reward_conc=np.full((1, 3, 1), 10.0))
+
+
+def chain(episodic, **kw):
+    return jaxmdp.make("RiverSwim", episodic=episodic, seed=0, size=4, randomize_actions=False, **kw)
+
+
+def learn(agent, mdp, hparams, n_steps, seeds=4):
+    """Run in exact mode (a log every step, so the early, suboptimal policies are all charged; a record every step)
+    and return the normalised regret per step over the last quarter, the total regret and the regret of the final
+    policy estimate (continuous: from the MDP's current state, as the indicators define it)."""
+    res = runner.run(agent, runner.product([mdp], [hparams], seeds=range(seeds)), n_steps, log_period=1,
+                     n_records=n_steps)
+    norm, regret = res.column("normalized_cumulative_regret"), res.column("cumulative_regret")
+    quarter = n_steps // 4
+    return (norm[-1] - norm[-1 - quarter]) / quarter, regret[-1], regret[-1] - regret[-2]
+
+
+def check_learned(late, total, final):
+    np.testing.assert_array_equal(final, 0.0)  # the final policy estimate is optimal for every seed
+    assert np.all(late < 0.01)  # and (nearly) always was over the last quarter of the budget
+    assert np.all(total > 0)  # it did have to learn: the initial estimate is suboptimal
+
+
+@pytest.mark.parametrize("mdp_name", ["bandit", "chain", "stochastic chain"])
+def test_optimistic_q_learning_finds_the_optimal_policy(mdp_name):
+    agent = agents.get("q_learning_continuous")
+    mdp = {"bandit": bandit(), "chain": chain(False),
+           "stochastic chain": chain(False, p_lazy=0.2, make_reward_stochastic=True)}[mdp_name]
+    check_learned(*learn(agent, mdp, agent.default_hparams, 20_000))
+
+
+@pytest.mark.parametrize("mdp_name, bernstein", [("bandit", True), ("bandit", False), ("chain", True),
+                                                 ("chain", False)])
+def test_episodic_q_learning_finds_the_optimal_policy(mdp_name, bernstein):
+    agent = agents.get("q_learning_episodic")
+    # The tuned c_1 belongs to the Bernstein bonus; the Hoeffding bonus c_1 sqrt(H^3 iota / t) needs a smaller one.
+    hp = agent.default_hparams.replace(bernstein=bernstein, c_1=0.9415278732894797 if bernstein else 0.02)
+    mdp = bandit(H=3) if mdp_name == "bandit" else chain(True)
+    check_learned(*learn(agent, mdp, hp, 8_000))
+
+
+@pytest.mark.parametrize("A", [2, 3, 20])  # 20: above the unrolling threshold of dp.greedy
+def test_greedy_policy_estimate_against_numpy(A):
+    # dp.greedy gives the agents' policy estimates: one-hot on the lowest valid index within atol of the best.
+    from jaxmdp import dynamic_programming as dp
+
+    rng = np.random.default_rng(A)
+    # Exact float32 values: ties, and near-ties 2^-20 apart that atol = 2^-19 merges.
+    q = (rng.integers(0, 3, size=(6, 7, A)) + rng.choice([0.0, 2.0**-20], size=(6, 7, A))).astype(np.float32)
+    for mask in (np.ones(A, bool), rng.random(A) < 0.6):
+        mask[rng.integers(A)] = True
+        for atol in (0.0, 2.0**-19):
+            qm = np.where(mask, q, -np.inf)
+            want = np.argmax(qm >= qm.max(-1, keepdims=True) - atol, axis=-1)
+            got = np.asarray(dp.greedy(jnp.asarray(q), jnp.asarray(mask), atol))
+            np.testing.assert_array_equal(got, np.eye(A)[want])

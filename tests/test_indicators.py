@@ -1,0 +1,152 @@
+"""Exact regret indicators against brute force in numpy (every deterministic policy enumerated) and hand-worked
+numbers."""
+
+from __future__ import annotations
+
+import itertools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxmdp
+from jaxmdp import indicators
+from conftest import random_mdp
+from numpy_reference import finite_horizon_eval as np_finite_horizon_eval
+from numpy_reference import gain_ergodic as np_gain
+from numpy_reference import one_hot
+
+
+@pytest.fixture(scope="module")
+def episodic_case():
+    rng = np.random.default_rng(3)
+    mdp = random_mdp(rng, S=3, A=2, H=3)
+    T, R, P0 = (np.asarray(x, np.float64) for x in (mdp.T, mdp.R, mdp.P0))
+    H, S, A = 3, 3, 2
+    # Brute force over all A^(S H) deterministic Markov policies: the optimal (minimising) policy maximises
+    # (minimises) V_0(s) for every s at once, so per-state extremes are the optimal and worst values.
+    values = np.array([np_finite_horizon_eval(T, R, one_hot(np.reshape(c, (H, S)), A), H)
+                       for c in itertools.product(range(A), repeat=S * H)])
+    return mdp, T, R, P0, values.max(0), values.min(0), rng
+
+
+def test_episodic_constants_match_brute_force(episodic_case):
+    mdp, T, R, P0, v_opt, v_min, _ = episodic_case
+    c = indicators.indicator_constants(mdp)
+    np.testing.assert_allclose(c.optimal_start_values, v_opt, rtol=1e-5)
+    np.testing.assert_allclose(c.worst_start_values, v_min, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(c.optimal, P0 @ v_opt / 3, rtol=1e-5)
+    np.testing.assert_allclose(c.worst, P0 @ v_min / 3, rtol=1e-5)
+    v_rand = np_finite_horizon_eval(T, R, np.full((3, 3, 2), 0.5), 3)
+    np.testing.assert_allclose(c.random, P0 @ v_rand / 3, rtol=1e-5)
+
+
+@pytest.mark.parametrize("variant", ["paper", "colosseum"])
+def test_episodic_instantaneous_matches_numpy(episodic_case, variant):
+    mdp, T, R, P0, v_opt, v_min, rng = episodic_case
+    consts = indicators.indicator_constants(mdp, variant)
+    f = jax.jit(lambda pi, s0: indicators.instantaneous(mdp, consts, pi, jnp.int32(0), s0, variant))
+    for trial in range(4):
+        pi = rng.dirichlet(np.ones(2), size=(3, 3))
+        v_pi = np_finite_horizon_eval(T, R, pi, 3)
+        for s0 in range(3):
+            out = f(jnp.asarray(pi, jnp.float32), jnp.int32(s0))
+            if variant == "paper":
+                gap, span = P0 @ (v_opt - v_pi), P0 @ (v_opt - v_min)
+            else:
+                gap, span = v_opt[s0] - v_pi[s0], v_opt[s0] - v_min[s0]
+            np.testing.assert_allclose(out.regret, gap / 3, rtol=1e-4, atol=1e-6)
+            np.testing.assert_allclose(out.normalized_regret, gap / span, rtol=1e-4, atol=1e-6)
+            np.testing.assert_allclose(out.expected_reward, P0 @ v_pi / 3, rtol=1e-5)
+
+
+def test_episodic_optimal_policy_has_zero_regret(episodic_case):
+    mdp = episodic_case[0]
+    consts = indicators.indicator_constants(mdp)
+    ref = jaxmdp.reference_values(mdp)
+    out = indicators.instantaneous(mdp, consts, ref.optimal_policy, jnp.int32(0), jnp.int32(0))
+    assert float(out.regret) == pytest.approx(0.0, abs=1e-6)
+    out = indicators.instantaneous(mdp, consts, ref.worst_policy, jnp.int32(0), jnp.int32(0))
+    assert float(out.normalized_regret) == pytest.approx(1.0, abs=1e-5)
+
+
+@pytest.fixture(scope="module")
+def continuous_case():
+    rng = np.random.default_rng(5)
+    mdp = random_mdp(rng, S=4, A=2, sparsity=1.0)  # dense kernel: every policy is ergodic
+    T, R = np.asarray(mdp.T, np.float64), np.asarray(mdp.R, np.float64)
+    gains = np.array([np_gain(T, R, one_hot(c, 2)) for c in itertools.product(range(2), repeat=4)])
+    return mdp, T, R, gains.max(), gains.min(), rng
+
+
+@pytest.mark.parametrize("variant", ["paper", "colosseum"])
+def test_continuous_instantaneous_matches_numpy(continuous_case, variant):
+    mdp, T, R, g_opt, g_min, rng = continuous_case
+    consts = indicators.indicator_constants(mdp, variant)
+    if variant == "paper":
+        np.testing.assert_allclose([consts.optimal, consts.worst], [g_opt, g_min], rtol=1e-5)
+    f = jax.jit(lambda pi, s: indicators.instantaneous(mdp, consts, pi, s, jnp.int32(0), variant))
+    for trial in range(4):
+        pi = rng.dirichlet(np.ones(2), size=4) if trial else np.full((4, 2), 0.5)
+        g = np_gain(T, R, pi)
+        regret = max(float(consts.optimal) - g, 0.0)
+        if variant == "colosseum" and regret <= 1e-3:
+            regret = 0.0
+        for s in range(4):
+            out = f(jnp.asarray(pi, jnp.float32), jnp.int32(s))
+            np.testing.assert_allclose(out.expected_reward, g, rtol=1e-5)
+            np.testing.assert_allclose(out.regret, regret, rtol=1e-4, atol=1e-6)
+            np.testing.assert_allclose(
+                out.normalized_regret, regret / float(consts.optimal - consts.worst), rtol=1e-4, atol=1e-6
+            )
+
+
+def test_continuous_multichain_policy_uses_the_current_state():
+    # Two states, "stay" (0) and "switch" (1); state 1 pays 1. Staying everywhere has gain 0 from state 0 and 1
+    # from state 1; the optimal gain is 1.
+    T = np.zeros((2, 2, 2))
+    T[0, 0, 0] = T[1, 0, 1] = T[0, 1, 1] = T[1, 1, 0] = 1.0
+    mdp = jaxmdp.custom_mdp(T, R=np.array([[0.0, 0.0], [1.0, 1.0]]))
+    consts = indicators.indicator_constants(mdp)
+    stay = jnp.asarray([[1.0, 0.0], [1.0, 0.0]])
+    from0 = indicators.instantaneous(mdp, consts, stay, jnp.int32(0), jnp.int32(0))
+    from1 = indicators.instantaneous(mdp, consts, stay, jnp.int32(1), jnp.int32(0))
+    np.testing.assert_allclose([from0.regret, from0.expected_reward, from0.normalized_regret], [1, 0, 1], atol=1e-6)
+    np.testing.assert_allclose([from1.regret, from1.expected_reward, from1.normalized_regret], [0, 1, 0], atol=1e-6)
+
+
+def test_degenerate_normaliser_gives_zero():
+    # Every policy is optimal (constant reward): the normalised regret is 0, not 0/0.
+    mdp = jaxmdp.custom_mdp(np.full((2, 2, 2), 0.5), R=np.full((2, 2), 0.3), H=2)
+    consts = indicators.indicator_constants(mdp)
+    out = indicators.instantaneous(mdp, consts, jnp.full((2, 2, 2), 0.5), jnp.int32(0), jnp.int32(0))
+    assert float(out.normalized_regret) == 0.0 and float(out.regret) == pytest.approx(0.0, abs=1e-7)
+
+
+def test_baseline_columns_hand_worked():
+    cols = indicators.baseline_columns(np.array([100.0]), 0.9, 0.1, 0.3)
+    expected = {
+        "random_cumulative_regret": 60.0,
+        "random_cumulative_expected_reward": 30.0,
+        "random_normalized_cumulative_regret": 75.0,
+        "random_normalized_cumulative_expected_reward": 25.0,
+        "worst_cumulative_regret": 80.0,
+        "worst_cumulative_expected_reward": 10.0,
+        "worst_normalized_cumulative_regret": 100.0,
+        "worst_normalized_cumulative_expected_reward": 0.0,
+        "optimal_cumulative_expected_reward": 90.0,
+        "optimal_normalized_cumulative_expected_reward": 100.0,
+    }
+    assert set(cols) == set(expected)
+    for k, v in expected.items():
+        np.testing.assert_allclose(cols[k], v, rtol=1e-12, err_msg=k)
+    np.testing.assert_allclose(indicators.normalized_reward(50.0, 100.0, 0.9, 0.1), 50.0, rtol=1e-12)
+    assert set(indicators.CSV_COLUMNS) == {"steps", "steps_per_second", "normalized_cumulative_reward",
+                                           "normalized_cumulative_expected_reward", *indicators.AGENT_COLUMNS, *cols}
+
+
+def test_bad_variant():
+    mdp = jaxmdp.custom_mdp(np.full((2, 2, 2), 0.5), R=np.eye(2))
+    with pytest.raises(ValueError, match="variant"):
+        indicators.indicator_constants(mdp, "gym")

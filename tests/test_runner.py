@@ -1,0 +1,382 @@
+"""The lockstep runner: indicator accounting against numpy, baselines, batching, determinism, chunking, resume and
+bad input.
+
+Compilation dominates the cost of these tests, so they share a few shapes: RiverSwim size 5 (deterministic) and a
+2-member grid wherever possible.
+"""
+
+from __future__ import annotations
+
+import csv
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from flax import struct
+
+import agents
+import jaxmdp
+from jaxmdp import runner
+from jaxmdp.agent_interface import Agent
+from jaxmdp.indicators import AGENT_COLUMNS, CSV_COLUMNS
+from numpy_reference import finite_horizon_eval, finite_horizon_optimal, one_hot
+
+# ---------------------------------------------------------------------------------------------------------------
+# A scripted agent whose policy is a known function of the number of updates c: every state takes action
+# (c // 3) % A. It acts with that policy, so on a deterministic MDP its whole trajectory is known. It asks to plan
+# whenever c is a positive multiple of its hyperparameter ``plan_every`` and counts its plans.
+# ---------------------------------------------------------------------------------------------------------------
+
+
+class ScriptedHParams(struct.PyTreeNode):
+    plan_every: int | jax.Array = 5
+
+
+class ScriptedState(struct.PyTreeNode):
+    c: jax.Array
+    plans: jax.Array
+    plan_every: jax.Array
+    n_states: int = struct.field(pytree_node=False)
+    n_actions: int = struct.field(pytree_node=False)
+    H: int | None = struct.field(pytree_node=False)
+
+
+def scripted_action(c, A):
+    return (c // 3) % A
+
+
+def _scripted(episodic: bool) -> Agent:
+    def init(key, spec, hp):
+        return ScriptedState(jnp.int32(0), jnp.int32(0), jnp.asarray(hp.plan_every, jnp.int32), spec.n_states,
+                             spec.n_actions, spec.H)
+
+    def policy(state):
+        pi = jax.nn.one_hot(scripted_action(state.c, state.n_actions), state.n_actions)
+        shape = (state.n_states, state.n_actions) if state.H is None else (state.H, state.n_states, state.n_actions)
+        return jnp.broadcast_to(pi, shape)
+
+    return Agent(
+        name=f"scripted_{'episodic' if episodic else 'continuous'}",
+        episodic=episodic,
+        default_hparams=ScriptedHParams(),
+        init=init,
+        act=lambda key, state, obs, h: scripted_action(state.c, state.n_actions).astype(jnp.int32),
+        update=lambda state, tr: state.replace(c=state.c + 1),
+        policy=policy,
+        needs_plan=lambda state: (state.c > 0) & (state.c % state.plan_every == 0),
+        plan=lambda key, state: state.replace(plans=state.plans + 1),
+    )
+
+
+SCRIPTED = {False: _scripted(False), True: _scripted(True)}
+
+
+def river_swim(episodic: bool, **kw):
+    return jaxmdp.make("RiverSwim", episodic=episodic, seed=0, size=5, randomize_actions=False, **kw)
+
+
+def expected_accounting(mdp, n_steps, log_period):
+    """numpy: cumulative regret, normalised regret, expected reward and sampled reward of the scripted agent on a
+    deterministic MDP (deterministic rewards), at every step count."""
+    T, R, P0 = (np.asarray(x, np.float64) for x in (mdp.T, mdp.R, mdp.P0))
+    S, A = R.shape
+    if mdp.episodic:
+        H = mdp.H
+        v_opt, v_min = finite_horizon_optimal(T, R, H), finite_horizon_optimal(T, R, H, -1.0)
+        def inst(c):
+            v = finite_horizon_eval(T, R, one_hot(np.full(S, scripted_action(c, A)), A), H)
+            gap = P0 @ (v_opt - v)
+            return gap / H, gap / (P0 @ (v_opt - v_min)), P0 @ v / H
+    else:
+        # RiverSwim: constant policies are unichain (LEFT: 0.005 at the left end; RIGHT: 1 at the right end);
+        # optimal gain 1, minimal gain 0 (oscillating in the middle).
+        def inst(c):
+            g = 0.005 if scripted_action(c, A) == 0 else 1.0
+            return 1.0 - g, 1.0 - g, g
+    sums = np.zeros((n_steps + 1, 4))
+    acc = np.zeros(4)
+    last = 0
+    s, h, reward = int(np.argmax(P0)), 0, 0.0
+    for t in range(n_steps):
+        a = scripted_action(t, A)
+        reward += R[s, a]
+        s, h = int(np.argmax(T[s, a])), h + 1
+        if mdp.episodic and h == mdp.H:
+            s, h = int(np.argmax(P0)), 0
+        c = t + 1
+        if c % log_period == 0 or c == n_steps:
+            r, nr, er = inst(c)
+            acc += np.array([r, 0.0, er, nr]) * (c - last)
+            last = c
+        sums[c] = acc
+        sums[c, 1] = reward
+    return sums
+
+
+@pytest.mark.parametrize("episodic", [False, True])
+def test_accounting_matches_numpy(episodic):
+    mdp = river_swim(episodic)
+    g = runner.product([mdp], [ScriptedHParams(plan_every=5), ScriptedHParams(plan_every=7)], seeds=[0])
+    res = runner.run(SCRIPTED[episodic], g, 1050, log_period=100, n_records=4)
+    np.testing.assert_array_equal(res.steps, [300, 600, 900, 1050])
+    want = expected_accounting(mdp, 1050, 100)[res.steps]
+    for b in range(2):
+        np.testing.assert_allclose(res.values[:, b], want, rtol=1e-5, atol=1e-4)
+    # Planning: once after init, then before every step whose state asks for it (member-specific periods).
+    np.testing.assert_array_equal(res.agent_state.plans, [1 + 1049 // 5, 1 + 1049 // 7])
+    np.testing.assert_array_equal(res.agent_state.c, [1050, 1050])
+
+
+def test_exact_mode_logs_every_step():
+    mdp = river_swim(False)
+    g = runner.product([mdp], [ScriptedHParams(), ScriptedHParams(plan_every=7)], seeds=[0])
+    # 201 steps: the last policy differs from the first, so charging each step to the wrong policy would show.
+    res = runner.run(SCRIPTED[False], g, 201, log_period=1, n_records=3)
+    np.testing.assert_array_equal(res.steps, [67, 134, 201])
+    want = expected_accounting(mdp, 201, 1)[res.steps]
+    np.testing.assert_allclose(res.values[:, 0], want, rtol=1e-5, atol=1e-4)
+
+
+def test_record_steps():
+    assert runner.record_steps(1050, 100, 4)[0] == 300
+    np.testing.assert_array_equal(runner.record_steps(1050, 100, 4)[1], [300, 600, 900, 1050])
+    np.testing.assert_array_equal(runner.record_steps(500_000, 100, 100)[1], np.arange(5000, 500_001, 5000))
+    np.testing.assert_array_equal(runner.record_steps(7, 100, 100)[1], [7])
+    np.testing.assert_array_equal(runner.record_steps(10, 1, 100)[1], np.arange(1, 11))
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The random agent's expected regret is the random baseline
+# ---------------------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("episodic", [False, True])
+def test_random_agent_regret_is_the_random_baseline(episodic):
+    # p_rand makes every policy ergodic, so the uniform policy's gain does not depend on the current state.
+    mdp = river_swim(episodic, p_rand=0.1, make_reward_stochastic=True)
+    agent = agents.get("random_episodic" if episodic else "random_continuous")
+    res = runner.run(agent, runner.product([mdp], [agent.default_hparams], seeds=[0, 1]), 1000, n_records=5)
+    for ours, baseline in [
+        ("cumulative_regret", "random_cumulative_regret"),
+        ("normalized_cumulative_regret", "random_normalized_cumulative_regret"),
+        ("cumulative_expected_reward", "random_cumulative_expected_reward"),
+        ("normalized_cumulative_expected_reward", "random_normalized_cumulative_expected_reward"),
+    ]:
+        np.testing.assert_allclose(res.column(ours), res.column(baseline), rtol=2e-5, err_msg=ours)
+    assert np.all(res.column("random_cumulative_regret") > 0)
+    # The sampled reward is a noisy version of the expected one (20 standard errors is a generous bound).
+    np.testing.assert_allclose(res.column("cumulative_reward")[-1], res.column("cumulative_expected_reward")[-1],
+                               rtol=0.5)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Batching, determinism, chunking and resume
+# ---------------------------------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def two_mdps():
+    small = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=4, randomize_actions=False, p_lazy=0.2,
+                        make_reward_stochastic=True)
+    big = river_swim(False, p_lazy=0.1, make_reward_stochastic=True)
+    return small, big
+
+
+def test_vmapped_grid_equals_single_runs(two_mdps):
+    agent = agents.get("q_learning_continuous")
+    hps = [agent.default_hparams, agent.default_hparams.replace(h_weight=0.5)]
+    keys = jax.random.split(jax.random.key(7), 2)
+    g = runner.grid(list(two_mdps), runner.stack_hparams(hps), keys)
+    batch = runner.run(agent, g, 600, n_records=3)
+    for b in range(2):
+        single = runner.grid(two_mdps[b], runner.stack_hparams([hps[b]]), keys[b:b + 1])
+        one = runner.run(agent, single, 600, n_records=3)
+        np.testing.assert_allclose(batch.values[:, b], one.values[:, 0], rtol=1e-6, atol=1e-6)
+        S = two_mdps[b].n_states
+        np.testing.assert_allclose(batch.agent_state.Q_hat[b, :S], one.agent_state.Q_hat[0], rtol=1e-6)
+
+
+def test_same_key_same_result_and_keys_matter(two_mdps):
+    agent = agents.get("q_learning_continuous")
+    g = runner.product([two_mdps[1]], [agent.default_hparams], seeds=[0, 1])
+    a = runner.run(agent, g, 600, n_records=3)
+    b = runner.run(agent, g, 600, n_records=3)
+    np.testing.assert_array_equal(a.values, b.values)
+    assert not np.array_equal(a.values[:, 0, 1], a.values[:, 1, 1])  # different seeds, different rewards
+
+
+def test_chunking_and_resume_do_not_change_results(two_mdps, tmp_path):
+    agent = agents.get("q_learning_continuous")
+    g = runner.product([two_mdps[1]], [agent.default_hparams], seeds=[0, 1])
+    whole = runner.run(agent, g, 1000, n_records=10, csv_path=tmp_path / "whole.csv")
+    ckpt, path = tmp_path / "run.npz", tmp_path / "parts.csv"
+    part = runner.run(agent, g, 1000, n_records=10, chunk_steps=150, csv_path=path, checkpoint_path=ckpt,
+                      stop_after_chunks=3)
+    assert part.steps[-1] == 400 and ckpt.exists()
+    # A crash after rows were written but before the checkpoint: a stale row must be dropped on resume.
+    with open(path, "a") as f:
+        f.write(",".join(["0", "x", "0", "0", "500"] + ["0"] * (len(CSV_COLUMNS) - 1)) + "\n")
+    rest = runner.run(agent, g, 1000, n_records=10, chunk_steps=150, csv_path=path, checkpoint_path=ckpt)
+    np.testing.assert_array_equal(rest.steps, whole.steps)
+    np.testing.assert_array_equal(rest.values, whole.values)
+    np.testing.assert_array_equal(rest.agent_state.Q, whole.agent_state.Q)
+
+    def read(p):
+        with open(p, newline="") as f:
+            rows = list(csv.reader(f))
+        return [r[:-1] for r in rows]  # steps_per_second differs
+
+    assert read(path) == read(tmp_path / "whole.csv")
+    assert read(path)[0] == list(runner.MEMBER_COLUMNS + CSV_COLUMNS[:-1])
+    assert len(read(path)) == 1 + 10 * 2
+
+
+def test_checkpoint_of_another_run_is_refused(two_mdps, tmp_path):
+    agent = agents.get("q_learning_continuous")
+    g = runner.product([two_mdps[1]], [agent.default_hparams], seeds=[0, 1])
+    ckpt = tmp_path / "run.npz"
+    runner.run(agent, g, 600, n_records=3, chunk_steps=200, checkpoint_path=ckpt, stop_after_chunks=1)
+    g2 = runner.product([two_mdps[1]], [agent.default_hparams], seeds=[3, 4])
+    with pytest.raises(ValueError, match="different run"):
+        runner.run(agent, g2, 600, n_records=3, chunk_steps=200, checkpoint_path=ckpt)
+
+
+def test_product_layout():
+    agent = agents.get("q_learning_continuous")
+    mdps = [river_swim(False), river_swim(False, p_lazy=0.5)]
+    hps = [agent.default_hparams, agent.default_hparams.replace(min_at=0.0)]
+    g = runner.product(mdps, hps, seeds=[3, 4, 5])
+    assert g.n_members == 12
+    np.testing.assert_array_equal(g.mdp_index, np.repeat([0, 1], 6))
+    np.testing.assert_array_equal(g.hparams_index, np.tile(np.repeat([0, 1], 3), 2))
+    np.testing.assert_array_equal(g.seeds, np.tile([3, 4, 5], 4))
+    np.testing.assert_allclose(g.hparams.min_at, np.tile(np.repeat([0.073, 0.0], 3), 2), rtol=1e-6)
+    np.testing.assert_array_equal(g.key_data[4], jax.random.key_data(jax.random.key(4)))
+    assert g.mdps.T.shape[0] == 2  # distinct MDPs are stored once
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Bad input: clear errors before anything compiles
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def _grid(episodic=False, hparams=None):
+    agent = agents.get("q_learning_episodic" if episodic else "q_learning_continuous")
+    return runner.product([river_swim(episodic)], [hparams or agent.default_hparams], seeds=[0])
+
+
+def test_episodic_agent_on_continuous_mdp_and_reverse():
+    with pytest.raises(ValueError, match="episodic.*continuous"):
+        runner.run(agents.get("q_learning_episodic"), _grid(False), 100)
+    with pytest.raises(ValueError, match="continuous.*episodic"):
+        runner.run(agents.get("q_learning_continuous"), _grid(True), 100)
+
+
+@pytest.mark.parametrize("kw, match", [
+    ({"n_steps": 0}, "n_steps"),
+    ({"n_steps": -5}, "n_steps"),
+    ({"n_steps": 10.5}, "n_steps"),
+    ({"log_period": 0}, "log_period"),
+    ({"n_records": 0}, "n_records"),
+    ({"chunk_steps": 0}, "chunk_steps"),
+    ({"variant": "gym"}, "variant"),
+])
+def test_bad_settings(kw, match):
+    args = {"n_steps": 100, **kw}
+    with pytest.raises(ValueError, match=match):
+        runner.run(agents.get("q_learning_continuous"), _grid(False), **args)
+
+
+def test_hparams_outside_domain():
+    agent = agents.get("q_learning_continuous")
+    with pytest.raises(ValueError, match="min_at"):
+        runner.run(agent, _grid(False, agent.default_hparams.replace(min_at=1.5)), 100)
+    ep = agents.get("q_learning_episodic")
+    with pytest.raises(ValueError, match="p must"):
+        runner.run(ep, _grid(True, ep.default_hparams.replace(p=0.0)), 100)
+
+
+def test_agent_that_does_not_fit_the_mdp():
+    # An agent built for 3 states facing a 5-state MDP.
+    base = agents.get("random_continuous")
+    wrong = Agent(name="fixed_size", episodic=False, default_hparams=base.default_hparams, init=base.init,
+                  act=base.act, update=base.update, policy=lambda state: jnp.full((3, 2), 0.5))
+    with pytest.raises(ValueError, match="S=5"):
+        runner.run(wrong, runner.product([river_swim(False)], [base.default_hparams], seeds=[0]), 100)
+
+
+def test_grid_errors():
+    agent = agents.get("q_learning_continuous")
+    mdps = [river_swim(False), river_swim(False, p_lazy=0.5)]
+    with pytest.raises(ValueError, match="seeds"):
+        runner.product(mdps, [agent.default_hparams], seeds=[-1])
+    with pytest.raises(ValueError, match="hparams"):
+        runner.product(mdps, [], seeds=[0])
+    hp = runner.stack_hparams([agent.default_hparams] * 3)
+    with pytest.raises(ValueError, match="mdp_index"):
+        runner.grid(mdps, hp, jax.random.split(jax.random.key(0), 3))
+    with pytest.raises(ValueError, match="keys"):
+        runner.grid(mdps[0], hp, jax.random.split(jax.random.key(0), 2))
+    with pytest.raises(ValueError, match="episodic"):
+        runner.product([river_swim(False), river_swim(True)], [agent.default_hparams], seeds=[0])
+
+
+def test_colosseum_episodic_variant_uses_the_latest_episode_start():
+    # Two equally likely start states whose regrets differ. The expected numbers replay the runner's documented key
+    # schedule (member key split in 4: environment, actions, planning, initialisation; step t uses
+    # fold_in(environment key, t)) with jaxmdp.step, and track the start state of each step's episode.
+    T = np.zeros((3, 2, 3))
+    T[:, 0, 2] = 1.0  # action 0 -> state 2
+    T[:, 1, 0] = 1.0  # action 1 -> state 0
+    R = np.array([[0.0, 1.0], [0.2, 0.0], [0.5, 0.1]])
+    H = 2
+    mdp = jaxmdp.custom_mdp(T, R=R, P0=[0.5, 0.5, 0.0], H=H)
+    agent = SCRIPTED[True]
+    n_steps, period = 50, 3
+    res = runner.run(agent, runner.product([mdp], [ScriptedHParams()], seeds=[11]), n_steps, log_period=period,
+                     n_records=n_steps, variant="colosseum")
+    paper = runner.run(agent, runner.product([mdp], [ScriptedHParams()], seeds=[11]), n_steps, log_period=period,
+                       n_records=n_steps)
+
+    v_opt, v_min = finite_horizon_optimal(T, R, H), finite_horizon_optimal(T, R, H, -1.0)
+    sub = jax.random.split(jax.random.key(11), 4)
+    step = jax.jit(jaxmdp.step)
+    obs, st = jaxmdp.reset(jax.random.fold_in(sub[3], 0), mdp)
+    start, acc, last, starts_seen = int(obs), np.zeros(2), 0, set()
+    want = {}
+    for t in range(n_steps):
+        a = scripted_action(t, 2)
+        obs, st, _, term, _, _ = step(jax.random.fold_in(sub[0], t), st, a, mdp)
+        s0 = start
+        if bool(term):
+            start = int(obs)
+        c = t + 1
+        if c % period == 0 or c == n_steps:
+            v = finite_horizon_eval(T, R, one_hot(np.full(3, scripted_action(c, 2)), 2), H)
+            gap = max(v_opt[s0] - v[s0], 0.0)
+            acc += np.array([gap / H, gap / (v_opt[s0] - v_min[s0])]) * (c - last)
+            last = c
+            starts_seen.add(s0)
+        want[c] = acc.copy()
+    assert starts_seen == {0, 1}
+    got = res.values[:, 0][:, [0, 3]]
+    np.testing.assert_allclose(got, np.array([want[int(c)] for c in res.steps]), rtol=1e-5, atol=1e-5)
+    assert not np.allclose(got, paper.values[:, 0][:, [0, 3]], atol=1e-3)
+
+
+def test_mdp_labels_are_unambiguous():
+    custom = [jaxmdp.custom_mdp(np.full((2, 2, 2), 0.5), R=np.eye(2) * r) for r in (0.1, 0.2)]
+    assert runner.product(custom, [ScriptedHParams()], seeds=[0]).mdp_labels == ("custom#0", "custom#1")
+    labels = runner.product([river_swim(False), river_swim(False, p_lazy=0.5)], [ScriptedHParams()], [0]).mdp_labels
+    assert len(set(labels)) == 2 and "p_lazy=0.5" in labels[1]
+
+
+def test_not_an_agent_or_grid():
+    g = runner.product([river_swim(False)], [ScriptedHParams()], seeds=[0])
+    with pytest.raises(ValueError, match="Agent"):
+        runner.run("q_learning", g, 10)
+    with pytest.raises(ValueError, match="Grid"):
+        runner.run(SCRIPTED[False], [river_swim(False)], 10)
+    with pytest.raises(ValueError, match="shards"):
+        runner.run(SCRIPTED[False], g, 10, shards=2)
