@@ -4,7 +4,12 @@ Rebuilds the MDP side of "Hardness in Markov Decision Processes: Theory and Prac
 2022) so that many MDPs and many seeds run in lockstep under ``jit`` and ``vmap``.
 """
 
-from jaxmdp import dynamic_programming
+from jaxmdp import xla_cpu as _xla_cpu
+
+# Before anything can create a JAX backend: see jaxmdp/xla_cpu.py (jaxlib 0.10.2 miscompiles some CPU reductions).
+_xla_cpu.disable_ynn_fusion()
+
+from jaxmdp import dynamic_programming  # noqa: E402
 from jaxmdp.communication import CommunicationClass, communication_class
 from jaxmdp.batching import pad, permute_states, stack, state_permutation, unstack
 from jaxmdp.env import EnvState, reset, sample_action, step

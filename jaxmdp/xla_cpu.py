@@ -1,0 +1,62 @@
+"""Guard against a silent miscompilation of jaxlib 0.10.2's CPU backend (the version pinned in pyproject.toml).
+
+jaxlib 0.10.2 hands some elementwise-then-reduce fusions to its new YNNPACK path (``__ynn_fusion``), which can return
+wrong numbers without any error (jax-ml/jax#39103; crashes in jax-ml/jax#39257 and #40412). In jaxmdp it hit the
+episodic value norm under ``jit(vmap(...))`` of a transformed MDP (256 states, 19 steps): the one-step variances
+``sum_k p (V[succ] - E)^2`` of the later time steps came back wrong by up to ~10 and the value norm of a
+*deterministic* MDP read 12.99 instead of 0. Eager execution and jaxlib 0.10.1 are correct.
+
+Importing :mod:`jaxmdp` therefore adds ``--xla_cpu_experimental_ynn_fusion_type=`` (empty: no YNNPACK fusions) to
+``XLA_FLAGS`` when all of these hold: the installed jaxlib is 0.10.2 or newer (older versions do not know the flag and
+would abort on it), the user has not set that flag themselves, and no JAX backend exists yet (XLA reads the flags
+once, when the first backend is created). If a backend already exists the flag cannot take effect any more and a
+``RuntimeWarning`` says so: import jaxmdp before running any JAX computation.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import warnings
+
+__all__ = ["YNN_FLAG", "disable_ynn_fusion", "ynn_fusion_disabled"]
+
+#: The XLA option; an empty value disables every YNNPACK fusion on CPU.
+YNN_FLAG = "--xla_cpu_experimental_ynn_fusion_type"
+
+# First jaxlib release with the miscompilation (and the flag).
+_FIRST_AFFECTED = (0, 10, 2)
+
+
+def _version_tuple(version: str) -> tuple[int, ...]:
+    parts = []
+    for piece in version.split(".")[:3]:
+        match = re.match(r"\d+", piece)  # "0rc1" -> 0
+        parts.append(int(match.group()) if match else 0)
+    return tuple(parts)
+
+
+def ynn_fusion_disabled() -> bool:
+    """Whether ``XLA_FLAGS`` currently carries the YNNPACK option (set by us or by the user)."""
+    return YNN_FLAG in os.environ.get("XLA_FLAGS", "")
+
+
+def disable_ynn_fusion() -> bool:
+    """Add the flag to ``XLA_FLAGS`` if needed and still effective (module docstring); returns whether it was added."""
+    import jaxlib
+
+    if _version_tuple(jaxlib.__version__) < _FIRST_AFFECTED or ynn_fusion_disabled():
+        return False
+    from jax._src import xla_bridge
+
+    if xla_bridge.backends_are_initialized():
+        warnings.warn(
+            "jaxmdp was imported after JAX created its backend, so it could not disable the YNNPACK fusions of "
+            f"jaxlib {jaxlib.__version__}, which can silently return wrong numbers on CPU (jax-ml/jax#39103). "
+            f"Import jaxmdp first, or set XLA_FLAGS={YNN_FLAG}= yourself.",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+        return False
+    os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {YNN_FLAG}=".strip()
+    return True
