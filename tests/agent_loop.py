@@ -1,6 +1,7 @@
 """A minimal lockstep agent/MDP interaction loop for testing agents (to be replaced by the experiment runner).
 
-One ``lax.scan`` over time steps drives a batch of agents (leading axis: one key per member) on one MDP. Per step:
+One ``lax.scan`` over time steps drives a batch of agents (leading axis: one key per member) on one MDP shared by
+the batch or on a stacked batch of MDPs (one per member, from ``jaxmdp.stack``). Per step:
 ``act`` -> ``jaxmdp.step`` -> ``update``; then, if *any* member ``needs_plan``, ``plan`` runs for the batch under one
 ``lax.cond`` and is kept only for the members that asked (the protocol of ``jaxmdp.agent_interface``). Each
 member's randomness is ``fold_in(member_key, t)``, so a member's run does not depend on the rest of the batch.
@@ -12,6 +13,7 @@ from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 import jaxmdp
 from jaxmdp.agent_interface import Agent, Transition, spec_of
@@ -32,21 +34,25 @@ def _select(mask, new, old):
 
 
 def make_runner(agent: Agent, n_steps: int, trace: bool = False):
-    """``run(keys[B], mdp, hparams) -> RunResult`` (jitted) for ``n_steps`` interaction steps."""
+    """``run(keys[B], mdp, hparams) -> RunResult`` (jitted) for ``n_steps`` interaction steps.
+
+    ``mdp`` is one MDP for every member, or a stacked batch of ``B`` MDPs (member ``i`` faces MDP ``i``).
+    """
 
     def run(keys, mdp, hparams):
+        m = 0 if mdp.T.ndim == 4 else None
         spec = spec_of(mdp, n_steps)
         k = jax.vmap(lambda key: jax.random.split(key, 4))(keys)
-        states = jax.vmap(agent.init, (0, None, None))(k[:, 0], spec, hparams)
+        states = jax.vmap(agent.init, (0, m, None))(k[:, 0], spec, hparams)
         states = jax.vmap(agent.plan)(k[:, 1], states)
-        obs, env = jax.vmap(jaxmdp.reset, (0, None))(k[:, 2], mdp)
+        obs, env = jax.vmap(jaxmdp.reset, (0, m))(k[:, 2], mdp)
         loop_keys = k[:, 3]
 
         def body(carry, t):
             states, env, obs, total, n_plans, n_batch = carry
             kt = jax.vmap(lambda key: jax.random.split(jax.random.fold_in(key, t), 3))(loop_keys)
             a = jax.vmap(agent.act)(kt[:, 0], states, obs, env.h)
-            obs_next, env_next, r, term, _, info = jax.vmap(jaxmdp.step, (0, 0, 0, None))(kt[:, 1], env, a, mdp)
+            obs_next, env_next, r, term, _, info = jax.vmap(jaxmdp.step, (0, 0, 0, m))(kt[:, 1], env, a, mdp)
             tr = Transition(obs=obs, action=a, reward=r, next_obs=info["final_observation"], h=env.h, terminated=term)
             states = jax.vmap(agent.update)(states, tr)
             need = jax.vmap(agent.needs_plan)(states)
@@ -76,3 +82,22 @@ def make_runner(agent: Agent, n_steps: int, trace: bool = False):
 def seeds(n: int, base: int = 0) -> jax.Array:
     """``n`` member keys."""
     return jax.random.split(jax.random.key(base), n)
+
+
+def bandit(means, episodic: bool, H: int = 2, conc: float = 4.0) -> jaxmdp.MDP:
+    """A one-state MDP whose actions pay Beta rewards of the given means (``conc`` = alpha + beta)."""
+    A = len(means)
+    return jaxmdp.custom_mdp(
+        np.ones((1, A, 1)),
+        P0=[1.0],
+        H=H if episodic else None,
+        reward_mean=np.asarray(means, np.float64)[None, :, None],
+        reward_conc=np.full((1, A, 1), conc),
+    )
+
+
+def probe_mdps(episodic: bool) -> list[jaxmdp.MDP]:
+    """Probes with known answers: deterministic RiverSwim 5 (optimal: always RIGHT) three times, then a 3-armed
+    bandit (optimal: arm 2). Stacked, the bandit is padded to 5 states and RiverSwim to 3 actions."""
+    river = jaxmdp.make("RiverSwim", episodic=episodic, seed=0, size=5, randomize_actions=False)
+    return [river, river, river, bandit((0.3, 0.5, 0.8), episodic)]
