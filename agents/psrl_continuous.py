@@ -9,7 +9,8 @@ action until the epoch ends. Maximising over ``psi`` draws makes posterior sampl
 
 Constants (``p = failure_prob``, ``T = spec.n_steps``, ``S``/``A`` the real numbers of states and actions):
 
-* ``psi = min(max_psi, max(2, floor(psi_weight S ln(S A / p))))`` candidates per pair (the reference caps at 60);
+* ``psi = min(60, max(2, floor(psi_weight S ln(S A / p))))`` candidates per pair (the reference's formula); the
+  static buffer size ``max_psi`` (default 60) truncates it further if smaller;
 * ``omega = omega_weight ln(T / p)``, ``kappa = kappa_weight ln(T / p)``;
 * ``eta = max(5, min(10 S, eta_weight (sqrt(T S / A) + 12 omega S^4)))``;
 * if ``S^2 A > 6 000 000`` optimism is switched off (``psi = 1``, every pair sampled from its posterior), as in the
@@ -74,6 +75,8 @@ __all__ = ["PSRLContinuousHParams", "PSRLContinuousState", "Constants", "constan
 
 # Above this many kernel entries the reference gives up optimism (one posterior draw per pair).
 _OPTIMISM_LIMIT = 6_000_000
+# The reference's cap on the number of candidates.
+_PSI_CAP = 60
 
 
 class PSRLContinuousHParams(struct.PyTreeNode):
@@ -138,7 +141,7 @@ def check_hparams(hparams: PSRLContinuousHParams) -> None:
     check_range("plan_tol", hparams.plan_tol, 0.0, low_open=True)
     check_range("aperiodicity", hparams.aperiodicity, 0.0, 1.0, low_open=True)
     check_range("policy_discount", hparams.policy_discount, 0.0, 1.0, low_open=True, high_open=True)
-    check_int("max_psi", hparams.max_psi, 1)
+    check_int("max_psi", hparams.max_psi, 1, _PSI_CAP)
     check_int("plan_max_iter", hparams.plan_max_iter, 1)
 
 
@@ -149,7 +152,8 @@ def constants(hparams: PSRLContinuousHParams, n_states, n_actions, n_steps) -> C
     p = hparams.failure_prob
     raw = jnp.floor(hparams.psi_weight * S * jnp.log(S * A / p))
     optimistic = S * S * A <= _OPTIMISM_LIMIT
-    n_psi = jnp.where(optimistic, jnp.clip(raw, 2, hparams.max_psi), 1).astype(jnp.int32)
+    n_psi = jnp.minimum(jnp.clip(raw, 2, _PSI_CAP), hparams.max_psi)
+    n_psi = jnp.where(optimistic, n_psi, 1).astype(jnp.int32)
     log_tp = jnp.log(T / p)
     omega = hparams.omega_weight * log_tp
     eta = jnp.maximum(5.0, jnp.minimum(10.0 * S, hparams.eta_weight * (jnp.sqrt(T * S / A) + 12.0 * omega * S**4)))
@@ -157,15 +161,16 @@ def constants(hparams: PSRLContinuousHParams, n_states, n_actions, n_steps) -> C
 
 
 def psi(hparams: PSRLContinuousHParams, n_states: int, n_actions: int) -> int:
-    """Host-side number of candidates before the ``max_psi`` cap (the largest over a grid of hyperparameters).
+    """Host-side number of candidates ``psi`` without the ``max_psi`` truncation (the largest over a grid).
 
-    Use it to set ``max_psi`` tightly, e.g. ``hparams.replace(max_psi=psi(hparams, 25, 2))``.
+    Use it to size the buffer tightly, e.g. ``hparams.replace(max_psi=psi(hparams, 25, 2))``.
     """
     w = np.asarray(hparams.psi_weight, np.float64)
     p = np.asarray(hparams.failure_prob, np.float64)
     if n_states * n_states * n_actions > _OPTIMISM_LIMIT:
         return 1
-    return int(np.max(np.maximum(2, np.floor(w * n_states * np.log(n_states * n_actions / p)))))
+    raw = np.floor(w * n_states * np.log(n_states * n_actions / p))
+    return int(np.max(np.clip(raw, 2, _PSI_CAP)))
 
 
 def init(key: jax.Array, spec: MDPSpec, hparams: PSRLContinuousHParams) -> PSRLContinuousState:
