@@ -73,7 +73,8 @@ def extended_value_iteration(
     u0: jax.Array | None = None,
     tol: float | jax.Array = 1e-3,
     max_iter: int = 100_000,
-    aperiodicity: float = 0.5,
+    aperiodicity: float | jax.Array = 0.5,
+    active: bool | jax.Array = True,
 ) -> PlanResult:
     """Optimistic average-reward planning: ``u <- max_a [r~(s,a) + max_{p in box(s,a)} p . u]`` to ``span < tol``.
 
@@ -82,6 +83,7 @@ def extended_value_iteration(
       width: ``[S, A, S]`` (or broadcastable) half-widths of the per-next-state confidence intervals.
       rewards: ``[S, A]`` optimistic rewards ``r~``.
       u0: warm start (default 0); the stopping rule, not the start, certifies the result.
+      active: False skips the iterations (see :func:`~agents.planning.relative_value_iteration`).
 
     Returns a :class:`~agents.planning.PlanResult` whose ``Q(s, a) = r~(s, a) + max_p p . u`` is the optimistic
     action value (relative to ``u``) and whose gain bounds bracket the optimistic gain.
@@ -97,4 +99,5 @@ def extended_value_iteration(
         tol=tol,
         max_iter=max_iter,
         aperiodicity=aperiodicity,
+        active=active,
     )

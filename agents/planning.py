@@ -24,7 +24,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-__all__ = ["PlanResult", "relative_value_iteration"]
+__all__ = ["PlanResult", "relative_value_iteration", "where_due"]
 
 
 class PlanResult(struct.PyTreeNode):
@@ -52,13 +52,16 @@ def relative_value_iteration(
     discount: float | jax.Array = 1.0,
     tol: float | jax.Array = 1e-3,
     max_iter: int = 100_000,
-    aperiodicity: float = 0.5,
+    aperiodicity: float | jax.Array = 0.5,
+    active: bool | jax.Array = True,
 ) -> PlanResult:
     """Iterate ``u <- u + step * (max_a backup(u) - u)`` from ``u0`` until the stopping rule of the module docstring.
 
     Padded actions (``action_mask``) are excluded from the maximum; padded states (``state_mask``) from the stopping
     rule and the normalisation. ``discount`` may be traced (1 selects the average-reward rule, ``< 1`` the discounted
-    one), so a hyperparameter grid can mix both.
+    one), so a hyperparameter grid can mix both. ``active = False`` skips the loop (the result is then meaningless):
+    under ``vmap`` a batched ``while_loop`` runs until its last member stops, so members whose result will be
+    discarded should not keep it going.
     """
     dtype = u0.dtype
     average = jnp.asarray(discount) >= 1.0
@@ -75,7 +78,7 @@ def relative_value_iteration(
 
     def cond(c):
         *_, err, i = c
-        return (err >= tol) & (i < max_iter)
+        return (err >= tol) & (i < max_iter) & active
 
     def body(c):
         u, *_, i = c
@@ -90,3 +93,12 @@ def relative_value_iteration(
     init = (u0, jnp.zeros((S, A), dtype), -inf, inf, inf, jnp.asarray(0, jnp.int32))
     u, Q, lo, hi, err, it = jax.lax.while_loop(cond, body, init)
     return PlanResult(Q=Q, u=u, gain_lower=lo, gain_upper=hi, iterations=it, converged=err < tol)
+
+
+def where_due(due: jax.Array, new, old):
+    """``new`` if ``due`` else ``old``, leaf by leaf: a plan requested by a member that does not need one is a no-op.
+
+    The runner plans for the whole batch when any member needs to and keeps the result only for those that do;
+    agents apply the same rule themselves so that ``plan`` means the same thing whoever calls it.
+    """
+    return jax.tree.map(lambda n, o: jnp.where(due, n, o), new, old)

@@ -32,6 +32,7 @@ from flax import struct
 
 from agents.acting import greedy_action
 from agents.hyperparameters import check_range
+from agents.planning import where_due
 from agents.posteriors import (
     NormalGamma,
     dirichlet_concentration,
@@ -137,12 +138,15 @@ def _alpha(state: PSRLEpisodicState) -> jax.Array:
 
 
 def plan(key: jax.Array, state: PSRLEpisodicState) -> PSRLEpisodicState:
-    """Draw ``(P~, R~)`` from the posterior and solve it by backward induction (agents.md §1, "Schedule")."""
+    """Draw ``(P~, R~)`` from the posterior and solve it by backward induction (agents.md §1, "Schedule").
+
+    A no-op unless :func:`needs_plan` (the runner keeps the result only for members that asked).
+    """
     k_p, k_r = jax.random.split(key)
     P = _copy_action_zero(dirichlet_sample(k_p, _alpha(state)), state.action_mask)
     R = _copy_action_zero(normal_gamma_sample(k_r, state.rewards), state.action_mask)
     Q, _ = dp.finite_horizon_value_iteration(P, rewards=R, H=state.Q.shape[0], horizon=state.horizon)
-    return state.replace(Q=Q, plan_due=jnp.zeros((), bool))
+    return where_due(state.plan_due, state.replace(Q=Q, plan_due=jnp.zeros((), bool)), state)
 
 
 def policy(state: PSRLEpisodicState) -> jax.Array:

@@ -50,6 +50,7 @@ from agents.acting import greedy_action
 from agents.epochs import EpochSchedule, epoch_schedule, record_visit, start_epoch
 from agents.extended_value_iteration import extended_value_iteration
 from agents.hyperparameters import check_int, check_range
+from agents.planning import where_due
 from jaxmdp import dynamic_programming as dp
 from jaxmdp.agent_interface import Agent, MDPSpec, Transition
 
@@ -165,7 +166,11 @@ def confidence_widths(state: UCRL2State) -> tuple[jax.Array, jax.Array, jax.Arra
 
 
 def plan(key: jax.Array, state: UCRL2State) -> UCRL2State:
-    """Start an epoch: extended value iteration on the current plausible set (warm-started from the last bias)."""
+    """Start an epoch: extended value iteration on the current plausible set (warm-started from the last bias).
+
+    A no-op unless :func:`needs_plan` (the runner keeps the result only for members that asked; skipping the
+    iterations of the others keeps a batched EVI from waiting for them).
+    """
     del key
     p_hat, width_p, r_tilde = confidence_widths(state)
     hp = state.hparams
@@ -179,8 +184,9 @@ def plan(key: jax.Array, state: UCRL2State) -> UCRL2State:
         tol=hp.evi_tol,
         max_iter=hp.evi_max_iter,
         aperiodicity=hp.aperiodicity,
+        active=state.plan_due,
     )
-    return state.replace(
+    new = state.replace(
         Q=res.Q,
         u=res.u,
         schedule=start_epoch(state.schedule),
@@ -188,6 +194,7 @@ def plan(key: jax.Array, state: UCRL2State) -> UCRL2State:
         evi_iterations=res.iterations,
         evi_converged=res.converged,
     )
+    return where_due(state.plan_due, new, state)
 
 
 def estimated_model(state: UCRL2State) -> tuple[jax.Array, jax.Array]:
