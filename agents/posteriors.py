@@ -19,6 +19,7 @@ import jax.numpy as jnp
 from flax import struct
 
 __all__ = [
+    "log_gamma_sample",
     "dirichlet_concentration",
     "dirichlet_mean",
     "dirichlet_sample",
@@ -32,6 +33,54 @@ __all__ = [
 # Largest standard deviation a reward sample may have: a Gamma draw of a small shape can underflow towards zero, and
 # an infinite reward would turn the zero entries of a kernel into NaNs during planning (0 * inf).
 _MAX_LOG_STD = 30.0
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Gamma variates
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def log_gamma_sample(key: jax.Array, alpha: jax.Array) -> jax.Array:
+    """``log g`` with ``g ~ Gamma(alpha, 1)`` elementwise, for ``alpha > 0``, by Marsaglia & Tsang (2000).
+
+    For ``a = alpha >= 1`` (else ``a = alpha + 1``) let ``d = a - 1/3``, ``c = 1/sqrt(9 d)``; draw ``x ~ N(0, 1)``,
+    ``u ~ U(0, 1]`` and accept ``v = (1 + c x)^3`` when ``v > 0`` and ``ln u < x^2/2 + d - d v + d ln v``; then
+    ``d v ~ Gamma(a)``. Shapes below one use ``Gamma(alpha) = Gamma(alpha + 1) U^(1/alpha)``, kept in log space so
+    that tiny shapes (``1/S`` priors) do not underflow. Exact.
+
+    Rounds of proposals are drawn for the whole array at once and a ``while_loop`` repeats until every entry has
+    accepted one (acceptance is at least 95% per round, so about ``log(n) / 3`` rounds for ``n`` entries). This is
+    about ten times faster on CPU than ``jax.random.loggamma``, which runs a rejection loop per entry with its own
+    key; the draws differ from it but have the same distribution.
+    """
+    alpha = jnp.asarray(alpha)
+    dtype = alpha.dtype
+    boost = alpha < 1
+    a = jnp.where(boost, alpha + 1, alpha)
+    d = a - 1.0 / 3.0
+    c = 1.0 / jnp.sqrt(9.0 * d)
+    k_boost, k_rounds = jax.random.split(key)
+
+    def cond(carry):
+        _, done, _ = carry
+        return ~jnp.all(done)
+
+    def body(carry):
+        i, done, log_v = carry
+        k_x, k_u = jax.random.split(jax.random.fold_in(k_rounds, i))
+        x = jax.random.normal(k_x, alpha.shape, dtype)
+        u = 1.0 - jax.random.uniform(k_u, alpha.shape, dtype)
+        base = 1.0 + c * x
+        positive = base > 0
+        lv = 3.0 * jnp.log(jnp.where(positive, base, 1.0))
+        accept = positive & (jnp.log(u) < 0.5 * x * x + d - d * jnp.exp(lv) + d * lv)
+        return i + 1, done | accept, jnp.where(accept & ~done, lv, log_v)
+
+    init = (jnp.zeros((), jnp.int32), jnp.zeros(alpha.shape, bool), jnp.zeros(alpha.shape, dtype))
+    _, _, log_v = jax.lax.while_loop(cond, body, init)
+    log_g = jnp.log(d) + log_v
+    u = 1.0 - jax.random.uniform(k_boost, alpha.shape, dtype)
+    return jnp.where(boost, log_g + jnp.log(u) / alpha, log_g)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -58,7 +107,7 @@ def dirichlet_sample(key: jax.Array, alpha: jax.Array) -> jax.Array:
     row sums to one exactly (the reference divides by ``sum + 1e-5``).
     """
     positive = alpha > 0
-    log_g = jax.random.loggamma(key, jnp.where(positive, alpha, 1.0), dtype=alpha.dtype)
+    log_g = log_gamma_sample(key, jnp.where(positive, alpha, 1.0))
     return jax.nn.softmax(jnp.where(positive, log_g, -jnp.inf), axis=-1)
 
 
@@ -119,6 +168,6 @@ def normal_gamma_sample(key: jax.Array, post: NormalGamma) -> jax.Array:
     The precision is drawn in log space and the standard deviation capped at ``e^30`` so a sample is always finite.
     """
     k_tau, k_m = jax.random.split(key)
-    log_tau = jax.random.loggamma(k_tau, post.alpha, dtype=post.mu.dtype) - jnp.log(post.beta)
+    log_tau = log_gamma_sample(k_tau, post.alpha) - jnp.log(post.beta)
     log_std = jnp.minimum(-0.5 * (jnp.log(post.lam) + log_tau), _MAX_LOG_STD)
     return post.mu + jnp.exp(log_std) * jax.random.normal(k_m, post.mu.shape, post.mu.dtype)

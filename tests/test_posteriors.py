@@ -10,6 +10,7 @@ from scipy import stats
 
 from agents.posteriors import (
     dirichlet_concentration,
+    log_gamma_sample,
     dirichlet_mean,
     dirichlet_sample,
     normal_gamma_mean,
@@ -19,6 +20,27 @@ from agents.posteriors import (
 )
 
 N_DRAWS = 20_000
+
+
+@pytest.mark.parametrize("alpha", [0.04, 0.5, 1.0, 2.5, 30.0])
+def test_log_gamma_sample_is_exact(alpha):
+    # Kolmogorov-Smirnov against scipy's Gamma(alpha) CDF, on log g (P(log g <= x) = F(e^x)), plus the mean of g.
+    draws = np.asarray(jax.jit(log_gamma_sample)(jax.random.key(0), jnp.full((N_DRAWS,), alpha)), np.float64)
+    assert np.all(np.isfinite(draws))
+    assert stats.kstest(draws, lambda x: stats.gamma(alpha).cdf(np.exp(x))).pvalue > 1e-3
+    g = np.exp(draws)
+    assert abs(g.mean() - alpha) < 5 * np.sqrt(alpha / N_DRAWS)
+
+
+def test_log_gamma_sample_mixed_shapes_and_batching():
+    # One call with many shapes equals the same distribution per entry; under vmap each member is its own draw.
+    alpha = jnp.tile(jnp.array([0.3, 1.0, 7.0]), N_DRAWS // 3)
+    draws = np.exp(np.asarray(log_gamma_sample(jax.random.key(1), alpha), np.float64)).reshape(-1, 3)
+    for j, a in enumerate((0.3, 1.0, 7.0)):
+        assert stats.kstest(draws[:, j], stats.gamma(a).cdf).pvalue > 1e-3, a
+    keys = jax.random.split(jax.random.key(2), 3)
+    batched = jax.vmap(log_gamma_sample, (0, None))(keys, jnp.array([0.5, 2.0]))
+    np.testing.assert_array_equal(batched[1], log_gamma_sample(keys[1], jnp.array([0.5, 2.0])))
 
 
 def test_normal_gamma_prior_parameterisation():
