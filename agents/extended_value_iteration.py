@@ -8,8 +8,7 @@ The plausible kernels of a pair ``(s, a)`` are the distributions ``p`` on the re
 
 is a linear programme whose optimum is greedy: start from ``lo`` and hand the missing mass ``1 - sum lo`` to the
 next states in decreasing order of ``u``, each up to its ``hi`` (an exchange argument: moving mass from a lower- to
-a higher-valued state never decreases the objective). One ordering of the states serves every pair of a sweep, so a
-sweep costs a sort plus ``O(S^2 A)``.
+a higher-valued state never decreases the objective). One ordering of the states serves every pair of a sweep.
 
 Extended value iteration runs :func:`agents.planning.relative_value_iteration` with this backup and the span
 stopping rule, which yields an optimistic gain within ``tol`` of the best gain over all plausible MDPs and a policy
@@ -33,18 +32,20 @@ def confidence_box(p_hat: jax.Array, width: jax.Array, state_mask: jax.Array) ->
     return lo, hi
 
 
-def _extra_mass(lo: jax.Array, hi: jax.Array, order: jax.Array) -> jax.Array:
-    """Mass added on top of ``lo``, in the order ``order`` (decreasing value), filling each box up to ``hi``."""
-    lo_o, hi_o = lo[..., order], hi[..., order]
+def _extra_mass(lo: jax.Array, hi: jax.Array, u: jax.Array) -> jax.Array:
+    """Mass added on top of ``lo``: states in decreasing order of ``u`` (ties: lower index first) fill their box up
+    to ``hi`` until the budget ``1 - sum lo`` is spent.
+
+    The mass ahead of each state is ``room @ precedes`` with ``precedes[t, s] = [t comes before s]``: a dense
+    ``[S, S]`` product instead of sorting and gathering every row, which is several times faster on CPU.
+    """
+    S = u.shape[-1]
+    idx = jnp.arange(S)
+    precedes = (u[:, None] > u[None, :]) | ((u[:, None] == u[None, :]) & (idx[:, None] < idx[None, :]))
+    room = hi - lo
+    before = room @ precedes.astype(lo.dtype)
     budget = 1.0 - jnp.sum(lo, axis=-1, keepdims=True)
-    room = hi_o - lo_o
-    before = jnp.cumsum(room, axis=-1) - room
     return jnp.clip(budget - before, 0.0, room)
-
-
-def _descending(u: jax.Array) -> jax.Array:
-    # A stable sort of -u: equal values keep index order, so results do not depend on sort implementation details.
-    return jnp.argsort(-u, stable=True)
 
 
 def optimistic_expectation(lo: jax.Array, hi: jax.Array, u: jax.Array) -> jax.Array:
@@ -52,15 +53,12 @@ def optimistic_expectation(lo: jax.Array, hi: jax.Array, u: jax.Array) -> jax.Ar
 
     Requires ``sum lo <= 1 <= sum hi`` per row (true for boxes around a distribution).
     """
-    order = _descending(u)
-    return jnp.sum(lo * u, axis=-1) + jnp.sum(_extra_mass(lo, hi, order) * u[order], axis=-1)
+    return jnp.sum((lo + _extra_mass(lo, hi, u)) * u, axis=-1)
 
 
 def optimistic_kernel(lo: jax.Array, hi: jax.Array, u: jax.Array) -> jax.Array:
     """The maximiser ``p~`` of :func:`optimistic_expectation` (``[..., S]``)."""
-    order = _descending(u)
-    extra = jnp.zeros_like(lo).at[..., order].set(_extra_mass(lo, hi, order))
-    return lo + extra
+    return lo + _extra_mass(lo, hi, u)
 
 
 def extended_value_iteration(
