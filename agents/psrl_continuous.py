@@ -305,9 +305,12 @@ def plan(key: jax.Array, state: PSRLContinuousState) -> PSRLContinuousState:
     T, R, mask = extended_mdp(normal_gamma_sample(k_r, state.rewards), candidate_kernels(k_p, state), state.action_mask)
     gamma = jnp.asarray(hp.discount, T.dtype)
 
+    # Under vmap the hyperparameters stored in the state are batched, so this cond becomes a select that runs both
+    # branches: each branch is kept cheap and well posed when its result is not the one selected.
     def discounted(_):
-        start = dp.greedy(dp.q_values(T, state.u, gamma, R), mask)
-        res = dp.policy_iteration(T, gamma, rewards=R, policy=start)
+        g = jnp.where(gamma < 1, gamma, 0.99)
+        start = dp.greedy(dp.q_values(T, state.u, g, R), mask)
+        res = dp.policy_iteration(T, g, rewards=R, policy=start)
         return res.Q, res.V, res.iterations, res.converged
 
     def average(_):
@@ -320,7 +323,7 @@ def plan(key: jax.Array, state: PSRLContinuousState) -> PSRLContinuousState:
             tol=hp.plan_tol,
             max_iter=hp.plan_max_iter,
             aperiodicity=hp.aperiodicity,
-            active=state.plan_due,
+            active=state.plan_due & (gamma >= 1),
         )
         return res.Q, res.u, res.iterations, res.converged
 
