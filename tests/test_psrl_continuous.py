@@ -167,6 +167,22 @@ def test_unused_candidate_slots_do_not_change_the_plan(planned):
     np.testing.assert_allclose(planned["tight"][1].Q, planned["discounted"][1].Q, rtol=1e-6)
 
 
+def test_a_grid_mixing_both_criteria_plans_each_member_like_alone(planned):
+    # vmap over [discounted, average-reward] members: the cond becomes a select, each member keeps its own branch.
+    (s_d, new_d), (s_g, new_g) = planned["discounted"], planned["gain"]
+    both = jax.tree.map(lambda a, b: jnp.stack([a, b]), s_d, s_g)
+    out = jax.jit(jax.vmap(AGENT.plan))(jnp.stack([jax.random.key(7)] * 2), both)
+    np.testing.assert_allclose(out.Q[0], new_d.Q, rtol=1e-5)
+    np.testing.assert_allclose(out.Q[1], new_g.Q, rtol=1e-5, atol=1e-5)
+
+
+def test_plan_is_a_no_op_for_a_member_that_did_not_ask(planned):
+    state, _ = planned["discounted"]
+    idle = state.replace(plan_due=jnp.zeros((), bool))
+    out = jax.jit(AGENT.plan)(jax.random.key(7), idle)
+    jax.tree.map(np.testing.assert_array_equal, out.replace(hparams=idle.hparams), idle)  # (hparams become arrays)
+
+
 @pytest.fixture(scope="module")
 def probes():
     batch = jaxmdp.stack(probe_mdps(episodic=False)).strip()

@@ -118,6 +118,9 @@ def test_plan_is_backward_induction_on_a_posterior_draw():
     R = np.asarray(normal_gamma_sample(k_r, state.rewards), np.float64)
     np.testing.assert_allclose(planned.Q, _backward_induction(P, R, 3), rtol=1e-5, atol=1e-5)
     assert not bool(planned.plan_due)
+    # A member that did not ask keeps its state.
+    again = jax.jit(AGENT.plan)(jax.random.key(4), planned)
+    jax.tree.map(np.testing.assert_array_equal, again.replace(hparams=planned.hparams), planned)
 
 
 def test_check_hparams_and_setting():

@@ -144,6 +144,12 @@ def test_plan_solves_the_current_plausible_set_and_starts_an_epoch():
     np.testing.assert_array_equal(planned.schedule.visits, state.schedule.visits)
 
 
+def test_plan_is_a_no_op_for_a_member_that_did_not_ask():
+    state, _ = _feed(STREAM)
+    out = jax.jit(UCRL2.plan)(jax.random.key(0), state)
+    jax.tree.map(np.testing.assert_array_equal, out.replace(hparams=state.hparams), state)
+
+
 def test_check_hparams_and_setting():
     check_hparams(UCRL2.default_hparams)
     check_hparams(UCRL2HParams(alpha_p=jnp.linspace(0.1, 3.0, 5)))  # a grid
