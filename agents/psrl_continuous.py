@@ -31,8 +31,8 @@ exactly, by policy iteration warm-started from the previous epoch's values, rath
 span stopping rule (``plan_tol``, at most ``plan_max_iter`` sweeps). It is not the default: the sampled extended MDPs
 are often nearly decomposable (simple optimistic sampling draws deterministic rows, and posterior draws with the
 ``1/S`` prior put ``1e-30``-sized mass on most states), their optimal gain then depends on the state and relative
-value iteration needs thousands to hundreds of thousands of sweeps (measured on RiverSwim 25: median 44, maximum
-27 230) -- and a batched plan waits for its slowest member. The agent acts with
+value iteration needs thousands to hundreds of thousands of sweeps (one 3 000-step run on RiverSwim 25: median 44
+sweeps per plan, maximum 27 230) -- and a batched plan waits for its slowest member. The agent acts with
 ``Q(s, a) = max_k Q_ext(s, (a, k))``, i.e. the real action of the best extended action.
 
 Memory and compute of a plan scale with ``max_psi`` (``[max_psi, S, A, S]`` candidates), so set ``max_psi`` to
@@ -95,7 +95,22 @@ _PSI_CAP = 60
 
 
 class PSRLContinuousHParams(struct.PyTreeNode):
-    """Hyperparameters; the five weights default to the benchmark's tuned values (agents.md §4, cached)."""
+    """Hyperparameters; the five weights default to the benchmark's tuned values (agents.md §4, cached).
+
+    Attributes:
+      rewards_prior_mean: ``mu0`` of the Normal-Gamma reward prior ``[mu0, reward_prior_count,
+        reward_prior_precision, reward_prior_precision_count]`` (searched in ``U(0, 1.2)``).
+      psi_weight, omega_weight, kappa_weight, eta_weight: weights of the constants ``psi``, ``omega``, ``kappa``,
+        ``eta`` (module docstring). ``kappa`` only matters with ``scaled_dirichlet``.
+      failure_prob: ``p`` in the constants (0.05 in the benchmark).
+      discount: planning criterion: ``< 1`` discounted (default 0.99, the reference), ``1`` average reward.
+      plan_tol, aperiodicity, plan_max_iter: span tolerance, aperiodicity weight and sweep limit of the
+        average-reward planner (unused when ``discount < 1``).
+      policy_discount: discount of the policy estimate.
+      max_psi: static size of the candidate buffer (``>= psi`` changes nothing; smaller truncates ``psi``).
+      scaled_dirichlet: static; draw from Agrawal & Jia's ``Dirichlet((N + omega) / kappa)`` instead of the
+        Bayesian posterior ``Dirichlet(1/S + N)`` (the reference's choice; its tuned ``kappa`` was never used).
+    """
 
     rewards_prior_mean: float | jax.Array = 0.23589883401606418
     psi_weight: float | jax.Array = 0.016737988780906453
@@ -221,7 +236,7 @@ def init(key: jax.Array, spec: MDPSpec, hparams: PSRLContinuousHParams) -> PSRLC
 
 
 def act(key: jax.Array, state: PSRLContinuousState, obs: jax.Array, h: jax.Array) -> jax.Array:
-    """The real action of the best extended action: ``argmax_a max_k Q((obs), (a, k))`` (random tie-break)."""
+    """The real action of the best extended action: ``argmax_a max_k Q_ext(obs, (a, k))`` (random tie-break)."""
     del h
     return greedy_action(key, state.Q[obs], state.action_mask)
 

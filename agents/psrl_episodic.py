@@ -50,7 +50,14 @@ __all__ = ["PSRLEpisodicHParams", "PSRLEpisodicState", "PSRL_EPISODIC"]
 
 
 class PSRLEpisodicHParams(struct.PyTreeNode):
-    """Hyperparameters; defaults are the benchmark's tuned values (agents.md §1, cached)."""
+    """Hyperparameters; defaults are the benchmark's tuned values (agents.md §1, cached).
+
+    Attributes:
+      prior_mean, reward_prior_count, reward_prior_precision, reward_prior_precision_count: the Normal-Gamma reward
+        prior ``[mu0, n_mu, tau0, n_tau]`` (the benchmark searches ``prior_mean ~ U(0.001, 2)``, the rest is 1).
+      transition_prior: Dirichlet concentration on every real next state (searched in ``U(0.001, 2)``).
+      learn_final_transition: static; whether the last step of an episode updates the transition posterior.
+    """
 
     prior_mean: float | jax.Array = 0.41854463543357456
     transition_prior: float | jax.Array = 0.32345772625210756

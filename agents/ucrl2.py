@@ -58,7 +58,14 @@ __all__ = ["UCRL2HParams", "UCRL2State", "confidence_widths", "UCRL2"]
 
 
 class UCRL2HParams(struct.PyTreeNode):
-    """Hyperparameters; ``alpha_r``/``alpha_p`` default to the benchmark's tuned values (agents.md §3, cached)."""
+    """Hyperparameters; ``alpha_r``/``alpha_p`` default to the benchmark's tuned values (agents.md §3, cached).
+
+    Attributes:
+      alpha_r, alpha_p: scales of the reward and transition confidence widths (searched in ``U(0.1, 3)``).
+      r_max: the largest reward (rewards lie in ``[0, r_max]``).
+      evi_tol, aperiodicity, evi_max_iter: span tolerance, aperiodicity weight and (static) sweep limit of EVI.
+      policy_discount: discount of the policy estimate.
+    """
 
     alpha_r: float | jax.Array = 0.10294276593728004
     alpha_p: float | jax.Array = 0.9883750006754203

@@ -111,6 +111,21 @@ def test_candidate_kernels():
     assert abs(np.corrcoef(P[:, 0, 0, 1, 0], P[:, 1, 0, 1, 0])[0, 1]) < 0.05
 
 
+def test_scaled_dirichlet_candidates():
+    # Agrawal & Jia's posterior: Dirichlet((N + omega) / kappa) on the real states (omega = 1.780, kappa = 43.42).
+    counts = np.zeros((3, 2, 3), int)
+    counts[0, 1] = [10, 20, 40]
+    state = _state_with_counts(counts, hp=PSRLContinuousHParams(max_psi=2, scaled_dirichlet=True))
+    omega, kappa = float(state.constants.omega), float(state.constants.kappa)
+    P = np.asarray(jax.jit(jax.vmap(candidate_kernels, (0, None)))(jax.random.split(jax.random.key(2), 4000), state))
+    rows = P[:, :, 0, 1].reshape(-1, 3).astype(np.float64)
+    alpha = (np.array([10, 20, 40]) + omega) / kappa
+    a0 = alpha.sum()
+    mean, var = alpha / a0, alpha * (a0 - alpha) / (a0**2 * (a0 + 1))
+    assert np.all(np.abs(rows.mean(0) - mean) < 5 * np.sqrt(var / len(rows)))
+    np.testing.assert_allclose(rows.var(0), var, rtol=0.1)
+
+
 def _extended_mdp(R, P, n_psi):
     """The explicit extended MDP: action j = a * psi + k has reward R[s, a] and candidate k's kernel of (s, a)."""
     S, A = R.shape
