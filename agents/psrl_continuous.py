@@ -35,9 +35,10 @@ value iteration needs thousands to hundreds of thousands of sweeps (one 3 000-st
 sweeps per plan, maximum 27 230) -- and a batched plan waits for its slowest member. The agent acts with
 ``Q(s, a) = max_k Q_ext(s, (a, k))``, i.e. the real action of the best extended action.
 
-Memory and compute of a plan scale with ``max_psi`` (``[max_psi, S, A, S]`` candidates), so set ``max_psi`` to
-:func:`psi` of the MDPs at hand (e.g. 2 for RiverSwim 25 at the defaults) when running many seeds; results do not
-change as long as ``max_psi >= psi``.
+Sampling costs ``psi`` candidates (the largest ``psi`` of a batch), but memory and the planner's action count scale
+with ``max_psi`` (``[max_psi, S, A, S]`` candidates per member), so set ``max_psi`` to :func:`psi` of the MDPs at
+hand (e.g. 2 for RiverSwim 25 at the defaults) when running many seeds or large MDPs; results do not change as long
+as ``max_psi >= psi``.
 
 Policy estimate (for regret), as the spec: posterior means (Dirichlet mean, ``mu``), ``policy_discount``-discounted
 optimal values (0.99, solved exactly), greedy ``[S, A]``.
@@ -291,7 +292,8 @@ def candidate_kernels(key: jax.Array, state: PSRLContinuousState) -> jax.Array:
         optimistic = p_minus + missing * jax.nn.one_hot(z, S, dtype=dtype)
         return jnp.where(use_posterior, posterior, optimistic)
 
-    P = jax.vmap(draw)(jnp.arange(hp.max_psi))
+    # A loop over the psi candidates actually used, so that sampling costs psi (the largest in a batch), not max_psi.
+    P = jax.lax.fori_loop(0, c.psi, lambda k, P: P.at[k].set(draw(k)), jnp.zeros((hp.max_psi, S, A, S), dtype))
     return jnp.where((jnp.arange(hp.max_psi) < c.psi)[:, None, None, None], P, P[:1])
 
 

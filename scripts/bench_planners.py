@@ -6,7 +6,9 @@ batch under one ``lax.cond`` whenever any member asks) at several batch sizes (s
 * ``full``: the real loop;
 * ``no_plan``: the same loop with ``needs_plan`` forced to False after the initial plan, i.e. acting, stepping the
   MDP and the per-step updates only;
-* ``plan_share = 1 - no_plan / full`` and ``per_batch_plan_ms = (full - no_plan) / batch_plans``.
+* ``plan_share = 1 - no_plan / full`` and ``per_batch_plan_ms = (full - no_plan) / batch_plans``;
+* ``chunked`` (with ``--plan-chunk C``): the real loop, but planning only the members that asked, gathered into
+  sub-batches of ``C`` (what a runner could do; same results).
 
 MDPs are the benchmark's RiverSwim 25 entries (benchmark.md §3: continuous communicating ``prms_0`` and episodic
 communicating ``prms_0``). Compilation is excluded (AOT-compiled first) and each timing is the best of ``--repeats``.
@@ -58,12 +60,16 @@ def _best_time(fn, args, repeats):
     return best, out
 
 
-def bench(name, agent, hparams, mdp, batch, n_steps, repeats):
+def bench(name, agent, hparams, mdp, batch, n_steps, repeats, plan_chunk=None):
     no_plan_agent = dataclasses.replace(agent, needs_plan=lambda state: jnp.zeros((), bool))
     keys = seeds(batch)
     row = dict(agent=name, seeds=batch, steps=n_steps, S=mdp.n_states, A=mdp.n_actions)
-    for variant, ag in (("full", agent), ("no_plan", no_plan_agent)):
-        run = make_runner(ag, n_steps)
+    variants = [("full", agent, None), ("no_plan", no_plan_agent, None)]
+    if plan_chunk is not None and plan_chunk < batch:
+        variants.append(("chunked", agent, plan_chunk))
+        row["plan_chunk"] = plan_chunk
+    for variant, ag, chunk in variants:
+        run = make_runner(ag, n_steps, plan_chunk=chunk)
         t0 = time.perf_counter()
         compiled = run.lower(keys, mdp, hparams).compile()
         row[f"{variant}_compile_s"] = round(time.perf_counter() - t0, 2)
@@ -84,6 +90,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--agents", nargs="+", default=["psrl_episodic", "ucrl2", "psrl_continuous"])
+    parser.add_argument("--plan-chunk", type=int, default=None, help="also time planning in sub-batches of this size")
     parser.add_argument("--out", type=Path, default=Path("results/bench_planners.json"))
     args = parser.parse_args()
 
@@ -95,12 +102,13 @@ def main() -> None:
         if name == "psrl_continuous":  # a tight candidate buffer (psi = 2 here); the default 60 is the worst case
             hparams = hparams.replace(max_psi=psi(hparams, mdp.n_states, mdp.n_actions))
         for batch in args.seeds:
-            row = bench(name, agent, hparams, mdp, batch, args.steps, args.repeats)
+            row = bench(name, agent, hparams, mdp, batch, args.steps, args.repeats, args.plan_chunk)
             rows.append(row)
             print(
                 f"{name:16s} seeds={batch:5d}  {row['full_steps_per_s']:>11.0f} steps/s  "
                 f"(no planning {row['no_plan_steps_per_s']:>11.0f})  plan share {row['plan_share']:.2f}  "
-                f"batch plans {row['batch_plans']:5d}/{args.steps}  {row['per_batch_plan_ms']:.3f} ms each",
+                f"batch plans {row['batch_plans']:5d}/{args.steps}  {row['per_batch_plan_ms']:.3f} ms each"
+                + (f"  chunked({row['plan_chunk']}) {row['chunked_steps_per_s']:.0f} steps/s" if "plan_chunk" in row else ""),
                 flush=True,
             )
     args.out.parent.mkdir(parents=True, exist_ok=True)

@@ -33,11 +33,31 @@ def _select(mask, new, old):
     return jax.tree.map(lambda n, o: jnp.where(mask.reshape(mask.shape + (1,) * (n.ndim - 1)), n, o), new, old)
 
 
-def make_runner(agent: Agent, n_steps: int, trace: bool = False):
+def make_runner(agent: Agent, n_steps: int, trace: bool = False, plan_chunk: int | None = None):
     """``run(keys[B], mdp, hparams) -> RunResult`` (jitted) for ``n_steps`` interaction steps.
 
     ``mdp`` is one MDP for every member, or a stacked batch of ``B`` MDPs (member ``i`` faces MDP ``i``).
+    ``plan_chunk``: if given, planning gathers the members that need it into sub-batches of this size (a
+    ``while_loop`` over chunks) instead of planning for the whole batch; results are the same, the cost of a plan
+    step then scales with the number of members that plan rather than with ``B``.
     """
+
+    def plan_members(states, need, keys):
+        B = need.shape[0]
+        if plan_chunk is None or plan_chunk >= B:
+            return jax.lax.cond(
+                jnp.any(need), lambda s: _select(need, jax.vmap(agent.plan)(keys, s), s), lambda s: s, states
+            )
+
+        def chunk(carry):
+            s, remaining = carry
+            idx = jnp.argsort(~remaining, stable=True)[:plan_chunk]  # members still waiting come first
+            take = remaining[idx]
+            new = jax.vmap(agent.plan)(keys[idx], jax.tree.map(lambda x: x[idx], s))
+            s = jax.tree.map(lambda full, n: full.at[idx].set(_select(take, n, full[idx])), s, new)
+            return s, remaining.at[idx].set(False)
+
+        return jax.lax.while_loop(lambda c: jnp.any(c[1]), chunk, (states, need))[0]
 
     def run(keys, mdp, hparams):
         m = 0 if mdp.T.ndim == 4 else None
@@ -56,12 +76,7 @@ def make_runner(agent: Agent, n_steps: int, trace: bool = False):
             tr = Transition(obs=obs, action=a, reward=r, next_obs=info["final_observation"], h=env.h, terminated=term)
             states = jax.vmap(agent.update)(states, tr)
             need = jax.vmap(agent.needs_plan)(states)
-            states = jax.lax.cond(
-                jnp.any(need),
-                lambda s: _select(need, jax.vmap(agent.plan)(kt[:, 2], s), s),
-                lambda s: s,
-                states,
-            )
+            states = plan_members(states, need, kt[:, 2])
             carry = (states, env_next, obs_next, total + r, n_plans + need, n_batch + jnp.any(need))
             return carry, ((a, r, need) if trace else None)
 

@@ -61,6 +61,15 @@ def test_same_key_same_result_and_vmapped_equals_single(probes):
     np.testing.assert_allclose(single.state.Q[0], res.state.Q[i], rtol=1e-6, atol=1e-6)
 
 
+def test_planning_only_the_members_that_ask_gives_the_same_run(probes):
+    # The test loop's plan_chunk gathers the members that need a plan into sub-batches (here one at a time).
+    _, batch, _, res = probes
+    chunked = make_runner(UCRL2, N_STEPS, trace=True, plan_chunk=1)(seeds(4), batch, UCRL2.default_hparams)
+    np.testing.assert_array_equal(chunked.actions, res.actions)
+    np.testing.assert_array_equal(chunked.n_plans, res.n_plans)
+    np.testing.assert_allclose(chunked.state.Q, res.state.Q, rtol=1e-6, atol=1e-6)
+
+
 def _spec(S=3, A=2):
     mdp = jaxmdp.custom_mdp(np.full((S, A, S), 1.0 / S), R=np.zeros((S, A)))
     return spec_of(mdp, 100)
