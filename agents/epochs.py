@@ -5,8 +5,9 @@ An epoch ends as soon as the pair just played has been visited in the epoch as o
 before it (``N`` the total, current step included). Equivalently ``N(s, a) >= 2 N_k(s, a)`` once the pair has been
 seen; in particular the first visit of a pair ends its epoch. This is the rule of the reference (agents.md §3, §4),
 checked after each step on the pair just played. Jaksch et al. check it *before* acting instead (the epoch ends when
-the policy asks for a pair whose count has doubled); both rules bound the number of epochs by
-``S A log2(8 T / (S A))`` and differ only in which step starts the next epoch.
+the policy asks for a pair whose count has doubled). Jaksch et al.'s bound on the number of epochs,
+``S A log2(8 T / (S A))`` (their Prop. 18), holds for both: every epoch but the last ends with a pair whose visits in the
+epoch reached ``max(1, N_k)``.
 """
 
 from __future__ import annotations
