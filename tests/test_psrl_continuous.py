@@ -152,7 +152,8 @@ def planned():
 def _redraw(state):
     # The draws plan makes with key 7 (same split order).
     k_r, k_p = jax.random.split(jax.random.key(7))
-    return np.asarray(normal_gamma_sample(k_r, state.rewards)), np.asarray(candidate_kernels(k_p, state))
+    R = jax.jit(normal_gamma_sample)(k_r, state.rewards)
+    return np.asarray(R), np.asarray(jax.jit(candidate_kernels)(k_p, state))
 
 
 def test_plan_is_gain_optimal_in_the_explicit_extended_mdp(planned):

@@ -114,8 +114,8 @@ def test_plan_is_backward_induction_on_a_posterior_draw():
     planned = jax.jit(AGENT.plan)(jax.random.key(3), state)
     k_p, k_r = jax.random.split(jax.random.key(3))
     alpha = dirichlet_concentration(AGENT.default_hparams.transition_prior, state.counts, state.state_mask)
-    P = np.asarray(dirichlet_sample(k_p, alpha), np.float64)
-    R = np.asarray(normal_gamma_sample(k_r, state.rewards), np.float64)
+    P = np.asarray(jax.jit(dirichlet_sample)(k_p, alpha), np.float64)
+    R = np.asarray(jax.jit(normal_gamma_sample)(k_r, state.rewards), np.float64)
     np.testing.assert_allclose(planned.Q, _backward_induction(P, R, 3), rtol=1e-5, atol=1e-5)
     assert not bool(planned.plan_due)
     # A member that did not ask keeps its state.
