@@ -1,4 +1,4 @@
-"""Tabular agents as pure functions over pytrees (see the agents issue).
+"""Tabular agents as pure functions over pytrees (paper §3.3; spec ``agents.md``).
 
 ``AGENTS`` maps each agent's name to its :class:`jaxmdp.agent_interface.Agent`; :func:`get` looks one up.
 """
@@ -7,13 +7,25 @@ from __future__ import annotations
 
 import difflib
 
+from agents.psrl_continuous import PSRL_CONTINUOUS
+from agents.psrl_episodic import PSRL_EPISODIC
 from agents.q_learning_continuous import Q_LEARNING_CONTINUOUS
 from agents.q_learning_episodic import Q_LEARNING_EPISODIC
 from agents.random_agent import RANDOM_CONTINUOUS, RANDOM_EPISODIC
+from agents.ucrl2 import UCRL2
 from jaxmdp.agent_interface import Agent
 
 AGENTS: dict[str, Agent] = {
-    a.name: a for a in (RANDOM_EPISODIC, RANDOM_CONTINUOUS, Q_LEARNING_EPISODIC, Q_LEARNING_CONTINUOUS)
+    a.name: a
+    for a in (
+        RANDOM_EPISODIC,
+        RANDOM_CONTINUOUS,
+        Q_LEARNING_EPISODIC,
+        Q_LEARNING_CONTINUOUS,
+        PSRL_EPISODIC,
+        PSRL_CONTINUOUS,
+        UCRL2,
+    )
 }
 
 

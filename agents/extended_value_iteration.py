@@ -1,0 +1,101 @@
+"""Extended value iteration over box confidence sets (Jaksch et al. 2010 §3.1; Fruit et al. 2020, UCRL2B).
+
+The plausible kernels of a pair ``(s, a)`` are the distributions ``p`` on the real states with
+``lo(s') <= p(s') <= hi(s')`` for every ``s'`` (a per-next-state, Bernstein-type box), where
+``lo = max(0, p_hat - beta)`` and ``hi = min(1, p_hat + beta)``. The optimistic inner problem
+
+    max_p  sum_s' p(s') u(s')   s.t.  lo <= p <= hi,  sum_s' p(s') = 1
+
+is a linear programme whose optimum is greedy: start from ``lo`` and hand the missing mass ``1 - sum lo`` to the
+next states in decreasing order of ``u``, each up to its ``hi`` (an exchange argument: moving mass from a lower- to
+a higher-valued state never decreases the objective). One ordering of the states serves every pair of a sweep.
+
+Extended value iteration runs :func:`agents.planning.relative_value_iteration` with this backup and the span
+stopping rule, which yields an optimistic gain within ``tol`` of the best gain over all plausible MDPs and a policy
+that attains it in the optimistic kernel.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from agents.planning import PlanResult, relative_value_iteration
+
+__all__ = ["confidence_box", "optimistic_expectation", "optimistic_kernel", "extended_value_iteration"]
+
+
+def confidence_box(p_hat: jax.Array, width: jax.Array, state_mask: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """Bounds ``lo = max(0, p_hat - width)``, ``hi = min(1, p_hat + width)`` on real next states, 0 on padded ones."""
+    lo = jnp.where(state_mask, jnp.maximum(p_hat - width, 0.0), 0.0)
+    hi = jnp.where(state_mask, jnp.minimum(p_hat + width, 1.0), 0.0)
+    return lo, hi
+
+
+def _extra_mass(lo: jax.Array, hi: jax.Array, u: jax.Array) -> jax.Array:
+    """Mass added on top of ``lo``: states in decreasing order of ``u`` (ties: lower index first) fill their box up
+    to ``hi`` until the budget ``1 - sum lo`` is spent.
+
+    The mass ahead of each state is ``room @ precedes`` with ``precedes[t, s] = [t comes before s]``: a dense
+    ``[S, S]`` product instead of sorting and gathering every row, which is several times faster on CPU.
+    """
+    S = u.shape[-1]
+    idx = jnp.arange(S)
+    precedes = (u[:, None] > u[None, :]) | ((u[:, None] == u[None, :]) & (idx[:, None] < idx[None, :]))
+    room = hi - lo
+    before = room @ precedes.astype(lo.dtype)
+    budget = 1.0 - jnp.sum(lo, axis=-1, keepdims=True)
+    return jnp.clip(budget - before, 0.0, room)
+
+
+def optimistic_expectation(lo: jax.Array, hi: jax.Array, u: jax.Array) -> jax.Array:
+    """``max_p sum_s' p(s') u(s')`` over ``{lo <= p <= hi, sum p = 1}`` for every row of ``lo``/``hi`` ``[..., S]``.
+
+    Requires ``sum lo <= 1 <= sum hi`` per row (true for boxes around a distribution).
+    """
+    return jnp.sum((lo + _extra_mass(lo, hi, u)) * u, axis=-1)
+
+
+def optimistic_kernel(lo: jax.Array, hi: jax.Array, u: jax.Array) -> jax.Array:
+    """The maximiser ``p~`` of :func:`optimistic_expectation` (``[..., S]``)."""
+    return lo + _extra_mass(lo, hi, u)
+
+
+def extended_value_iteration(
+    p_hat: jax.Array,
+    width: jax.Array,
+    rewards: jax.Array,
+    state_mask: jax.Array,
+    action_mask: jax.Array,
+    *,
+    u0: jax.Array | None = None,
+    tol: float | jax.Array = 1e-3,
+    max_iter: int = 100_000,
+    aperiodicity: float | jax.Array = 0.5,
+    active: bool | jax.Array = True,
+) -> PlanResult:
+    """Optimistic average-reward planning: ``u <- max_a [r~(s,a) + max_{p in box(s,a)} p . u]`` to ``span < tol``.
+
+    Args:
+      p_hat: ``[S, A, S]`` estimated kernel (any row for unvisited pairs; give them ``width >= 1``).
+      width: ``[S, A, S]`` (or broadcastable) half-widths of the per-next-state confidence intervals.
+      rewards: ``[S, A]`` optimistic rewards ``r~``.
+      u0: warm start (default 0); the stopping rule, not the start, certifies the result.
+      active: False skips the iterations (see :func:`~agents.planning.relative_value_iteration`).
+
+    Returns a :class:`~agents.planning.PlanResult` whose ``Q(s, a) = r~(s, a) + max_p p . u`` is the optimistic
+    action value (relative to ``u``) and whose gain bounds bracket the optimistic gain.
+    """
+    lo, hi = confidence_box(p_hat, width, state_mask)
+    u0 = jnp.zeros(rewards.shape[:1], rewards.dtype) if u0 is None else u0
+    return relative_value_iteration(
+        lambda u: rewards + optimistic_expectation(lo, hi, u),
+        u0,
+        state_mask,
+        action_mask,
+        discount=1.0,
+        tol=tol,
+        max_iter=max_iter,
+        aperiodicity=aperiodicity,
+        active=active,
+    )

@@ -1,0 +1,173 @@
+"""Conjugate posteriors of tabular model-based agents (agents.md §1): Dirichlet transitions, Normal-Gamma rewards.
+
+Every ``(s, a)`` has its own independent posterior; arrays carry the ``[S, A]`` (or ``[S, A, S]``) layout and all
+functions are pure, so a batch of agents is a ``vmap`` away.
+
+* **Transitions.** ``P(.|s, a) ~ Dirichlet(alpha[s, a, :])`` with ``alpha = prior * state_mask + N[s, a, :]``
+  (counts of observed next states). The prior puts its concentration on every *real* next state and none on padded
+  ones, so a padded state is never predicted.
+* **Rewards.** Normal with unknown mean and precision, ``x ~ N(m, 1/tau)``, under the conjugate Normal-Gamma prior
+  ``tau ~ Gamma(alpha, rate beta)``, ``m | tau ~ N(mu, 1/(lambda tau))``. The reference states its prior as
+  ``[mu0, n_mu, tau0, n_tau]`` (prior mean, pseudo-count of the mean, prior precision, pseudo-count of the
+  precision), i.e. ``(mu, lambda, alpha, beta) = (mu0, n_mu, n_tau / 2, (n_tau / 2) / tau0)``.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+__all__ = [
+    "log_gamma_sample",
+    "dirichlet_concentration",
+    "dirichlet_mean",
+    "dirichlet_sample",
+    "NormalGamma",
+    "normal_gamma_prior",
+    "normal_gamma_observe",
+    "normal_gamma_mean",
+    "normal_gamma_sample",
+]
+
+# Largest standard deviation a reward sample may have: a Gamma draw of a small shape can underflow towards zero, and
+# an infinite reward would turn the zero entries of a kernel into NaNs during planning (0 * inf).
+_MAX_LOG_STD = 30.0
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Gamma variates
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def log_gamma_sample(key: jax.Array, alpha: jax.Array) -> jax.Array:
+    """``log g`` with ``g ~ Gamma(alpha, 1)`` elementwise, for ``alpha > 0``, by Marsaglia & Tsang (2000).
+
+    For ``a = alpha >= 1`` (else ``a = alpha + 1``) let ``d = a - 1/3``, ``c = 1/sqrt(9 d)``; draw ``x ~ N(0, 1)``,
+    ``u ~ U(0, 1]`` and accept ``v = (1 + c x)^3`` when ``v > 0`` and ``ln u < x^2/2 + d - d v + d ln v``; then
+    ``d v ~ Gamma(a)``. Shapes below one use ``Gamma(alpha) = Gamma(alpha + 1) U^(1/alpha)``, kept in log space so
+    that tiny shapes (``1/S`` priors) do not underflow. Exact.
+
+    Rounds of proposals are drawn for the whole array at once and a ``while_loop`` repeats until every entry has
+    accepted one (acceptance is at least 95% per round, so about ``log(n) / 3`` rounds for ``n`` entries). This is
+    about ten times faster on CPU than ``jax.random.loggamma``, which runs a rejection loop per entry with its own
+    key; the draws differ from it but have the same distribution.
+    """
+    alpha = jnp.asarray(alpha)
+    dtype = alpha.dtype
+    boost = alpha < 1
+    a = jnp.where(boost, alpha + 1, alpha)
+    d = a - 1.0 / 3.0
+    c = 1.0 / jnp.sqrt(9.0 * d)
+    k_boost, k_rounds = jax.random.split(key)
+
+    def cond(carry):
+        _, done, _ = carry
+        return ~jnp.all(done)
+
+    def body(carry):
+        i, done, log_v = carry
+        k_x, k_u = jax.random.split(jax.random.fold_in(k_rounds, i))
+        x = jax.random.normal(k_x, alpha.shape, dtype)
+        u = 1.0 - jax.random.uniform(k_u, alpha.shape, dtype)
+        base = 1.0 + c * x
+        positive = base > 0
+        lv = 3.0 * jnp.log(jnp.where(positive, base, 1.0))
+        accept = positive & (jnp.log(u) < 0.5 * x * x + d - d * jnp.exp(lv) + d * lv)
+        return i + 1, done | accept, jnp.where(accept & ~done, lv, log_v)
+
+    init = (jnp.zeros((), jnp.int32), jnp.zeros(alpha.shape, bool), jnp.zeros(alpha.shape, dtype))
+    _, _, log_v = jax.lax.while_loop(cond, body, init)
+    log_g = jnp.log(d) + log_v
+    u = 1.0 - jax.random.uniform(k_boost, alpha.shape, dtype)
+    return jnp.where(boost, log_g + jnp.log(u) / alpha, log_g)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Dirichlet transitions
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def dirichlet_concentration(prior: jax.Array, counts: jax.Array, state_mask: jax.Array) -> jax.Array:
+    """Posterior concentration ``alpha[s, a, s'] = prior * [s' real] + N[s, a, s']`` (conjugate update)."""
+    dtype = jnp.result_type(prior, float)
+    return jnp.asarray(prior, dtype) * state_mask.astype(dtype) + counts.astype(dtype)
+
+
+def dirichlet_mean(alpha: jax.Array) -> jax.Array:
+    """Posterior mean ``alpha / sum(alpha)`` along the last axis (the reference's transition "MAP")."""
+    return alpha / jnp.sum(alpha, axis=-1, keepdims=True)
+
+
+def dirichlet_sample(key: jax.Array, alpha: jax.Array) -> jax.Array:
+    """One draw ``p ~ Dirichlet(alpha)`` per row of ``alpha[..., S]``; entries with ``alpha == 0`` get probability 0.
+
+    Draws ``log g_i`` with ``g_i ~ Gamma(alpha_i, 1)`` and returns ``softmax(log g)``: normalising in log space keeps
+    small concentrations (the default prior is ``1/S``) exact where ``g_i`` itself would underflow to zero, and every
+    row sums to one exactly (the reference divides by ``sum + 1e-5``).
+    """
+    positive = alpha > 0
+    log_g = log_gamma_sample(key, jnp.where(positive, alpha, 1.0))
+    return jax.nn.softmax(jnp.where(positive, log_g, -jnp.inf), axis=-1)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Normal-Gamma rewards
+# ---------------------------------------------------------------------------------------------------------------
+
+
+class NormalGamma(struct.PyTreeNode):
+    """Normal-Gamma posterior parameters ``(mu, lam, alpha, beta)``, each of the same shape (usually ``[S, A]``)."""
+
+    mu: jax.Array
+    lam: jax.Array
+    alpha: jax.Array
+    beta: jax.Array
+
+
+def normal_gamma_prior(
+    shape: tuple[int, ...],
+    mean: jax.Array | float,
+    mean_count: jax.Array | float = 1.0,
+    precision: jax.Array | float = 1.0,
+    precision_count: jax.Array | float = 1.0,
+    dtype=jnp.float32,
+) -> NormalGamma:
+    """The prior ``[mu0, n_mu, tau0, n_tau]`` as ``(mu0, n_mu, n_tau/2, (n_tau/2)/tau0)``, broadcast to ``shape``."""
+    full = lambda x: jnp.broadcast_to(jnp.asarray(x, dtype), shape)  # noqa: E731
+    half = jnp.asarray(precision_count, dtype) / 2
+    return NormalGamma(mu=full(mean), lam=full(mean_count), alpha=full(half), beta=full(half / precision))
+
+
+def normal_gamma_observe(post: NormalGamma, index: tuple, x: jax.Array) -> NormalGamma:
+    """Fold one observation ``x`` into the posterior at ``index`` (e.g. ``(s, a)``).
+
+    ``lam' = lam + 1``, ``mu' = (lam mu + x) / lam'``, ``alpha' = alpha + 1/2``,
+    ``beta' = beta + lam (x - mu)^2 / (2 lam')``; applied one reward at a time this equals the batch update
+    (agents.md §1).
+    """
+    mu, lam = post.mu[index], post.lam[index]
+    lam_new = lam + 1
+    x = jnp.asarray(x, post.mu.dtype)
+    return NormalGamma(
+        mu=post.mu.at[index].set((lam * mu + x) / lam_new),
+        lam=post.lam.at[index].set(lam_new),
+        alpha=post.alpha.at[index].add(0.5),
+        beta=post.beta.at[index].add(0.5 * lam * (x - mu) ** 2 / lam_new),
+    )
+
+
+def normal_gamma_mean(post: NormalGamma) -> jax.Array:
+    """Posterior mean of the reward mean: ``mu``."""
+    return post.mu
+
+
+def normal_gamma_sample(key: jax.Array, post: NormalGamma) -> jax.Array:
+    """One draw of the mean reward: ``tau ~ Gamma(alpha, rate beta)``, ``m ~ N(mu, 1/(lam tau))`` (not clipped).
+
+    The precision is drawn in log space and the standard deviation capped at ``e^30`` so a sample is always finite.
+    """
+    k_tau, k_m = jax.random.split(key)
+    log_tau = log_gamma_sample(k_tau, post.alpha) - jnp.log(post.beta)
+    log_std = jnp.minimum(-0.5 * (jnp.log(post.lam) + log_tau), _MAX_LOG_STD)
+    return post.mu + jnp.exp(log_std) * jax.random.normal(k_m, post.mu.shape, post.mu.dtype)

@@ -1,0 +1,238 @@
+"""UCRL2 for continuous (average-reward) MDPs (Jaksch, Ortner & Auer 2010; paper §3.3; agents.md §3).
+
+Optimism in the face of uncertainty, in epochs. At the start of every epoch (doubling trick,
+:mod:`agents.epochs`) the agent builds the set of plausible MDPs around its estimates and plans with extended value
+iteration (:mod:`agents.extended_value_iteration`) for the best gain over that set; it then follows the optimistic
+policy until the epoch ends.
+
+With ``N(s, a)`` visits, ``N' = max(1, N)``, ``N'' = max(1, N - 1)``, ``t`` the number of steps so far and
+``delta_t = 1 / sqrt(t + 1)`` (so ``L = ln(2 S A (t + 1) / delta_t)``), the plausible set of ``(s, a)`` is
+
+* rewards: ``|r - r_hat(s, a)| <= alpha_r r_max sqrt(3.5 L / N')`` (Hoeffding/Chernoff), ``r_hat`` the empirical
+  mean; the optimistic reward is ``r~ = min(r_max, r_hat + width)``;
+* transitions, per next state (empirical Bernstein, after Fruit et al. 2020):
+  ``|p(s') - p_hat(s')| <= sqrt(alpha_p) sqrt(14 p_hat(s') (1 - p_hat(s')) L / N') + alpha_p 49 L / (3 N'')``,
+  intersected with the simplex over the real states;
+* an unvisited pair is unconstrained: ``r~ = r_max`` and any next-state distribution.
+
+Per step the agent only counts (``O(1)``); planning costs ``O(S^2 A)`` per EVI sweep. The EVI sweep count is
+reported in the state (``evi_iterations``, ``evi_converged``).
+
+Policy estimate (for regret), as the spec: the greedy policy of the ``policy_discount``-discounted optimal values
+(0.99) of the estimated MDP ``(p_hat, r_hat)``; unvisited pairs are estimated as the reference initialises them
+(uniform next state, reward ``r_max``). It is solved exactly (value iteration + policy iteration) rather than to
+``1e-3``.
+
+Differences from the reference (Colosseum), each deliberate (the algorithm as published):
+
+* No lagging model: EVI plans with the estimates that include the epoch just finished (the reference plans with
+  estimates one epoch old and only the confidence widths up to date).
+* The transition confidence set is the per-next-state Bernstein box of every next state (Fruit et al.), and the
+  inner maximisation is exact over box and simplex; the reference used the width of next-state index 0 for all next
+  states inside an L1-style shift of mass onto the best state.
+* ``r_hat`` is the unbiased empirical mean (the reference's running mean starts at ``r_max`` and double counts, e.g.
+  ``(2 + x) / 3`` after one reward ``x``); ``t`` counts every step taken (the reference lags one epoch).
+* EVI iterates on the aperiodic transform ``tau P + (1 - tau) I`` (same gains and policies) so it converges on
+  periodic optimistic chains, warm-starts from the previous epoch's bias (the stopping rule certifies the result)
+  and stops when ``span(T u - u) < evi_tol``; ``evi_tol = 1e-3`` is below Jaksch et al.'s ``1/sqrt(t_k)`` for every
+  ``t_k <= 10^6``. If ``evi_max_iter`` sweeps do not meet the rule, the last iterate is used anyway (the reference
+  keeps the previous epoch's policy) and ``evi_converged`` is False.
+* Ties among optimistic actions are broken at random with the agent's key (like the reference's actor).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from agents.acting import greedy_action
+from agents.epochs import EpochSchedule, epoch_schedule, record_visit, start_epoch
+from agents.extended_value_iteration import extended_value_iteration
+from agents.hyperparameters import check_int, check_range
+from agents.planning import where_due
+from jaxmdp import dynamic_programming as dp
+from jaxmdp.agent_interface import Agent, MDPSpec, Transition
+
+__all__ = ["UCRL2HParams", "UCRL2State", "confidence_widths", "UCRL2"]
+
+
+class UCRL2HParams(struct.PyTreeNode):
+    """Hyperparameters; ``alpha_r``/``alpha_p`` default to the benchmark's tuned values (agents.md §3, cached).
+
+    Attributes:
+      alpha_r, alpha_p: scales of the reward and transition confidence widths (searched in ``U(0.1, 3)``).
+      r_max: the largest reward (rewards lie in ``[0, r_max]``).
+      evi_tol, aperiodicity, evi_max_iter: span tolerance, aperiodicity weight and (static) sweep limit of EVI.
+      policy_discount: discount of the policy estimate.
+    """
+
+    alpha_r: float | jax.Array = 0.10294276593728004
+    alpha_p: float | jax.Array = 0.9883750006754203
+    r_max: float | jax.Array = 1.0
+    evi_tol: float | jax.Array = 1e-3
+    aperiodicity: float | jax.Array = 0.5
+    policy_discount: float | jax.Array = 0.99
+    evi_max_iter: int = struct.field(pytree_node=False, default=100_000)
+
+
+class UCRL2State(struct.PyTreeNode):
+    """Counts, epoch counters, empirical mean rewards, step count and the current optimistic ``Q`` and bias ``u``."""
+
+    counts: jax.Array
+    schedule: EpochSchedule
+    reward_mean: jax.Array
+    t: jax.Array
+    Q: jax.Array
+    u: jax.Array
+    plan_due: jax.Array
+    evi_iterations: jax.Array
+    evi_converged: jax.Array
+    state_mask: jax.Array
+    action_mask: jax.Array
+    hparams: UCRL2HParams
+
+
+def check_hparams(hparams: UCRL2HParams) -> None:
+    """Validate on the host (agents.md §3 searches ``alpha_r, alpha_p ~ U(0.1, 3)``)."""
+    check_range("alpha_r", hparams.alpha_r, 0.0)
+    check_range("alpha_p", hparams.alpha_p, 0.0)
+    check_range("r_max", hparams.r_max, 0.0, low_open=True)
+    check_range("evi_tol", hparams.evi_tol, 0.0, low_open=True)
+    check_range("aperiodicity", hparams.aperiodicity, 0.0, 1.0, low_open=True)
+    check_range("policy_discount", hparams.policy_discount, 0.0, 1.0, low_open=True, high_open=True)
+    check_int("evi_max_iter", hparams.evi_max_iter, 1)
+
+
+def init(key: jax.Array, spec: MDPSpec, hparams: UCRL2HParams) -> UCRL2State:
+    """A fresh agent: no data, a plan due before the first action."""
+    del key
+    if spec.H is not None:
+        raise ValueError("UCRL2 is a continuous-MDP agent (spec.H must be None)")
+    S, A = spec.n_states, spec.n_actions
+    dtype = jnp.result_type(float)
+    return UCRL2State(
+        counts=jnp.zeros((S, A, S), jnp.int32),
+        schedule=epoch_schedule(S, A),
+        reward_mean=jnp.zeros((S, A), dtype),
+        t=jnp.zeros((), jnp.int32),
+        Q=jnp.zeros((S, A), dtype),
+        u=jnp.zeros((S,), dtype),
+        plan_due=jnp.ones((), bool),
+        evi_iterations=jnp.zeros((), jnp.int32),
+        evi_converged=jnp.ones((), bool),
+        state_mask=spec.state_mask,
+        action_mask=spec.action_mask,
+        hparams=hparams,
+    )
+
+
+def act(key: jax.Array, state: UCRL2State, obs: jax.Array, h: jax.Array) -> jax.Array:
+    """The optimistic policy of the epoch: ``argmax_a Q(obs, a)`` (random tie-break)."""
+    del h
+    return greedy_action(key, state.Q[obs], state.action_mask)
+
+
+def update(state: UCRL2State, tr: Transition) -> UCRL2State:
+    """Count the transition, update the empirical mean reward and test the doubling rule on the pair played."""
+    s, a = tr.obs, tr.action
+    schedule, ends = record_visit(state.schedule, s, a)
+    n = schedule.visits[s, a].astype(state.reward_mean.dtype)
+    old = state.reward_mean[s, a]
+    return state.replace(
+        counts=state.counts.at[s, a, tr.next_obs].add(1),
+        schedule=schedule,
+        reward_mean=state.reward_mean.at[s, a].set(old + (tr.reward - old) / n),
+        t=state.t + 1,
+        plan_due=state.plan_due | ends,
+    )
+
+
+def needs_plan(state: UCRL2State) -> jax.Array:
+    return state.plan_due
+
+
+def confidence_widths(state: UCRL2State) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """``(p_hat[S, A, S], width_p[S, A, S], r_tilde[S, A])`` of the current plausible set (module docstring)."""
+    hp = state.hparams
+    dtype = state.reward_mean.dtype
+    N = state.schedule.visits.astype(dtype)
+    n1, n2 = jnp.maximum(N, 1.0), jnp.maximum(N - 1.0, 1.0)
+    S = jnp.sum(state.state_mask).astype(dtype)
+    A = jnp.sum(state.action_mask).astype(dtype)
+    t = state.t.astype(dtype)
+    L = jnp.log(2.0 * S * A) + 1.5 * jnp.log1p(t)  # ln(2 S A (t + 1) / delta_t), delta_t = (t + 1)^(-1/2)
+    visited = N > 0
+    p_hat = state.counts.astype(dtype) / n1[..., None]
+    width_p = jnp.sqrt(hp.alpha_p) * jnp.sqrt(14.0 * p_hat * (1.0 - p_hat) * L / n1[..., None])
+    width_p = width_p + hp.alpha_p * 49.0 * L / (3.0 * n2[..., None])
+    width_p = jnp.where(visited[..., None], width_p, 1.0)
+    width_r = hp.alpha_r * hp.r_max * jnp.sqrt(3.5 * L / n1)
+    r_tilde = jnp.where(visited, jnp.minimum(hp.r_max, state.reward_mean + width_r), hp.r_max)
+    return p_hat, width_p, r_tilde
+
+
+def plan(key: jax.Array, state: UCRL2State) -> UCRL2State:
+    """Start an epoch: extended value iteration on the current plausible set (warm-started from the last bias).
+
+    A no-op unless :func:`needs_plan` (the runner keeps the result only for members that asked; skipping the
+    iterations of the others keeps a batched EVI from waiting for them).
+    """
+    del key
+    p_hat, width_p, r_tilde = confidence_widths(state)
+    hp = state.hparams
+    res = extended_value_iteration(
+        p_hat,
+        width_p,
+        r_tilde,
+        state.state_mask,
+        state.action_mask,
+        u0=state.u,
+        tol=hp.evi_tol,
+        max_iter=hp.evi_max_iter,
+        aperiodicity=hp.aperiodicity,
+        active=state.plan_due,
+    )
+    new = state.replace(
+        Q=res.Q,
+        u=res.u,
+        schedule=start_epoch(state.schedule),
+        plan_due=jnp.zeros((), bool),
+        evi_iterations=res.iterations,
+        evi_converged=res.converged,
+    )
+    return where_due(state.plan_due, new, state)
+
+
+def estimated_model(state: UCRL2State) -> tuple[jax.Array, jax.Array]:
+    """``(p_hat, r_hat)`` with unvisited pairs at a uniform next state and reward ``r_max``; padded actions mirror
+    action 0 so they never change a maximum."""
+    dtype = state.reward_mean.dtype
+    N = state.schedule.visits
+    visited = N > 0
+    uniform = state.state_mask.astype(dtype) / jnp.sum(state.state_mask)
+    P = jnp.where(visited[..., None], state.counts.astype(dtype) / jnp.maximum(N, 1)[..., None], uniform)
+    R = jnp.where(visited, state.reward_mean, state.hparams.r_max)
+    keep = state.action_mask[None, :]
+    return jnp.where(keep[..., None], P, P[:, :1]), jnp.where(keep, R, R[:, :1])
+
+
+def policy(state: UCRL2State) -> jax.Array:
+    """Greedy ``[S, A]`` policy of the discounted optimal values of the estimated MDP."""
+    P, R = estimated_model(state)
+    res = dp.solve_discounted(P, state.hparams.policy_discount, rewards=R)
+    return dp.greedy(res.Q, state.action_mask)
+
+
+UCRL2 = Agent(
+    name="ucrl2",
+    episodic=False,
+    default_hparams=UCRL2HParams(),
+    init=init,
+    act=act,
+    update=update,
+    policy=policy,
+    needs_plan=needs_plan,
+    plan=plan,
+    check_hparams=check_hparams,
+)

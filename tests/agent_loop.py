@@ -1,0 +1,118 @@
+"""A minimal lockstep agent/MDP interaction loop for testing agents (to be replaced by the experiment runner).
+
+One ``lax.scan`` over time steps drives a batch of agents (leading axis: one key per member) on one MDP shared by
+the batch or on a stacked batch of MDPs (one per member, from ``jaxmdp.stack``). Per step:
+``act`` -> ``jaxmdp.step`` -> ``update``; then, if *any* member ``needs_plan``, ``plan`` runs for the batch under one
+``lax.cond`` and is kept only for the members that asked (the protocol of ``jaxmdp.agent_interface``). Each
+member's randomness is ``fold_in(member_key, t)``, so a member's run does not depend on the rest of the batch.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import jaxmdp
+from jaxmdp.agent_interface import Agent, Transition, spec_of
+
+
+class RunResult(NamedTuple):
+    state: Any  # final agent states, batched
+    actions: jax.Array  # [B, T] (empty [B, 0] unless trace)
+    rewards: jax.Array  # [B, T] (empty unless trace)
+    planned: jax.Array  # [B, T] whether the member planned after step t (empty unless trace)
+    total_reward: jax.Array  # [B]
+    n_plans: jax.Array  # [B] plans after the initial one
+    n_batch_plans: jax.Array  # [] steps at which the batch ran plan
+
+
+def _select(mask, new, old):
+    return jax.tree.map(lambda n, o: jnp.where(mask.reshape(mask.shape + (1,) * (n.ndim - 1)), n, o), new, old)
+
+
+def make_runner(agent: Agent, n_steps: int, trace: bool = False, plan_chunk: int | None = None):
+    """``run(keys[B], mdp, hparams) -> RunResult`` (jitted) for ``n_steps`` interaction steps.
+
+    ``mdp`` is one MDP for every member, or a stacked batch of ``B`` MDPs (member ``i`` faces MDP ``i``).
+    ``plan_chunk``: if given, planning gathers the members that need it into sub-batches of this size (a
+    ``while_loop`` over chunks) instead of planning for the whole batch; results are the same, the cost of a plan
+    step then scales with the number of members that plan rather than with ``B``.
+    """
+
+    def plan_members(states, need, keys):
+        B = need.shape[0]
+        if plan_chunk is None or plan_chunk >= B:
+            return jax.lax.cond(
+                jnp.any(need), lambda s: _select(need, jax.vmap(agent.plan)(keys, s), s), lambda s: s, states
+            )
+
+        def chunk(carry):
+            s, remaining = carry
+            idx = jnp.argsort(~remaining, stable=True)[:plan_chunk]  # members still waiting come first
+            take = remaining[idx]
+            new = jax.vmap(agent.plan)(keys[idx], jax.tree.map(lambda x: x[idx], s))
+            s = jax.tree.map(lambda full, n: full.at[idx].set(_select(take, n, full[idx])), s, new)
+            return s, remaining.at[idx].set(False)
+
+        return jax.lax.while_loop(lambda c: jnp.any(c[1]), chunk, (states, need))[0]
+
+    def run(keys, mdp, hparams):
+        m = 0 if mdp.T.ndim == 4 else None
+        spec = spec_of(mdp, n_steps)
+        k = jax.vmap(lambda key: jax.random.split(key, 4))(keys)
+        states = jax.vmap(agent.init, (0, m, None))(k[:, 0], spec, hparams)
+        states = jax.vmap(agent.plan)(k[:, 1], states)
+        obs, env = jax.vmap(jaxmdp.reset, (0, m))(k[:, 2], mdp)
+        loop_keys = k[:, 3]
+
+        def body(carry, t):
+            states, env, obs, total, n_plans, n_batch = carry
+            kt = jax.vmap(lambda key: jax.random.split(jax.random.fold_in(key, t), 3))(loop_keys)
+            a = jax.vmap(agent.act)(kt[:, 0], states, obs, env.h)
+            obs_next, env_next, r, term, _, info = jax.vmap(jaxmdp.step, (0, 0, 0, m))(kt[:, 1], env, a, mdp)
+            tr = Transition(obs=obs, action=a, reward=r, next_obs=info["final_observation"], h=env.h, terminated=term)
+            states = jax.vmap(agent.update)(states, tr)
+            need = jax.vmap(agent.needs_plan)(states)
+            states = plan_members(states, need, kt[:, 2])
+            carry = (states, env_next, obs_next, total + r, n_plans + need, n_batch + jnp.any(need))
+            return carry, ((a, r, need) if trace else None)
+
+        B = keys.shape[0]
+        init = (states, env, obs, jnp.zeros((B,), mdp.dtype), jnp.zeros((B,), jnp.int32), jnp.zeros((), jnp.int32))
+        (states, _, _, total, n_plans, n_batch), out = jax.lax.scan(body, init, jnp.arange(n_steps))
+        if trace:
+            actions, rewards, planned = (x.T for x in out)
+        else:
+            actions = jnp.zeros((B, 0), jnp.int32)
+            rewards = jnp.zeros((B, 0), mdp.dtype)
+            planned = jnp.zeros((B, 0), bool)
+        return RunResult(states, actions, rewards, planned, total, n_plans, n_batch)
+
+    return jax.jit(run)
+
+
+def seeds(n: int, base: int = 0) -> jax.Array:
+    """``n`` member keys."""
+    return jax.random.split(jax.random.key(base), n)
+
+
+def bandit(means, episodic: bool, H: int = 2, conc: float = 4.0) -> jaxmdp.MDP:
+    """A one-state MDP whose actions pay Beta rewards of the given means (``conc`` = alpha + beta)."""
+    A = len(means)
+    return jaxmdp.custom_mdp(
+        np.ones((1, A, 1)),
+        P0=[1.0],
+        H=H if episodic else None,
+        reward_mean=np.asarray(means, np.float64)[None, :, None],
+        reward_conc=np.full((1, A, 1), conc),
+    )
+
+
+def probe_mdps(episodic: bool) -> list[jaxmdp.MDP]:
+    """Probes with known answers: deterministic RiverSwim 5 (optimal: always RIGHT) three times, then a 3-armed
+    bandit (optimal: arm 2). Stacked, the bandit is padded to 5 states and RiverSwim to 3 actions."""
+    river = jaxmdp.make("RiverSwim", episodic=episodic, seed=0, size=5, randomize_actions=False)
+    return [river, river, river, bandit((0.3, 0.5, 0.8), episodic)]

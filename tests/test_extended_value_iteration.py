@@ -1,0 +1,182 @@
+"""Extended value iteration: inner maximisation against an LP, gains against brute force and exact solvers."""
+
+from __future__ import annotations
+
+import itertools
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from scipy.optimize import linprog
+
+from agents.extended_value_iteration import (
+    confidence_box,
+    extended_value_iteration,
+    optimistic_expectation,
+    optimistic_kernel,
+)
+from agents.planning import relative_value_iteration
+from jaxmdp import dynamic_programming as dp
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_inner_maximisation_matches_linprog(seed):
+    rng = np.random.default_rng(seed)
+    S, A = 7, 3
+    p_hat = rng.dirichlet(np.full(S, 0.4), size=(S, A))
+    width = rng.uniform(0.0, 0.4, size=(S, A, S)) * (rng.random((S, A, S)) < 0.8)
+    mask = np.ones(S, bool)
+    mask[-1] = seed % 2 == 0  # odd seeds: the last state is padding
+    p_hat = np.where(mask, p_hat, 0.0)
+    p_hat /= p_hat.sum(-1, keepdims=True)
+    u = rng.normal(size=S)
+    u[2] = u[4]  # a tie in u
+    lo, hi = confidence_box(jnp.asarray(p_hat, jnp.float32), jnp.asarray(width, jnp.float32), jnp.asarray(mask))
+    value = np.asarray(optimistic_expectation(lo, hi, jnp.asarray(u, jnp.float32)))
+    kernel = np.asarray(optimistic_kernel(lo, hi, jnp.asarray(u, jnp.float32)))
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    for s in range(S):
+        for a in range(A):
+            res = linprog(-u, A_eq=np.ones((1, S)), b_eq=[1.0], bounds=list(zip(lo[s, a], hi[s, a])), method="highs")
+            assert res.status == 0
+            np.testing.assert_allclose(value[s, a], -res.fun, atol=2e-6)
+            # The returned kernel is feasible and attains the optimum.
+            p = kernel[s, a]
+            np.testing.assert_allclose(p.sum(), 1.0, atol=1e-6)
+            assert np.all(p >= lo[s, a] - 1e-7) and np.all(p <= hi[s, a] + 1e-7)
+            np.testing.assert_allclose(p @ u, -res.fun, atol=2e-6)
+            assert np.all(p[~mask] == 0.0)
+
+
+def _box_vertices(lo, hi):
+    """Vertices of {lo <= p <= hi, sum p = 1}: all coordinates but one at a bound, the free one in its box."""
+    S = len(lo)
+    out = []
+    for j in range(S):
+        others = [i for i in range(S) if i != j]
+        for bits in itertools.product((0, 1), repeat=S - 1):
+            p = np.empty(S)
+            for i, b in zip(others, bits):
+                p[i] = hi[i] if b else lo[i]
+            p[j] = 1.0 - p[others].sum()
+            if lo[j] - 1e-12 <= p[j] <= hi[j] + 1e-12:
+                out.append(p)
+    return np.unique(np.round(np.array(out), 12), axis=0)
+
+
+def _brute_force_optimistic_gain(p_hat, width, r):
+    """Best gain over deterministic policies of the finite MDP whose actions are (a, vertex of the box)."""
+    S, A, _ = p_hat.shape
+    lo = np.maximum(p_hat - width, 0.0)
+    hi = np.minimum(p_hat + width, 1.0)
+    choices = []  # per state: list of (reward, kernel row)
+    for s in range(S):
+        choices.append([(r[s, a], v) for a in range(A) for v in _box_vertices(lo[s, a], hi[s, a])])
+    best = -np.inf
+    for combo in itertools.product(*[range(len(c)) for c in choices]):
+        P = np.array([choices[s][i][1] for s, i in enumerate(combo)])
+        rew = np.array([choices[s][i][0] for s, i in enumerate(combo)])
+        # Every kernel entry is positive (lo > 0), so the chain is irreducible: solve mu (I - P) = 0, sum mu = 1.
+        M = np.vstack([(np.eye(S) - P).T, np.ones(S)])
+        mu = np.linalg.lstsq(M, np.r_[np.zeros(S), 1.0], rcond=None)[0]
+        best = max(best, mu @ rew)
+    return best
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_evi_gain_matches_brute_force(seed):
+    rng = np.random.default_rng(10 + seed)
+    S, A = 3, 2
+    p_hat = 0.15 + 0.55 * rng.dirichlet(np.ones(S), size=(S, A))
+    p_hat /= p_hat.sum(-1, keepdims=True)
+    width = rng.uniform(0.0, 0.12, size=(S, A, S))
+    r = rng.uniform(0, 1, size=(S, A))
+    res = extended_value_iteration(
+        jnp.asarray(p_hat, jnp.float32),
+        jnp.asarray(width, jnp.float32),
+        jnp.asarray(r, jnp.float32),
+        jnp.ones(S, bool),
+        jnp.ones(A, bool),
+        tol=1e-5,
+    )
+    assert bool(res.converged)
+    expected = _brute_force_optimistic_gain(p_hat, width, r)
+    assert float(res.gain_lower) <= expected + 1e-5 and expected - 1e-5 <= float(res.gain_upper)
+    np.testing.assert_allclose(0.5 * (float(res.gain_lower) + float(res.gain_upper)), expected, atol=1e-5)
+
+
+def test_evi_with_zero_widths_is_optimal_gain(rng=np.random.default_rng(5)):
+    S, A = 8, 3
+    T = rng.dirichlet(np.full(S, 0.3), size=(S, A))
+    R = rng.uniform(0, 1, size=(S, A))
+    ref = dp.optimal_gain(jnp.asarray(T, jnp.float32), rewards=jnp.asarray(R, jnp.float32), tol=1e-7)
+    res = extended_value_iteration(
+        jnp.asarray(T, jnp.float32), jnp.zeros((S, A, S)), jnp.asarray(R, jnp.float32), jnp.ones(S, bool),
+        jnp.ones(A, bool), tol=1e-6,
+    )
+    assert bool(res.converged)
+    np.testing.assert_allclose(float(res.gain_lower), float(ref.gain), atol=2e-6)
+    np.testing.assert_allclose(float(res.gain_upper), float(ref.gain), atol=2e-6)
+    # Its greedy policy is gain optimal in the true MDP.
+    pi = dp.greedy(res.Q)
+    gain = dp.gain_vector(jnp.asarray(T, jnp.float32), pi, jnp.asarray(R, jnp.float32))
+    np.testing.assert_allclose(gain, float(ref.gain), atol=1e-5)
+
+
+def test_evi_unconstrained_pairs_reach_the_best_reward():
+    # Width 1 everywhere: every next-state distribution is plausible, so the optimistic gain is the largest reward.
+    S, A = 4, 2
+    r = jnp.array([[0.1, 0.2], [0.3, 0.7], [0.0, 0.5], [0.6, 0.4]])
+    res = extended_value_iteration(jnp.full((S, A, S), 1 / S), jnp.ones((S, A, S)), r, jnp.ones(S, bool),
+                                   jnp.ones(A, bool), tol=1e-6)
+    np.testing.assert_allclose([res.gain_lower, res.gain_upper], [0.7, 0.7], atol=1e-6)
+    assert int(jnp.argmax(res.Q[1])) == 1
+
+
+def test_aperiodicity_transform_solves_periodic_chains():
+    # Two states swapped by the only action, rewards 1 and 0: gain 1/2. Plain value iteration oscillates forever.
+    P = jnp.array([[[0.0, 1.0]], [[1.0, 0.0]]])
+    R = jnp.array([[1.0], [0.0]])
+    kwargs = dict(state_mask=jnp.ones(2, bool), action_mask=jnp.ones(1, bool), tol=1e-6, max_iter=2_000)
+    backup = lambda u: R + jnp.einsum("sat,t->sa", P, u)  # noqa: E731
+    res = relative_value_iteration(backup, jnp.zeros(2), aperiodicity=0.5, **kwargs)
+    assert bool(res.converged)
+    np.testing.assert_allclose([res.gain_lower, res.gain_upper], [0.5, 0.5], atol=1e-6)
+    # Bias: h(0) - h(1) = 1/2 (h = r - g + P h).
+    np.testing.assert_allclose(res.u[0] - res.u[1], 0.5, atol=1e-5)
+    plain = relative_value_iteration(backup, jnp.zeros(2), aperiodicity=1.0, **kwargs)
+    assert not bool(plain.converged) and int(plain.iterations) == 2_000
+
+
+def test_discounted_mode_matches_exact_solution(rng=np.random.default_rng(6)):
+    S, A, gamma, tol = 6, 3, 0.9, 1e-6
+    T = jnp.asarray(rng.dirichlet(np.full(S, 0.5), size=(S, A)), jnp.float32)
+    R = jnp.asarray(rng.uniform(0, 1, size=(S, A)), jnp.float32)
+    exact = dp.solve_discounted(T, gamma, rewards=R)
+    backup = lambda u: R + gamma * jnp.einsum("sat,t->sa", T, u)  # noqa: E731
+    res = relative_value_iteration(backup, jnp.zeros(S), jnp.ones(S, bool), jnp.ones(A, bool), discount=gamma,
+                                   tol=tol)
+    assert bool(res.converged)
+    np.testing.assert_allclose(res.u, exact.V, atol=tol * gamma / (1 - gamma) + 1e-5)
+    np.testing.assert_allclose(res.Q, exact.Q, atol=tol / (1 - gamma) + 1e-5)
+
+
+def test_padded_states_and_actions_are_ignored():
+    # The same MDP with one padded state (unreachable) and one padded action (very rewarding) has the same gain.
+    rng = np.random.default_rng(7)
+    S, A = 4, 2
+    T = rng.dirichlet(np.full(S, 0.5), size=(S, A))
+    R = rng.uniform(0, 1, size=(S, A))
+    Tp = np.zeros((S + 1, A + 1, S + 1))
+    Tp[:S, :A, :S] = T
+    Tp[:S, A, :S] = T[:, 0]
+    Tp[S, :, S] = 1.0
+    Rp = np.full((S + 1, A + 1), 5.0)
+    Rp[:S, :A] = R
+    kw = dict(tol=1e-6)
+    a = extended_value_iteration(jnp.asarray(T), jnp.full((S, A, S), 0.05), jnp.asarray(R), jnp.ones(S, bool),
+                                 jnp.ones(A, bool), **kw)
+    b = extended_value_iteration(jnp.asarray(Tp), jnp.full((S + 1, A + 1, S + 1), 0.05), jnp.asarray(Rp),
+                                 jnp.arange(S + 1) < S, jnp.arange(A + 1) < A, **kw)
+    np.testing.assert_allclose([b.gain_lower, b.gain_upper], [a.gain_lower, a.gain_upper], atol=1e-6)
+    np.testing.assert_allclose(b.Q[:S, :A] - b.u[:S, None], a.Q - a.u[:, None], atol=1e-5)

@@ -1,0 +1,258 @@
+"""Optimistic PSRL (continuous): constants, candidate kernels, extended-MDP planning, probes, batching invariances."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxmdp
+from agent_loop import make_runner, probe_mdps, seeds
+from agents import AGENTS
+from agents.posteriors import normal_gamma_sample
+from agents.psrl_continuous import (
+    PSRL_CONTINUOUS,
+    PSRLContinuousHParams,
+    candidate_kernels,
+    check_hparams,
+    constants,
+    psi,
+)
+from jaxmdp import dynamic_programming as dp
+from jaxmdp.agent_interface import Transition, spec_of
+
+AGENT = PSRL_CONTINUOUS
+HP = PSRLContinuousHParams(max_psi=3)  # psi = 2 on the probes: one unused candidate slot
+N_STEPS = 3000
+
+# agents.md §4, "derived values at T = 500 000 (checked against the package)".
+SPEC_TABLE = [
+    ((5, 2), (2, 5.0)),
+    ((25, 2), (2, 5.0)),
+    ((55, 2), (7, 27.03)),
+    ((100, 5), (15, 295.42)),
+    ((108, 6), (17, 401.92)),
+    ((256, 3), (41, 2560.0)),
+    ((400, 3), (60, 4000.0)),
+    ((576, 3), (60, 5760.0)),
+    ((820, 2), (60, 8200.0)),
+]
+
+
+def test_registered():
+    assert AGENTS["psrl_continuous"] is AGENT and not AGENT.episodic
+
+
+def test_constants_match_the_reference_table():
+    hp = AGENT.default_hparams
+    for (S, A), (n_psi, eta) in SPEC_TABLE:
+        c = constants(hp, S, A, 500_000)
+        assert int(c.psi) == n_psi == psi(hp, S, A), (S, A)
+        assert float(c.eta) == pytest.approx(eta, abs=0.005), (S, A)  # the table has two decimals
+        assert float(c.omega) == pytest.approx(1.78047, rel=1e-5)
+        assert float(c.kappa) == pytest.approx(43.4230, rel=1e-5)
+    # Optimism is off above S^2 A = 6e6 (one posterior draw per pair).
+    big = constants(hp, 2000, 2, 500_000)
+    assert int(big.psi) == 1 == psi(hp, 2000, 2) and float(big.eta) == 0.0
+    # A tight cap applies.
+    assert int(constants(hp.replace(max_psi=10), 256, 3, 500_000).psi) == 10
+
+
+def _state_with_counts(counts, hp=HP, S_real=None):
+    S, A, _ = counts.shape
+    mask = np.arange(S) < (S if S_real is None else S_real)
+    T = np.where(mask, 1.0, 0.0)[None, None, :] * np.ones((S, A, S))
+    T /= T.sum(-1, keepdims=True)
+    mdp = jaxmdp.custom_mdp(T, R=np.zeros((S, A)))
+    spec = spec_of(mdp, 500_000).replace(state_mask=jnp.asarray(mask))
+    state = AGENT.init(jax.random.key(0), spec, hp)
+    counts = jnp.asarray(counts, jnp.int32)
+    return state.replace(counts=counts, schedule=state.schedule.replace(visits=counts.sum(-1)))
+
+
+def test_candidate_kernels():
+    S, A = 5, 2  # state 4 is padding
+    counts = np.zeros((S, A, S), int)
+    counts[0, 0, :3] = [2, 1, 0]  # N = 3 < eta = 5: simple optimistic sampling
+    counts[0, 1, :4] = [10, 20, 5, 5]  # N = 40: posterior draws
+    counts[1, 1, 2] = 30  # N = 30, one successor
+    state = _state_with_counts(counts, hp=PSRLContinuousHParams(max_psi=3), S_real=4)
+    assert int(state.constants.psi) == 2 and float(state.constants.eta) == 5.0
+    draw = jax.jit(jax.vmap(candidate_kernels, (0, None)))
+    P = np.asarray(draw(jax.random.split(jax.random.key(1), 4000), state), np.float64)  # [n, max_psi, S, A, S]
+    np.testing.assert_allclose(P[:, :2].sum(-1), 1.0, atol=1e-5)
+    np.testing.assert_array_equal(P[:, 2], P[:, 0])  # the unused slot repeats candidate 0
+    assert np.all(P[..., 4] == 0.0)  # never the padded state
+
+    # Simple optimistic sampling of (0, 0): p_minus + missing mass on one uniformly drawn real state.
+    N, log4s = 3.0, np.log(16.0)
+    p_hat = np.array([2, 1, 0, 0, 0]) / N
+    p_minus = p_hat - np.minimum(np.sqrt(3 * p_hat * log4s / N) + 3 * log4s / N, p_hat)
+    extra = P[:, :2, 0, 0] - p_minus
+    z = extra.argmax(-1)
+    np.testing.assert_allclose(extra.max(-1), 1 - p_minus.sum(), atol=1e-6)
+    np.testing.assert_allclose(np.sort(extra, -1)[..., :-1], 0.0, atol=1e-6)
+    np.testing.assert_allclose(np.bincount(z.ravel(), minlength=5)[:4] / z.size, 0.25, atol=0.02)
+    # Unvisited pairs too (p_minus = 0: a uniformly random point mass), drawn independently per pair and candidate
+    # (the reference shares one state per candidate across pairs: agreement would then be 1).
+    z10, z20 = P[:, 0, 1, 0].argmax(-1), P[:, 0, 2, 0].argmax(-1)
+    assert np.all(P[:, 0, 1, 0].max(-1) == 1.0)
+    assert abs(np.mean(z10 == z20) - 0.25) < 0.03
+    assert abs(np.mean(P[:, 0, 1, 0].argmax(-1) == P[:, 1, 1, 0].argmax(-1)) - 0.25) < 0.03
+
+    # Posterior draws of (0, 1): Dirichlet(1/4 + counts) on the 4 real states, independent across candidates.
+    alpha = np.r_[np.array([10, 20, 5, 5]) + 0.25, 0.0]
+    mean, a0 = alpha / alpha.sum(), alpha.sum()
+    var = alpha * (a0 - alpha) / (a0**2 * (a0 + 1))
+    rows = P[:, :2, 0, 1].reshape(-1, S)
+    assert np.all(np.abs(rows.mean(0) - mean) < 5 * np.sqrt(var / len(rows)) + 1e-9)
+    np.testing.assert_allclose(rows.var(0)[:4], var[:4], rtol=0.1)
+    assert abs(np.corrcoef(P[:, 0, 0, 1, 0], P[:, 1, 0, 1, 0])[0, 1]) < 0.05
+
+
+def test_scaled_dirichlet_candidates():
+    # Agrawal & Jia's posterior: Dirichlet((N + omega) / kappa) on the real states (omega = 1.780, kappa = 43.42).
+    counts = np.zeros((3, 2, 3), int)
+    counts[0, 1] = [10, 20, 40]
+    state = _state_with_counts(counts, hp=PSRLContinuousHParams(max_psi=2, scaled_dirichlet=True))
+    omega, kappa = float(state.constants.omega), float(state.constants.kappa)
+    P = np.asarray(jax.jit(jax.vmap(candidate_kernels, (0, None)))(jax.random.split(jax.random.key(2), 4000), state))
+    rows = P[:, :, 0, 1].reshape(-1, 3).astype(np.float64)
+    alpha = (np.array([10, 20, 40]) + omega) / kappa
+    a0 = alpha.sum()
+    mean, var = alpha / a0, alpha * (a0 - alpha) / (a0**2 * (a0 + 1))
+    assert np.all(np.abs(rows.mean(0) - mean) < 5 * np.sqrt(var / len(rows)))
+    np.testing.assert_allclose(rows.var(0), var, rtol=0.1)
+
+
+def _extended_mdp(R, P, n_psi):
+    """The explicit extended MDP: action j = a * psi + k has reward R[s, a] and candidate k's kernel of (s, a)."""
+    S, A = R.shape
+    T = np.stack([P[k] for k in range(n_psi)], axis=2).reshape(S, A * n_psi, S)  # j = a * psi + k
+    return jnp.asarray(T, jnp.float32), jnp.asarray(np.repeat(R, n_psi, axis=1), jnp.float32)
+
+
+@pytest.fixture(scope="module")
+def planned():
+    rng = np.random.default_rng(0)
+    S, A = 4, 2
+    counts = rng.integers(0, 4, size=(S, A, S)) * (rng.random((S, A, S)) < 0.6)
+    counts[:2] *= 5  # states 0, 1 well visited (posterior draws), 2, 3 rarely (simple optimistic sampling)
+    mu = jnp.asarray(rng.uniform(0, 1, (S, A)), jnp.float32)
+    out = {}
+    for name, hp in {"gain": HP.replace(discount=1.0, plan_tol=1e-5), "discounted": HP,
+                     "tight": HP.replace(max_psi=2)}.items():
+        state = _state_with_counts(counts, hp=hp)
+        state = state.replace(rewards=state.rewards.replace(mu=mu))
+        out[name] = (state, jax.jit(AGENT.plan)(jax.random.key(7), state))
+    return out
+
+
+def _redraw(state):
+    # The draws plan makes with key 7 (same split order).
+    k_r, k_p = jax.random.split(jax.random.key(7))
+    R = jax.jit(normal_gamma_sample)(k_r, state.rewards)
+    return np.asarray(R), np.asarray(jax.jit(candidate_kernels)(k_p, state))
+
+
+def test_plan_is_gain_optimal_in_the_explicit_extended_mdp(planned):
+    state, new = planned["gain"]
+    R, P = _redraw(state)
+    n_psi = int(state.constants.psi)
+    T, Rx = _extended_mdp(R, P, n_psi)
+    ref = jax.jit(lambda T, R: dp.optimal_gain(T, rewards=R, tol=1e-7))(T, Rx)
+    assert bool(ref.converged) and bool(new.plan_converged)
+    np.testing.assert_allclose(new.Q.max(-1) - new.u, float(ref.gain), atol=2e-5)
+    # The executed real action is that of the best extended action, whose reward is its own action's draw.
+    np.testing.assert_array_equal(new.Q.argmax(-1), np.asarray(ref.policy).argmax(-1) // n_psi)
+    assert not bool(new.plan_due) and int(new.schedule.epoch_visits.sum()) == 0
+
+
+def test_discounted_planning_matches_exact_solution(planned):
+    state, new = planned["discounted"]
+    R, P = _redraw(state)
+    T, Rx = _extended_mdp(R, P, int(state.constants.psi))
+    ref = dp.solve_discounted(T, 0.99, rewards=Rx)
+    assert bool(new.plan_converged)
+    np.testing.assert_allclose(new.u, ref.V, rtol=1e-5)  # both exact: float32 round-off on values ~700
+    np.testing.assert_allclose(new.Q, np.asarray(ref.Q).reshape(4, 2, -1).max(-1), rtol=1e-5)
+
+
+def test_unused_candidate_slots_do_not_change_the_plan(planned):
+    np.testing.assert_allclose(planned["tight"][1].Q, planned["discounted"][1].Q, rtol=1e-6)
+
+
+def test_a_grid_mixing_both_criteria_plans_each_member_like_alone(planned):
+    # vmap over [discounted, average-reward] members: the cond becomes a select, each member keeps its own branch.
+    (s_d, new_d), (s_g, new_g) = planned["discounted"], planned["gain"]
+    both = jax.tree.map(lambda a, b: jnp.stack([a, b]), s_d, s_g)
+    out = jax.jit(jax.vmap(AGENT.plan))(jnp.stack([jax.random.key(7)] * 2), both)
+    np.testing.assert_allclose(out.Q[0], new_d.Q, rtol=1e-5)
+    np.testing.assert_allclose(out.Q[1], new_g.Q, rtol=1e-5, atol=1e-5)
+
+
+def test_plan_is_a_no_op_for_a_member_that_did_not_ask(planned):
+    state, _ = planned["discounted"]
+    idle = state.replace(plan_due=jnp.zeros((), bool))
+    out = jax.jit(AGENT.plan)(jax.random.key(7), idle)
+    jax.tree.map(np.testing.assert_array_equal, out.replace(hparams=idle.hparams), idle)  # (hparams become arrays)
+
+
+@pytest.fixture(scope="module")
+def probes():
+    batch = jaxmdp.stack(probe_mdps(episodic=False)).strip()
+    run = make_runner(AGENT, N_STEPS, trace=True)
+    return batch, run, run(seeds(4), batch, HP)
+
+
+def test_policy_estimates_reach_the_optimal_gain(probes):
+    batch, _, res = probes
+    pis = jax.jit(jax.vmap(AGENT.policy))(res.state)
+    gains = jax.jit(jax.vmap(dp.policy_gain))(batch, pis)
+    np.testing.assert_allclose(gains, [1.0, 1.0, 1.0, 0.8], atol=1e-5)
+    assert float(jnp.mean(res.rewards[:3, -500:])) > 0.95
+    np.testing.assert_array_equal(res.state.constants.psi, 2)  # real sizes, not the padded ones
+
+
+def test_padded_states_and_actions_are_never_used(probes):
+    batch, _, res = probes
+    n_actions = np.asarray(batch.action_mask.sum(-1))
+    assert np.all(np.asarray(res.actions) < n_actions[:, None])
+    assert int(res.state.counts[:3, :, 2:].sum()) == 0
+    assert int(res.state.counts[3, 1:].sum()) == 0 and int(res.state.counts[3, :, :, 1:].sum()) == 0
+
+
+def test_same_key_same_result_and_vmapped_equals_single(probes):
+    batch, run, res = probes
+    jax.tree.map(np.testing.assert_array_equal, run(seeds(4), batch, HP), res)
+    i = 2
+    single = make_runner(AGENT, N_STEPS, trace=True)(seeds(4)[i : i + 1], jax.tree.map(lambda x: x[i : i + 1], batch),
+                                                     HP)
+    np.testing.assert_array_equal(single.actions[0], res.actions[i])
+    np.testing.assert_array_equal(single.state.counts[0], res.state.counts[i])
+    np.testing.assert_allclose(single.state.Q[0], res.state.Q[i], rtol=1e-6, atol=1e-6)
+
+
+def test_update_folds_every_transition():
+    state = _state_with_counts(np.zeros((3, 2, 3), int), hp=HP)
+    update = jax.jit(AGENT.update)
+    stream = [(0, 1, 0.5, 2), (0, 1, 0.25, 2), (2, 0, 1.0, 0)]
+    for s, a, r, s2 in stream:
+        state = update(state, Transition(jnp.int32(s), jnp.int32(a), jnp.float32(r), jnp.int32(s2), jnp.int32(0),
+                                         jnp.zeros((), bool)))
+    assert int(state.counts[0, 1, 2]) == 2 and int(state.counts[2, 0, 0]) == 1 and int(state.counts.sum()) == 3
+    # Normal-Gamma prior (mu0, 1, 0.5, 0.5) after rewards 0.5, 0.25 at (0, 1): lam = 3, mu = (mu0 + 0.75) / 3.
+    mu0 = HP.rewards_prior_mean
+    np.testing.assert_allclose(state.rewards.mu[0, 1], (mu0 + 0.75) / 3, rtol=1e-6)
+    np.testing.assert_allclose(state.rewards.alpha[0, 1], 1.5)
+    assert bool(state.plan_due)  # first visits end epochs
+
+
+def test_check_hparams():
+    check_hparams(AGENT.default_hparams)
+    for name, bad in [("psi_weight", 0.0), ("eta_weight", -1e-7), ("failure_prob", 1.0), ("discount", 1.5)]:
+        with pytest.raises(ValueError, match=name):
+            check_hparams(AGENT.default_hparams.replace(**{name: bad}))
+    with pytest.raises(ValueError, match="max_psi"):
+        check_hparams(AGENT.default_hparams.replace(max_psi=0))

@@ -1,0 +1,135 @@
+"""PSRL (episodic): posterior updates, planning by backward induction, probes with known answers, batching."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxmdp
+from agent_loop import make_runner, probe_mdps, seeds
+from agents import AGENTS
+from agents.posteriors import dirichlet_concentration, dirichlet_sample, normal_gamma_sample
+from agents.psrl_episodic import PSRL_EPISODIC, PSRLEpisodicHParams, check_hparams
+from jaxmdp import dynamic_programming as dp
+from jaxmdp.agent_interface import Transition, spec_of
+
+AGENT = PSRL_EPISODIC
+N_STEPS = 2000
+
+
+def test_registered():
+    assert AGENTS["psrl_episodic"] is AGENT and AGENT.episodic
+
+
+@pytest.fixture(scope="module")
+def probes():
+    batch = jaxmdp.stack(probe_mdps(episodic=True)).strip()  # H = 5; the bandit's horizon is 2
+    run = make_runner(AGENT, N_STEPS, trace=True)
+    return batch, run, run(seeds(4), batch, AGENT.default_hparams)
+
+
+def test_policy_estimates_reach_the_optimal_value(probes):
+    # Known optimal values from the start: RiverSwim 5 (H = 5) swims right 4 times and collects 1 once; the bandit
+    # (H = 2) pulls the 0.8 arm twice.
+    batch, _, res = probes
+    pis = jax.jit(jax.vmap(AGENT.policy))(res.state)
+    assert pis.shape == (4, 5, 5, 3)
+    V = jax.jit(jax.vmap(lambda m, p: dp.finite_horizon_policy_evaluation(m, p)[1][0] @ m.P0))(batch, pis)
+    np.testing.assert_allclose(V, [1.0, 1.0, 1.0, 1.6], atol=1e-5)
+    # Exploitation: RiverSwim's last 100 episodes collect the reward of 1 almost every time.
+    assert float(jnp.sum(res.rewards[:3, -500:])) / 300 > 0.95
+
+
+def test_padded_states_and_actions_are_never_used(probes):
+    batch, _, res = probes
+    n_actions = np.asarray(batch.action_mask.sum(-1))
+    assert np.all(np.asarray(res.actions) < n_actions[:, None])
+    assert int(res.state.counts[:3, :, 2:].sum()) == 0
+    assert int(res.state.counts[3, 1:].sum()) == 0 and int(res.state.counts[3, :, :, 1:].sum()) == 0
+    # One plan per episode: 400 RiverSwim episodes, 1000 bandit episodes.
+    np.testing.assert_array_equal(res.n_plans, [400, 400, 400, 1000])
+
+
+def test_same_key_same_result_and_vmapped_equals_single(probes):
+    batch, run, res = probes
+    jax.tree.map(np.testing.assert_array_equal, run(seeds(4), batch, AGENT.default_hparams), res)
+    i = 3
+    single = make_runner(AGENT, N_STEPS, trace=True)(seeds(4)[i : i + 1], jax.tree.map(lambda x: x[i : i + 1], batch),
+                                                     AGENT.default_hparams)
+    np.testing.assert_array_equal(single.actions[0], res.actions[i])
+    np.testing.assert_array_equal(single.state.counts[0], res.state.counts[i])
+    np.testing.assert_allclose(single.state.Q[0], res.state.Q[i], rtol=1e-6, atol=1e-6)
+
+
+def _fresh(hp, S=3, A=2, H=2):
+    mdp = jaxmdp.custom_mdp(np.full((S, A, S), 1.0 / S), R=np.zeros((S, A)), H=H)
+    return AGENT.init(jax.random.key(0), spec_of(mdp, 100), hp)
+
+
+@pytest.mark.parametrize("learn_final", [True, False])
+def test_update_closed_form(learn_final):
+    hp = PSRLEpisodicHParams(learn_final_transition=learn_final)
+    state = _fresh(hp)
+    assert bool(AGENT.needs_plan(state))  # a fresh agent plans before acting
+    state = state.replace(plan_due=jnp.zeros((), bool))
+    update = jax.jit(AGENT.update)
+    # Two episodes of H = 2: (s, a, r, s', h, terminated).
+    stream = [(0, 1, 0.5, 2, 0, False), (2, 0, 1.0, 1, 1, True), (0, 1, 0.25, 2, 0, False), (2, 0, 0.0, 0, 1, True)]
+    due = []
+    for s, a, r, s2, h, term in stream:
+        state = update(state, Transition(jnp.int32(s), jnp.int32(a), jnp.float32(r), jnp.int32(s2), jnp.int32(h),
+                                         jnp.asarray(term)))
+        due.append(bool(AGENT.needs_plan(state)))
+        state = state.replace(plan_due=jnp.zeros((), bool))
+    assert due == [False, True, False, True]
+    expected = np.zeros((3, 2, 3), int)
+    expected[0, 1, 2] = 2
+    if learn_final:
+        expected[2, 0, 1] = expected[2, 0, 0] = 1
+    np.testing.assert_array_equal(state.counts, expected)
+    # Rewards are always learnt: prior (mu0, 1, 1/2, 1/2) then 1.0, 0.0 at (2, 0): mu = mu0 / 3 + 1/3, and
+    # beta = 1/2 + (1/2)(1 (1 - mu0)^2 / 2) + (1/2)(2 (0 - mu1)^2 / 3) with mu1 = (mu0 + 1) / 2.
+    mu0 = hp.prior_mean
+    mu1 = (mu0 + 1) / 2
+    np.testing.assert_allclose(state.rewards.mu[2, 0], (mu0 + 1.0) / 3, rtol=1e-6)
+    np.testing.assert_allclose(state.rewards.beta[2, 0], 0.5 + 0.25 * (1 - mu0) ** 2 + mu1**2 / 3, rtol=1e-6)
+    np.testing.assert_allclose(state.rewards.alpha[0, 1], 1.5)
+
+
+def _backward_induction(P, R, H):
+    V = np.zeros(P.shape[0])
+    Q = np.zeros((H,) + R.shape)
+    for h in reversed(range(H)):
+        Q[h] = R + P @ V
+        V = Q[h].max(-1)
+    return Q
+
+
+def test_plan_is_backward_induction_on_a_posterior_draw():
+    state = _fresh(AGENT.default_hparams, S=4, A=3, H=3)
+    rng = np.random.default_rng(0)
+    state = state.replace(counts=jnp.asarray(rng.integers(0, 5, (4, 3, 4)), jnp.int32))
+    planned = jax.jit(AGENT.plan)(jax.random.key(3), state)
+    k_p, k_r = jax.random.split(jax.random.key(3))
+    alpha = dirichlet_concentration(AGENT.default_hparams.transition_prior, state.counts, state.state_mask)
+    P = np.asarray(jax.jit(dirichlet_sample)(k_p, alpha), np.float64)
+    R = np.asarray(jax.jit(normal_gamma_sample)(k_r, state.rewards), np.float64)
+    np.testing.assert_allclose(planned.Q, _backward_induction(P, R, 3), rtol=1e-5, atol=1e-5)
+    assert not bool(planned.plan_due)
+    # A member that did not ask keeps its state.
+    again = jax.jit(AGENT.plan)(jax.random.key(4), planned)
+    jax.tree.map(np.testing.assert_array_equal, again.replace(hparams=planned.hparams), planned)
+
+
+def test_check_hparams_and_setting():
+    check_hparams(AGENT.default_hparams)
+    check_hparams(PSRLEpisodicHParams(prior_mean=jnp.linspace(0.001, 2.0, 4)))
+    with pytest.raises(ValueError, match="transition_prior"):
+        check_hparams(PSRLEpisodicHParams(transition_prior=0.0))
+    with pytest.raises(ValueError, match="prior_mean"):
+        check_hparams(PSRLEpisodicHParams(prior_mean=float("nan")))
+    continuous = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=3)
+    with pytest.raises(ValueError, match="episodic"):
+        AGENT.init(jax.random.key(0), spec_of(continuous, 10), AGENT.default_hparams)
