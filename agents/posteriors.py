@@ -18,6 +18,8 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from jaxmdp.beta_sampling import sample_log_gamma
+
 __all__ = [
     "log_gamma_sample",
     "dirichlet_concentration",
@@ -41,46 +43,14 @@ _MAX_LOG_STD = 30.0
 
 
 def log_gamma_sample(key: jax.Array, alpha: jax.Array) -> jax.Array:
-    """``log g`` with ``g ~ Gamma(alpha, 1)`` elementwise, for ``alpha > 0``, by Marsaglia & Tsang (2000).
+    """``log g`` with ``g ~ Gamma(alpha, 1)`` elementwise, for ``alpha > 0`` (any array shape), in ``alpha``'s dtype.
 
-    For ``a = alpha >= 1`` (else ``a = alpha + 1``) let ``d = a - 1/3``, ``c = 1/sqrt(9 d)``; draw ``x ~ N(0, 1)``,
-    ``u ~ U(0, 1]`` and accept ``v = (1 + c x)^3`` when ``v > 0`` and ``ln u < x^2/2 + d - d v + d ln v``; then
-    ``d v ~ Gamma(a)``. Shapes below one use ``Gamma(alpha) = Gamma(alpha + 1) U^(1/alpha)``, kept in log space so
-    that tiny shapes (``1/S`` priors) do not underflow. Exact.
-
-    Rounds of proposals are drawn for the whole array at once and a ``while_loop`` repeats until every entry has
-    accepted one (acceptance is at least 95% per round, so about ``log(n) / 3`` rounds for ``n`` entries). This is
-    about ten times faster on CPU than ``jax.random.loggamma``, which runs a rejection loop per entry with its own
-    key; the draws differ from it but have the same distribution.
+    Marsaglia & Tsang (2000) rejection with boosting for shapes below one, kept in log space so that tiny shapes
+    (``1/S`` priors) do not underflow: :func:`jaxmdp.beta_sampling.sample_log_gamma`. Exact; about ten times faster
+    on CPU than ``jax.random.loggamma`` (one rejection loop per entry, with its own key), with a different stream.
     """
     alpha = jnp.asarray(alpha)
-    dtype = alpha.dtype
-    boost = alpha < 1
-    a = jnp.where(boost, alpha + 1, alpha)
-    d = a - 1.0 / 3.0
-    c = 1.0 / jnp.sqrt(9.0 * d)
-    k_boost, k_rounds = jax.random.split(key)
-
-    def cond(carry):
-        _, done, _ = carry
-        return ~jnp.all(done)
-
-    def body(carry):
-        i, done, log_v = carry
-        k_x, k_u = jax.random.split(jax.random.fold_in(k_rounds, i))
-        x = jax.random.normal(k_x, alpha.shape, dtype)
-        u = 1.0 - jax.random.uniform(k_u, alpha.shape, dtype)
-        base = 1.0 + c * x
-        positive = base > 0
-        lv = 3.0 * jnp.log(jnp.where(positive, base, 1.0))
-        accept = positive & (jnp.log(u) < 0.5 * x * x + d - d * jnp.exp(lv) + d * lv)
-        return i + 1, done | accept, jnp.where(accept & ~done, lv, log_v)
-
-    init = (jnp.zeros((), jnp.int32), jnp.zeros(alpha.shape, bool), jnp.zeros(alpha.shape, dtype))
-    _, _, log_v = jax.lax.while_loop(cond, body, init)
-    log_g = jnp.log(d) + log_v
-    u = 1.0 - jax.random.uniform(k_boost, alpha.shape, dtype)
-    return jnp.where(boost, log_g + jnp.log(u) / alpha, log_g)
+    return sample_log_gamma(key, alpha, dtype=alpha.dtype)
 
 
 # ---------------------------------------------------------------------------------------------------------------

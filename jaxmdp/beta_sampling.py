@@ -1,5 +1,8 @@
 """Exact Beta and log-Gamma variates that vectorise well: rejection sampling with a block of candidates per round.
 
+The one Gamma sampler of the project: environment rewards (Beta) and the agents' Dirichlet and Normal-Gamma
+posterior draws (:mod:`agents.posteriors`) both use it.
+
 ``jax.random.beta`` draws two Gammas with Marsaglia and Tsang's rejection method as a ``while_loop`` that splits its
 key at every trial; under ``vmap`` over thousands of lockstep members every lane then waits for the slowest one and
 pays a key split per trial, which made Beta rewards ~90% of an environment step. Here the same method runs on a
@@ -38,7 +41,7 @@ DEFAULT_CANDIDATES = 4
 
 
 def _log_gamma_round(u: jax.Array, a: jax.Array, candidates: int) -> tuple[jax.Array, jax.Array]:
-    """One round from ``2 * candidates + 1`` uniforms in ``[0, 1)``: ``(accepted, ln G)``."""
+    """One round from ``u[2 * candidates + 1, *a.shape]`` uniforms in ``[0, 1)``: ``(accepted, ln G)`` per entry."""
     dtype = u.dtype
     boost = a < 1.0
     d = jnp.where(boost, a + 1.0, a) - 1.0 / 3.0
@@ -50,25 +53,32 @@ def _log_gamma_round(u: jax.Array, a: jax.Array, candidates: int) -> tuple[jax.A
     positive = v > 0
     log_v = jnp.log(jnp.where(positive, v, 1.0))
     accept = positive & ((w < 1.0 - 0.0331 * x**4) | (jnp.log(w) < 0.5 * x * x + d * (1.0 - v + log_v)))
-    first = jnp.argmax(accept)
+    first = jnp.argmax(accept, axis=0)
+    log_v_first = jnp.take_along_axis(log_v, first[None], axis=0)[0]
     log_boost = jnp.where(boost, jnp.log1p(-u[2 * candidates]) / a, 0.0)
-    return jnp.any(accept), jnp.log(d) + log_v[first] + log_boost
+    return jnp.any(accept, axis=0), jnp.log(d) + log_v_first + log_boost
 
 
 def sample_log_gamma(
     key: jax.Array, a: jax.Array, *, candidates: int = DEFAULT_CANDIDATES, dtype=jnp.float32
 ) -> jax.Array:
-    """``ln G`` with ``G ~ Gamma(a, 1)`` for one scalar shape ``a > 0`` (vmap for more)."""
+    """``ln G`` with ``G ~ Gamma(a, 1)`` elementwise, for shapes ``a > 0`` of any array shape.
+
+    All entries draw their blocks together and the loop repeats until every entry has accepted a trial; an entry
+    keeps the trial it accepted first, so its value does not depend on how many rounds the others needed (nor on
+    the array or batch it belongs to beyond its key and position).
+    """
     a = jnp.asarray(a, dtype)
     n = 2 * candidates + 1
 
     def round_(carry):
         i, ok, log_g = carry
-        ok_new, log_new = _log_gamma_round(jax.random.uniform(jax.random.fold_in(key, i), (n,), dtype), a, candidates)
+        u = jax.random.uniform(jax.random.fold_in(key, i), (n, *a.shape), dtype)
+        ok_new, log_new = _log_gamma_round(u, a, candidates)
         return i + 1, ok | ok_new, jnp.where(ok, log_g, log_new)
 
-    init = (jnp.int32(0), jnp.zeros((), bool), jnp.zeros((), dtype))
-    return jax.lax.while_loop(lambda c: ~c[1], round_, init)[2]
+    init = (jnp.int32(0), jnp.zeros(a.shape, bool), jnp.zeros(a.shape, dtype))
+    return jax.lax.while_loop(lambda c: ~jnp.all(c[1]), round_, init)[2]
 
 
 def sample_beta(
