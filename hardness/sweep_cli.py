@@ -1,0 +1,307 @@
+"""The command line shared by ``scripts/sweep_prand.py``, ``sweep_plazy.py`` and ``sweep_size.py`` (paper §3.2, App. D).
+
+A run computes one scenario of :mod:`hardness.scenarios` for one family and setting, seed by seed (``--seeds-per-call``
+seeds per batched call), and after every call rewrites, atomically, ``<out>/<stem>.csv``: one row per finished
+``(seed, value)`` with the raw measures, their ``converged`` flags and their App. E normalisation over the rows written
+so far (so the final file holds the normalisation over all seeds and values). ``<stem>.json`` records the settings;
+``--resume`` reuses the finished seeds of an earlier run with the same settings and computes only the others. At the
+end ``<stem>.png`` shows the normalised measures against the swept parameter (mean over seeds, 95% bootstrap band).
+Progress goes to stderr, the paths written to stdout.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import csv
+import json
+import os
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, TextIO
+
+import numpy as np
+
+import jaxmdp
+from hardness import scenarios
+from hardness.plotting import plot_scenario
+
+MEASURES = scenarios.MEASURES
+COLUMNS = (
+    ["scenario", "family", "setting", "variant", "seed", "parameter", "value", "n_states"]
+    + list(MEASURES)
+    + [f"{m}_converged" for m in MEASURES]
+    + [f"{m}_normalized" for m in MEASURES]
+)
+
+DEFAULT_FAMILY = "MiniGridEmpty"
+DEFAULT_SETTING = "episodic"
+DEFAULT_SEEDS = (0, 1, 2, 3, 4)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Arguments
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def parse_param(item: str) -> tuple[str, Any]:
+    """``key=value`` with ``value`` a Python literal (``10``, ``0.1``, ``True``, ``None``) or else a string."""
+    key, sep, value = item.partition("=")
+    if not sep or not key.strip():
+        raise argparse.ArgumentTypeError(f"--param must look like key=value; got {item!r}")
+    try:
+        parsed = ast.literal_eval(value.strip())
+    except (ValueError, SyntaxError):
+        parsed = value.strip()
+    return key.strip(), parsed
+
+
+def number(text: str) -> int | float:
+    """An int when the text is one (sizes), else a float (probabilities)."""
+    try:
+        return int(text)
+    except ValueError:
+        try:
+            return float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+
+
+def build_parser(description: str, default_out: str, scenario_choices: Sequence[int]) -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
+    if len(scenario_choices) > 1:
+        parser.add_argument(
+            "--scenario", type=int, choices=list(scenario_choices), default=scenario_choices[0],
+            help="3: size; 4: size with p_rand = 0.1 (default %(default)s)",
+        )
+    parser.add_argument("--family", default=DEFAULT_FAMILY, choices=jaxmdp.families(), help="default %(default)s")
+    parser.add_argument("--setting", default=DEFAULT_SETTING, choices=["episodic", "continuous"],
+                        help="default %(default)s")
+    parser.add_argument("--values", type=number, nargs="+", default=None,
+                        help="grid of the swept parameter (default: hardness.scenarios defaults for the family)")
+    parser.add_argument("--seeds", type=int, nargs="+", default=list(DEFAULT_SEEDS), help="default %(default)s")
+    parser.add_argument("--param", type=parse_param, action="append", default=[], metavar="KEY=VALUE",
+                        help="family parameter, repeatable; replaces the family default of that key")
+    parser.add_argument("--variant", choices=["paper", "colosseum"], default="paper", help="default %(default)s")
+    parser.add_argument("--gamma", type=float, default=0.99, help="discount of value norm and gap sum (%(default)s)")
+    parser.add_argument("--seeds-per-call", type=int, default=1,
+                        help="seeds computed per batched call, i.e. between two writes (default %(default)s)")
+    parser.add_argument("--out", type=Path, default=Path(default_out), help="output folder (default %(default)s)")
+    parser.add_argument("--resume", action="store_true",
+                        help="keep the finished seeds of an earlier run with the same settings in --out")
+    parser.add_argument("--no-plot", action="store_true", help="skip the PNG figure")
+    return parser
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Progress bar (stderr)
+# ---------------------------------------------------------------------------------------------------------------
+
+
+class Progress:
+    """A one-line progress bar with elapsed time and an estimate of the time left."""
+
+    def __init__(self, total: int, label: str, stream: TextIO = sys.stderr, width: int = 28) -> None:
+        self.total, self.label, self.stream, self.width = max(total, 0), label, stream, width
+        self.done = 0
+        self.start = time.perf_counter()
+        self._tty = hasattr(stream, "isatty") and stream.isatty()
+        self.show()
+
+    def show(self) -> None:
+        elapsed = time.perf_counter() - self.start
+        frac = self.done / self.total if self.total else 1.0
+        bar = "#" * int(round(frac * self.width))
+        eta = f", ~{elapsed / self.done * (self.total - self.done):.0f} s left" if 0 < self.done < self.total else ""
+        line = f"{self.label} [{bar:<{self.width}}] {self.done}/{self.total} seeds, {elapsed:.1f} s{eta}"
+        self.stream.write(("\r" + line) if self._tty else line + "\n")
+        self.stream.flush()
+
+    def advance(self, n: int = 1) -> None:
+        self.done += n
+        self.show()
+
+    def close(self) -> None:
+        if self._tty:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Results table
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def config_of(spec: scenarios.ScenarioSpec) -> dict[str, Any]:
+    """The settings a results table depends on (everything but the seeds), JSON-friendly."""
+    return dict(
+        scenario=spec.scenario,
+        family=spec.family,
+        setting=spec.setting,
+        parameter=spec.parameter,
+        values=list(spec.values),
+        params={k: repr(v) for k, v in spec.params},
+        variant=spec.variant,
+        gamma=spec.gamma,
+    )
+
+
+def stem_of(spec: scenarios.ScenarioSpec) -> str:
+    suffix = "" if spec.variant == "paper" else f"_{spec.variant}"
+    return f"scenario{spec.scenario}_{spec.family}_{spec.setting}{suffix}"
+
+
+def rows_from_raw(spec: scenarios.ScenarioSpec, seeds: Sequence[int], raw: dict[str, np.ndarray]) -> list[dict]:
+    rows = []
+    for i, seed in enumerate(seeds):
+        for j, value in enumerate(spec.values):
+            row = dict(
+                scenario=spec.scenario, family=spec.family, setting=spec.setting, variant=spec.variant, seed=int(seed),
+                parameter=spec.parameter, value=value, n_states=int(raw["n_states"][i, j]),
+            )
+            for m in MEASURES:
+                row[m] = float(raw[m][i, j])
+                row[f"{m}_converged"] = bool(raw[f"{m}_converged"][i, j])
+            rows.append(row)
+    return rows
+
+
+def read_rows(path: Path, spec: scenarios.ScenarioSpec) -> list[dict]:
+    """Rows of an existing table, parsed back into numbers (the normalised columns are recomputed on write)."""
+    cast = int if spec.parameter not in ("p_rand", "p_lazy") else float
+    rows = []
+    with path.open(newline="") as f:
+        for rec in csv.DictReader(f):
+            row = dict(
+                scenario=int(rec["scenario"]), family=rec["family"], setting=rec["setting"], variant=rec["variant"],
+                seed=int(rec["seed"]), parameter=rec["parameter"], value=cast(rec["value"]),
+                n_states=int(rec["n_states"]),
+            )
+            for m in MEASURES:
+                row[m] = float(rec[m])
+                row[f"{m}_converged"] = rec[f"{m}_converged"] == "True"
+            rows.append(row)
+    return rows
+
+
+def ordered(spec: scenarios.ScenarioSpec, rows: list[dict]) -> list[dict]:
+    """Rows in (seed, value) order of the spec."""
+    seed_pos = {s: i for i, s in enumerate(spec.seeds)}
+    value_pos = {v: j for j, v in enumerate(spec.values)}
+    return sorted(rows, key=lambda r: (seed_pos[r["seed"]], value_pos[r["value"]]))
+
+
+def write_table(path: Path, rows: list[dict]) -> None:
+    """Write all rows with the normalisation over all of them, atomically (a crash never leaves half a file)."""
+    normalized = scenarios.normalize_measures({m: np.asarray([[r[m] for r in rows]]) for m in MEASURES})
+    tmp = path.with_name(path.name + ".tmp")
+    with tmp.open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=COLUMNS)
+        writer.writeheader()
+        for k, row in enumerate(rows):
+            out = dict(row)
+            for m in MEASURES:
+                out[m] = repr(float(row[m]))
+                out[f"{m}_normalized"] = repr(float(normalized[m][0, k]))
+            out["value"] = repr(row["value"])
+            writer.writerow(out)
+    os.replace(tmp, path)
+
+
+def finished_rows(spec: scenarios.ScenarioSpec, rows: list[dict]) -> tuple[list[dict], set[int]]:
+    """The rows of the spec's seeds whose whole grid is present, and those seeds."""
+    by_seed: dict[int, dict] = {}
+    for r in rows:
+        if r["seed"] in spec.seeds and r["value"] in spec.values:
+            by_seed.setdefault(r["seed"], {})[r["value"]] = r
+    done = {s for s, vals in by_seed.items() if len(vals) == len(spec.values)}
+    return [r for s in done for r in by_seed[s].values()], done
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Main
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def run(args: argparse.Namespace, scenario: int, parser: argparse.ArgumentParser) -> dict[str, Path]:
+    try:
+        spec = scenarios.scenario_spec(
+            scenario, args.family, episodic=args.setting == "episodic", seeds=args.seeds, values=args.values,
+            params=dict(args.param), variant=args.variant, gamma=args.gamma,
+        )
+    except ValueError as err:
+        parser.error(str(err))
+    if args.seeds_per_call < 1:
+        parser.error(f"--seeds-per-call must be >= 1; got {args.seeds_per_call}")
+
+    args.out.mkdir(parents=True, exist_ok=True)
+    stem = stem_of(spec)
+    csv_path, json_path, png_path = (args.out / f"{stem}{ext}" for ext in (".csv", ".json", ".png"))
+    config = config_of(spec)
+
+    rows: list[dict] = []
+    done: set[int] = set()
+    if args.resume and csv_path.exists():
+        old = json.loads(json_path.read_text()) if json_path.exists() else None
+        if old != config:
+            parser.error(
+                f"--resume: {csv_path} was made with other settings ({json_path} differs or is missing); "
+                "use another --out or run without --resume"
+            )
+        rows, done = finished_rows(spec, read_rows(csv_path, spec))
+    json_path.write_text(json.dumps(config, indent=1) + "\n")
+
+    todo = [s for s in spec.seeds if s not in done]
+    if done:
+        print(f"resuming: {len(done)} of {len(spec.seeds)} seeds already finished", file=sys.stderr)
+    if todo:
+        t0 = time.perf_counter()
+        grid = scenarios.prepare(spec, todo)
+        print(f"built {grid.batch.T.shape[0]} MDPs ({grid.n_states.min()}-{grid.n_states.max()} states) in "
+              f"{time.perf_counter() - t0:.1f} s", file=sys.stderr)
+        bar = Progress(len(todo), f"scenario {spec.scenario} {spec.family} {spec.setting}")
+        k = args.seeds_per_call
+        for start in range(0, len(todo), k):
+            chunk = todo[start : start + k]
+            # A short last chunk is filled up with copies of its first seed so that it reuses the compiled program.
+            raw = scenarios.compute(grid.take(chunk + [chunk[0]] * (k - len(chunk))))
+            rows += rows_from_raw(spec, chunk, {name: a[: len(chunk)] for name, a in raw.items()})
+            write_table(csv_path, ordered(spec, rows))
+            bar.advance(len(chunk))
+        bar.close()
+    else:
+        write_table(csv_path, ordered(spec, rows))
+
+    written = {"csv": csv_path, "json": json_path}
+    if not args.no_plot:
+        written["png"] = figure(spec, ordered(spec, rows), png_path)
+    for path in written.values():
+        print(path)
+    return written
+
+
+def figure(spec: scenarios.ScenarioSpec, rows: list[dict], path: Path) -> Path:
+    """The scenario's figure from its table rows (normalised over all rows, as in the table)."""
+    n, V = len(spec.seeds), len(spec.values)
+    grid = {m: np.asarray([r[m] for r in rows], np.float64).reshape(n, V) for m in MEASURES}
+    curves = scenarios.normalize_measures(grid)
+    if spec.scenario in (3, 4):
+        x = np.asarray([r["n_states"] for r in rows], np.float64).reshape(n, V).mean(axis=0)
+        xlabel = "n_states"
+    else:
+        x, xlabel = np.asarray(spec.values, np.float64), spec.parameter
+    fixed = ", ".join(f"{k}={v}" for k, v in spec.params if v is not None)
+    title = f"Scenario {spec.scenario}: {spec.family} {spec.setting} ({spec.variant}), {n} seeds\n{fixed}"
+    return plot_scenario(x, curves, path, xlabel=xlabel, title=title)
+
+
+def main(scenario: int, argv: Sequence[str] | None = None, *, description: str = "", default_out: str = "",
+         scenario_choices: Sequence[int] | None = None) -> int:
+    """Entry point of the three scripts; ``scenario_choices`` adds ``--scenario`` (sweep_size.py: 3 or 4)."""
+    choices = list(scenario_choices or [scenario])
+    parser = build_parser(description, default_out, choices)
+    args = parser.parse_args(argv)
+    run(args, getattr(args, "scenario", scenario), parser)
+    return 0
