@@ -103,7 +103,9 @@ def build_parser(description: str, default_out: str, scenario_choices: Sequence[
 class Progress:
     """A one-line progress bar with elapsed time and an estimate of the time left."""
 
-    def __init__(self, total: int, label: str, stream: TextIO = sys.stderr, width: int = 28) -> None:
+    def __init__(self, total: int, label: str, stream: TextIO | None = None, width: int = 28) -> None:
+        # Default: the stderr of the moment (a default bound at import time would ignore later redirections).
+        stream = sys.stderr if stream is None else stream
         self.total, self.label, self.stream, self.width = max(total, 0), label, stream, width
         self.done = 0
         self.start = time.perf_counter()

@@ -121,3 +121,17 @@ def reference_fixture_mdp(z) -> tuple[jaxmdp.MDP, np.ndarray | None]:
     H = int(z["H"]) if "H" in z else None
     m = jaxmdp.custom_mdp(T, None, z["P0"], H=H, reward_mean=mean, reward_conc=conc)
     return m, (z["episodic_graph_nodes"] if H is not None else None)
+
+
+def normalize_by_hand(x: np.ndarray) -> np.ndarray:
+    """Paper App. E with the 0.5 rule of measures.md §6.5, entry by entry: ``(x - min) / (max - min)`` over all
+    finite entries; 0.5 for every finite entry when ``max - min < 1e-4``; NaN for non-finite entries."""
+    x = np.asarray(x, np.float64)
+    out = np.full(x.shape, np.nan)
+    finite = np.isfinite(x)
+    if not finite.any():
+        return out
+    lo, hi = x[finite].min(), x[finite].max()
+    for idx in zip(*np.nonzero(finite)):
+        out[idx] = 0.5 if hi - lo < 1e-4 else (x[idx] - lo) / (hi - lo)
+    return out
