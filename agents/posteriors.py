@@ -50,7 +50,7 @@ def log_gamma_sample(key: jax.Array, alpha: jax.Array) -> jax.Array:
     on CPU than ``jax.random.loggamma`` (one rejection loop per entry, with its own key), with a different stream.
     """
     alpha = jnp.asarray(alpha)
-    return sample_log_gamma(key, alpha, dtype=alpha.dtype)
+    return sample_log_gamma(key, alpha, candidates=1, dtype=alpha.dtype)
 
 
 # ---------------------------------------------------------------------------------------------------------------
