@@ -26,7 +26,8 @@ trial, so a buffer overflows with probability below ``1e-16`` whatever ``n`` (bi
 does, the whole pass (compaction, both buffers) repeats on the entries still rejected, with fresh counters, until
 none is left. The earlier sampler ran whole-array rounds until every entry was accepted: for ``n ~ 10^6`` about five
 rounds of three random words per entry, where this one runs one round of two words plus ~6% of one.
-Small arrays (``m1 >= n``, e.g. the two Gammas of one Beta) run rounds of ``candidates`` trials over the whole array.
+Small arrays (below 1024 entries, e.g. the two Gammas of one Beta) run rounds of ``candidates`` trials over the whole
+array.
 
 Every entry gets the first accepted trial of a sequence of trials on fresh counters, the sequence chosen by
 rejections alone: exactly rejection sampling, the entries independent. The loops end with probability one (every
@@ -69,6 +70,7 @@ _U32 = jnp.uint32
 _STREAM = 2**31 - 1  # fold_in tag of the sampler's key
 _PASS_KEY = 0xFFFFFFFF  # counter ``lo`` word that derives a pass key: never an entry index
 _FINE_CANDIDATES = 4  # trials per slot and round in the second buffer
+_COMPACT_MIN = 1024  # arrays with fewer entries run whole-array rounds (buffer_sizes)
 
 
 class _Shape(NamedTuple):
@@ -174,7 +176,11 @@ def _compacted_pass(seed, p, log_g: jax.Array, a: jax.Array, m1: int, m2: int) -
 
 
 def buffer_sizes(n: int) -> tuple[int, int]:
-    """Default buffer sizes ``(m1, m2) = (n // 16 + 64, m1 // 16 + 64)`` for an array of ``n`` entries."""
+    """Default buffer sizes ``(m1, m2) = (n // 16 + 64, m1 // 16 + 64)`` for an array of ``n`` entries; ``(n, n)``
+    (no compaction) below 1024 entries, where rounds of four candidates over the whole array cost little more and
+    compile in a third of the time."""
+    if n < _COMPACT_MIN:
+        return n, n
     m1 = n // 16 + 64
     return m1, m1 // 16 + 64
 
@@ -223,15 +229,13 @@ def sample_log_gamma(
         offsets, j_c, shape_c = _candidates(candidates, j, _shape_terms(flat_ok))
         log_g = _first_of(_trial(seed, offsets, j_c, shape_c), candidates, jnp.full((n,), jnp.nan, work))
 
-        # Pass 0 outside the loop: under vmap a loop body also re-checks and selects every member's state, passes
-        # over the whole array that only the (astronomically rare) later passes need.
-        log_g = _compacted_pass(seed, 0, log_g, flat_ok, m1, m2)
-
+        # (Pass 0 outside the loop saved ~7% of the time under vmap, where a loop body also re-checks and selects
+        # every member's state, but cost 40% more compile time.)
         def body(carry):
             p, log_g = carry
             return p + 1, _compacted_pass(seed, p, log_g, flat_ok, m1, m2)
 
-        log_g = jax.lax.while_loop(lambda c: jnp.any(jnp.isnan(c[1])), body, (jnp.int32(1), log_g))[1]
+        log_g = jax.lax.while_loop(lambda c: jnp.any(jnp.isnan(c[1])), body, (jnp.int32(0), log_g))[1]
     else:
         shape = _shape_terms(flat_ok)
         log_g = _rounds(seed, 0, *_candidates(candidates, j, shape), candidates, jnp.full((n,), jnp.nan, work))

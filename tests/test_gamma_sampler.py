@@ -164,8 +164,8 @@ def posterior_like(S: int, A: int, seed: int) -> jnp.ndarray:
     return jnp.asarray(1.0 / S + counts, jnp.float32)
 
 
-@pytest.mark.parametrize("in_axes", [(0, None), (0, 0)], ids=["shared-shapes", "own-shapes"])
-@pytest.mark.parametrize("buffers", [None, (16, 1)], ids=["default", "overflow"])
+@pytest.mark.parametrize("in_axes, buffers", [((0, None), None), ((0, 0), (16, 1))],
+                         ids=["shared-shapes-default", "own-shapes-overflow"])
 def test_vmap_member_equals_single_call_bitwise(in_axes, buffers):
     alpha = posterior_like(20, 3, 0)  # 1200 entries: compacted (m1 = 139)
     keys = jax.random.split(jax.random.key(14), 3)
@@ -177,14 +177,11 @@ def test_vmap_member_equals_single_call_bitwise(in_axes, buffers):
         np.testing.assert_array_equal(batched[i], single(keys[i], alpha))
 
 
-def test_eager_and_constant_shapes_equal_jitted_bitwise():
+def test_eager_call_equals_jitted_bitwise():
     alpha = posterior_like(20, 3, 2)
-    keys = jax.random.split(jax.random.key(21), 3)
+    keys = jax.random.split(jax.random.key(21), 2)
     batched = jax.jit(jax.vmap(sample_log_gamma, (0, None)))(keys, alpha)
-    np.testing.assert_array_equal(batched[0], sample_log_gamma(keys[0], alpha))  # eager call
-    # A shape array baked into the program as a constant: batched and alone agree too.
-    const = jax.jit(jax.vmap(lambda k: sample_log_gamma(k, alpha)))(keys)
-    np.testing.assert_array_equal(const[2], jax.jit(lambda k: sample_log_gamma(k, alpha))(keys[2]))
+    np.testing.assert_array_equal(batched[1], sample_log_gamma(keys[1], alpha))
 
 
 def test_small_arrays_and_beta_vmap_equal_single_calls_bitwise():
