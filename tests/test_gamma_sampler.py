@@ -61,6 +61,19 @@ def test_unit_float_is_jax_uniform_grid():
         np.testing.assert_array_equal(unit_float((hi, lo), jnp.float64), [0.0, 1.0 - 2.0**-52, 2.0**-52])
 
 
+def test_erfinv_midpoint_on_every_cell():
+    # All 2^23 float32 uniforms: erfinv at the cell midpoints (2k + 1) 2^-24 against scipy in float64.
+    k = np.arange(2**23, dtype=np.float64)
+    ref = special.erfinv((2 * k + 1) * 2.0**-23 - 1.0)
+    got = np.asarray(jax.jit(bs._erfinv_midpoint)(jnp.asarray(k * 2.0**-23, jnp.float32)), np.float64)
+    assert np.max(np.abs(got - ref) / np.abs(ref)) < 3e-7
+    np.testing.assert_array_equal(got, -got[::-1])  # symmetric: N(0, 1) deviates with mean exactly 0 over the grid
+    with jax.enable_x64(True):
+        u = jnp.array([0.0, 0.5, 1.0 - 2.0**-52], jnp.float64)
+        np.testing.assert_allclose(bs._erfinv_midpoint(u), special.erfinv(2 * (np.asarray(u) + 2.0**-53) - 1),
+                                   rtol=1e-14)
+
+
 # ---------------------------------------------------------------------------------------------------------------
 # Compaction
 # ---------------------------------------------------------------------------------------------------------------
