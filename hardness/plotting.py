@@ -23,6 +23,7 @@ LABELS: Mapping[str, str] = {
     "diameter": "Diameter",
     "value_norm": "Environmental value norm",
     "sum_reciprocal_gaps": "Sum of reciprocals of sub-optimality gaps",
+    "agent_regret": "Cumulative regret of the tuned near-optimal agent",
 }
 
 #: x-axis labels of the swept parameters.
