@@ -27,7 +27,7 @@ import jax.numpy as jnp
 import matplotlib.pyplot as plt
 import numpy as np
 
-import hardness
+import hardness  # importing jaxmdp (hardness does) before any JAX computation lets it set an XLA flag it needs
 import jaxmdp
 from hardness import plotting, scenarios
 
@@ -78,9 +78,10 @@ for bad in (dict(name="RiverSwimm"), dict(name="RiverSwim", sise=5)):
 # ## 2. An MDP from arrays
 #
 # `custom_mdp(T, R, P0, H)` validates the arrays and builds the same pytree. Here a three-state "safe or risky"
-# MDP: from state 0, action 0 goes to a safe state paying 0.5 per step, action 1 reaches a risky state paying
-# Beta-distributed rewards of mean 0.8 with probability 0.5 (and falls back to 0 otherwise). Rewards can depend on the
-# next state (`reward_mean[s, a, s']`); a positive `reward_conc` makes them Beta(mean·conc, (1-mean)·conc).
+# MDP: from state 0, action 0 moves to state 1, whose way back to 0 pays 0.5; action 1 reaches state 2 only with
+# probability 0.5 (otherwise it stays in 0), and the way back from state 2 pays a Beta reward of mean 0.8. Rewards
+# can depend on the next state (`reward_mean[s, a, s']`); a positive `reward_conc` makes them
+# Beta(mean·conc, (1-mean)·conc), zero a point mass at the mean.
 
 # %%
 S, A = 3, 2
@@ -196,11 +197,11 @@ for i, mdp in enumerate(members):
 #
 # Where the reference package (Colosseum) computes something other than the paper's definition, `variant="paper"`
 # (the default) follows the paper and `variant="colosseum"` reproduces the package's numbers. The MDP below is the
-# one of the reference data file `ref04_RiverSwim_episodic` that the tests check against (an episodic RiverSwim; the
-# numbers the Colosseum package computed for it are typed in). For episodic MDPs the two diameters are different
-# quantities (the paper's is the diameter of the time-augmented MDP), and the package's value norm centres each next
-# value on the next state's own expected value instead of on `E[V(s') | s, a]`, so it is not a standard deviation. The
-# gap sums agree: both variants use the package's regularised sum `Σ 1 / (Δ + 0.1)`.
+# one stored in the reference data file `ref04_RiverSwim_episodic`, which the tests check against (an episodic
+# RiverSwim; the numbers the Colosseum package computed for it are typed in). For episodic MDPs the two diameters
+# are different quantities (the paper's is the diameter of the time-augmented MDP), and the package's value norm
+# centres each next value on the next state's own expected value instead of on `E[V(s') | s, a]`, so it is not a
+# standard deviation. The gap sums agree: both variants use the package's regularised sum `Σ 1 / (Δ + 0.1)`.
 
 # %%
 fixture = jaxmdp.make("RiverSwim", episodic=True, seed=3, size=10, make_reward_stochastic=True, p_lazy=0.1,

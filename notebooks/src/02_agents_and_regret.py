@@ -25,7 +25,7 @@ import jax.numpy as jnp
 import matplotlib.pyplot as plt
 import numpy as np
 
-import agents
+import agents  # importing jaxmdp (agents does) before any JAX computation lets it set an XLA flag it needs
 import jaxmdp
 from agents import search_spaces
 from hardness.plotting import bootstrap_ci
@@ -105,7 +105,8 @@ where = jnp.concatenate([jnp.zeros(1, jnp.int32), last_states])                 
 evaluate = jax.jit(jax.vmap(indicators.instantaneous, in_axes=(None, None, 0, 0, 0)))
 inst = evaluate(river.strip(), consts, policies, where, where)
 for i, label in enumerate(["uniform policy"] + [f"Q-learning, seed {i}" for i in range(4)]):
-    print(f"{label:20s} regret per step {float(inst.regret[i]):.4f}   normalised {float(inst.normalized_regret[i]):.4f}")
+    print(f"{label:20s} regret per step {float(inst.regret[i]):.4f}   "
+          f"normalised {float(inst.normalized_regret[i]):.4f}")
 
 # %% [markdown]
 # ## 3. A grid of agents × MDPs × seeds
@@ -216,8 +217,8 @@ print(search_spaces.search_space(q_agent))
 init_all = jax.vmap(q_agent.init, in_axes=(None, None, 0))(jax.random.key(0), spec_of(river, N_STEPS), candidates)
 for i in range(n_candidates):
     print(f"candidate {i}: h_weight {candidates.h_weight[i]:.3f}  span_approx_weight "
-          f"{candidates.span_approx_weight[i]:.3f}  min_at {candidates.min_at[i]:.3f}  ->  H {float(init_all.H[i]):7.2f}"
-          f"  gamma {float(init_all.gamma[i]):.4f}")
+          f"{candidates.span_approx_weight[i]:.3f}  min_at {candidates.min_at[i]:.3f}  ->  "
+          f"H {float(init_all.H[i]):7.2f}  gamma {float(init_all.gamma[i]):.4f}")
 
 # %% [markdown]
 # The search itself is one lockstep run of candidates × MDPs × seeds. `runner.product` takes a list of sets, so the
