@@ -40,12 +40,15 @@ def _code(name: str) -> str:
 
 
 @pytest.fixture(scope="module")
-def launched(tmp_path_factory):
-    """Start every notebook in its own process and scratch directory; yields ``name -> (process, log path)``."""
+def launched(request, tmp_path_factory):
+    """Start every selected notebook at once, each in its own process and scratch directory; yields
+    ``name -> (process, log path)``."""
     env = dict(os.environ, MPLBACKEND="Agg")
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT)] + [p for p in [os.environ.get("PYTHONPATH")] if p])
+    selected = {item.callspec.params["name"] for item in request.session.items
+                if getattr(item, "originalname", None) == "test_notebook_runs"}
     procs = {}
-    for name in NAMES:
+    for name in sorted(selected):
         workdir = tmp_path_factory.mktemp(name)
         script = workdir / "notebook.py"
         script.write_text(_code(name))
@@ -63,6 +66,7 @@ def launched(tmp_path_factory):
             proc.wait()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", NAMES)
 def test_notebook_runs(launched, name):
     proc, log = launched[name]
