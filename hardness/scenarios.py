@@ -118,7 +118,7 @@ FAMILY_DEFAULTS: Mapping[str, FamilyDefaults] = MappingProxyType(
         "DeepSea": _defaults("size", (4, 8, 12, 16, 20, 24), size=10),
         "SimpleGrid": _defaults("size", (4, 6, 8, 10, 12, 14), size=8),
         "FrozenLake": _defaults("size", (3, 4, 5, 6, 7, 8), size=5, p_frozen=0.8),
-        "MiniGridEmpty": _defaults("size", (4, 5, 6, 7, 8, 9, 10), size=8),
+        "MiniGridEmpty": _defaults("size", (4, 5, 6, 7, 8, 9, 10), size=5),
         "MiniGridRooms": _defaults("room_size", (2, 3, 4, 5), room_size=3, n_rooms=4),
         "Taxi": _defaults("size", (4, 5, 6), size=4, length=1, n_locations=3),
         "MiniGridDoorKey": _defaults("size", (3, 4, 5), size=4),
