@@ -143,9 +143,9 @@ def test_a_single_mdp_is_refused():
 def test_real_episodic_run_equals_the_winner_run_alone():
     base = jaxmdp.make("DeepSea", episodic=True, seed=0, size=3, make_reward_stochastic=True)
     mdps = jax.vmap(jaxmdp.apply_p_rand, (None, 0))(base.strip(), jnp.array([0.0, 0.2]))
-    res = near_optimal.tuned_regret(mdps, [0, 1], n_steps=300, n_candidates=2, n_tuning_seeds=1)
-    assert res.agent == "psrl_episodic" and res.search_scores.shape == (2, 2)
-    assert np.all(np.isfinite(res.search_scores)) and np.all(res.search_scores >= 0)
+    # No search (one candidate: the defaults; the search logic is checked above): one compilation fewer.
+    res = near_optimal.tuned_regret(mdps, [0, 1], n_steps=300, n_candidates=1)
+    assert res.agent == "psrl_episodic" and res.search_scores.shape == (2, 0)
     agent = agents.get("psrl_episodic")
     alone = jax.tree.map(lambda x: x[1:2], res.best_hparams)
     key = np.asarray(jax.random.key_data(jax.random.key(1)))[None]

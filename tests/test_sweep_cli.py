@@ -457,7 +457,7 @@ def test_sweep_size_script_smoke(tmp_path):
     deterministic DeepSea of size n is 2n - 2 (from (0, 1) down, back to the start, down the diagonal)."""
     env = dict(os.environ, PYTHONPATH=str(REPO))
     cmd = [sys.executable, str(REPO / "scripts" / "sweep_size.py"), "--family", "DeepSea", "--setting", "continuous",
-           "--values", "3", "4", "--seeds", "0", "--no-plot", "--out", str(tmp_path)]
+           "--values", "3", "4", "--seeds", "0", "--no-plot", "--out", str(tmp_path), "--agent-steps", "0"]
     proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     csv_path = tmp_path / "scenario3_DeepSea_continuous.csv"
