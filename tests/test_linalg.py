@@ -53,8 +53,8 @@ def test_nested_vmap_and_unbatched_operands():
     one_matrix = jax.vmap(solve, in_axes=(None, 0))(a[0, 0], b[0])
     np.testing.assert_allclose(np.asarray(one_matrix), np.linalg.solve(a64[0, 0], b64[0].T).T, **tol)
     one_rhs = jax.vmap(solve, in_axes=(0, None))(a[0], b[0, 0])
-    np.testing.assert_allclose(np.asarray(one_rhs), np.linalg.solve(a64[0], np.broadcast_to(b64[0, 0], (4, 5))[..., None])[..., 0],
-                               **tol)
+    expected_one_rhs = np.linalg.solve(a64[0], np.broadcast_to(b64[0, 0], (4, 5))[..., None])[..., 0]
+    np.testing.assert_allclose(np.asarray(one_rhs), expected_one_rhs, **tol)
 
 
 DEADLOCK_PROGRAM = textwrap.dedent(
