@@ -77,22 +77,24 @@ FAMILY_PARAMS: dict[str, dict[str, Any]] = {
     "DeepSea": dict(p_rand=None, make_reward_stochastic=True, randomize_actions=False),
 }
 
-#: The paper's Table 2 numbers (benchmark, 500k steps) for each agent on RiverSwim and DeepSea, and up to which size
-#: they put the agent far below the random agent (``None``: nowhere clearly). Two benchmark MDPs are exactly this
-#: script's instances: episodic-ergodic RiverSwim ``prms_0`` = RiverSwim-5 episodic and episodic-communicating DeepSea
-#: ``prms_0`` = DeepSea-5 episodic; the others are larger (RiverSwim 25-90, DeepSea 10-40), so for the small
-#: instances here they are a conservative guide.
+#: The paper's Table 2 numbers (benchmark, 500k steps) for each agent on RiverSwim and DeepSea (sizes in brackets;
+#: ``p_rand`` noted where the instance has one), and up to which size of this script's instances they put the agent
+#: far below the random agent (``None``: on no comparable instance). Comparable means the same noise regime:
+#: RiverSwim with ``p_lazy`` and a small ``p_rand``, DeepSea without ``p_rand`` (a ``p_rand`` of .1-.4 makes DeepSea's
+#: exploration easy, so the small numbers of those instances are not a guide here). Two benchmark MDPs are exactly
+#: this script's instances: episodic-ergodic RiverSwim ``prms_0`` = RiverSwim-5 episodic and episodic-communicating
+#: DeepSea ``prms_0`` = DeepSea-5 episodic.
 PAPER: dict[tuple[str, str], tuple[str, int | None]] = {
-    ("psrl_episodic", "RiverSwim"): (".00 (size 5, 25, 30), .80 (40)", 30),
-    ("psrl_episodic", "DeepSea"): (".00 (size 5), .01 (10), .54 (25)", 10),
-    ("q_learning_episodic", "RiverSwim"): (".07 (size 5), .87 (25), .91 (30)", 5),
-    ("q_learning_episodic", "DeepSea"): (".01 (size 5), .52-.64 (10-13), .83 (25)", 5),
-    ("psrl_continuous", "RiverSwim"): (".00-.02 (sizes 25-90)", 100),
-    ("psrl_continuous", "DeepSea"): (".06 (size 20), .78-.99 (35-40)", 20),
-    ("ucrl2", "RiverSwim"): (".00-.02 (sizes 25-90)", 100),
-    ("ucrl2", "DeepSea"): (".23 (size 20), .90-.99 (35-40)", 20),
-    ("q_learning_continuous", "RiverSwim"): (".16-.90 (sizes 25-90)", None),
-    ("q_learning_continuous", "DeepSea"): (".94 (size 20), .78-.99 (35-40)", None),
+    ("psrl_episodic", "RiverSwim"): (".00 (5, 25, 30); .80 (40, deterministic)", 30),
+    ("psrl_episodic", "DeepSea"): (".00 (5), .54 (25); .00-.01 (10-13, p_rand .3-.4)", 5),
+    ("q_learning_episodic", "RiverSwim"): (".07 (5), .87 (25), .91 (30)", 5),
+    ("q_learning_episodic", "DeepSea"): (".01 (5), .83 (25); .52-.64 (10-13, p_rand .3-.4)", 5),
+    ("psrl_continuous", "RiverSwim"): (".00-.02 (25-90)", 90),
+    ("psrl_continuous", "DeepSea"): (".78-.99 (35-40); .06 (20, p_rand .1)", None),
+    ("ucrl2", "RiverSwim"): (".00-.02 (25-90)", 90),
+    ("ucrl2", "DeepSea"): (".90-.99 (35-40); .23 (20, p_rand .1)", None),
+    ("q_learning_continuous", "RiverSwim"): (".16-.34 (25, 90); .50-.90 (30-80, p_rand .01-.2)", None),
+    ("q_learning_continuous", "DeepSea"): (".78-.99 (35-40); .94 (20, p_rand .1)", None),
 }
 
 
@@ -395,13 +397,13 @@ def verdicts(rows: Sequence[dict]) -> list[dict]:
         if base is None:
             continue
         ci = lambda x: 0.0 if math.isnan(x) else x  # noqa: E731
-        upper = r["normalized_regret_per_step_mean"] + ci(r["normalized_regret_per_step_ci95"])
-        lower = base["normalized_regret_per_step_mean"] - ci(base["normalized_regret_per_step_ci95"])
-        clearly = upper < lower and r["normalized_regret_per_step_mean"] <= 0.5 * base["normalized_regret_per_step_mean"]
-        out.append(dict(setting=r["setting"], agent=r["agent"], mdp=r["mdp"], beats_random_clearly=clearly,
-                        paper=paper_expectation(r["agent"], r["mdp"])[0],
-                        expected=paper_expectation(r["agent"], r["mdp"])[1],
-                        ratio=r["normalized_regret_per_step_mean"] / base["normalized_regret_per_step_mean"]))
+        mean, base_mean = r["normalized_regret_per_step_mean"], base["normalized_regret_per_step_mean"]
+        upper = mean + ci(r["normalized_regret_per_step_ci95"])
+        lower = base_mean - ci(base["normalized_regret_per_step_ci95"])
+        paper, expected = paper_expectation(r["agent"], r["mdp"])
+        out.append(dict(setting=r["setting"], agent=r["agent"], mdp=r["mdp"],
+                        beats_random_clearly=upper < lower and mean <= 0.5 * base_mean,
+                        paper=paper, expected=expected, ratio=mean / base_mean))
     return out
 
 
@@ -444,8 +446,9 @@ def markdown(rows: Sequence[dict], runs: Sequence[AgentRun], settings: dict) -> 
         lines.append("| agent | " + " | ".join(mdps) + " |")
         lines.append("|---|" + "---|" * len(mdps))
         for name in names:
-            vals = [_pm(cell[name, m]["normalized_regret_per_step_mean"], cell[name, m]["normalized_regret_per_step_ci95"], 3)
-                    if (name, m) in cell else "" for m in mdps]
+            vals = [_pm(cell[name, m]["normalized_regret_per_step_mean"],
+                        cell[name, m]["normalized_regret_per_step_ci95"], 3) if (name, m) in cell else ""
+                    for m in mdps]
             lines.append(f"| {name} | " + " | ".join(vals) + " |")
         lines.append("| *random baseline (exact)* | " + " | ".join(f"{base[m]:.3f}" for m in mdps) + " |")
         lines += ["", "### Cumulative regret (raw, after the last step)", ""]
@@ -477,9 +480,10 @@ def markdown(rows: Sequence[dict], runs: Sequence[AgentRun], settings: dict) -> 
             "## Against the random agent",
             "",
             "*Clearly better*: the agent's 95% CI lies below the random agent's and its mean is at most half of it. "
-            "*Paper*: the agent's Table 2 numbers on the family (500k steps; sizes in brackets; the episodic RiverSwim "
-            "5 and DeepSea 5 of the benchmark are exactly the instances here). *Expected*: the paper has the agent far "
-            "below random on instances of this size or larger.",
+            "*Paper*: the agent's Table 2 numbers on the family (500k steps, 5x this table's; sizes in brackets; the "
+            "episodic RiverSwim 5 and DeepSea 5 of the benchmark are exactly the instances here). *Expected*: the "
+            "paper has the agent far below random on a comparable instance (same noise regime) of this size or "
+            "larger.",
             "",
             "| setting | agent | MDP | mean / random | clearly better | expected | paper (Table 2) |",
             "|---|---|---|---|---|---|---|",
