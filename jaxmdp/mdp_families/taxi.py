@@ -30,9 +30,6 @@ Departures from the reference, where it would crash or hang: a quadrant without 
 and so does a location draw that is rejected :data:`MAX_LOCATION_DRAWS` times in a row. Validation is also a little
 stricter: ``width >= 1`` (the reference accepts 0 and builds the walls of 1), ``length, space >= 0`` (negative values
 are meaningless or crash there), and partial reward distributions raise (the reference then ignores them).
-
-Building the episodic version also runs the engine's eccentricity search, whose result Taxi ignores (about 1 s for
-``size = 7``).
 """
 
 from __future__ import annotations
@@ -40,6 +37,7 @@ from __future__ import annotations
 import itertools
 import math
 import random
+from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -229,8 +227,8 @@ class TaxiFamily(Family):
         F.randint(0, 10000)  # the reference's starting-sampler seed; keeps F in step
         return starts, [1.0 / len(starts)] * len(starts), starts
 
-    def minimum_horizon(self, eccentricity: int) -> int:
-        """``floor(1.5 size^2)`` whatever the graph (families.md §1.8)."""
+    def minimum_horizon(self, eccentricity: Callable[[], int]) -> int:
+        """``floor(1.5 size^2)`` whatever the graph (families.md §1.8); the eccentricity search is skipped."""
         return int(1.5 * self.size**2)
 
     def params(self) -> tuple[tuple[str, Any], ...]:
