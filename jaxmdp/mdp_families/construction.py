@@ -27,6 +27,8 @@ agree in every shipped family because their action-dependent rewards have ``A = 
 from __future__ import annotations
 
 import abc
+import functools
+import inspect
 import random
 from collections.abc import Callable, Hashable, Iterator, Sequence
 from typing import Any
@@ -37,7 +39,7 @@ from jaxmdp.mdp_families.distributions import Distribution, PointMass
 from jaxmdp.mdp import MDP, MDPInfo, custom_mdp
 from jaxmdp.transforms import MAX_NOISE_PROBABILITY
 
-__all__ = ["Family", "CommonParams", "build_mdp", "check_noise_probability"]
+__all__ = ["Family", "CommonParams", "COMMON_PARAMETERS", "build_mdp", "family_builder", "check_noise_probability"]
 
 Node = Hashable
 
@@ -53,6 +55,19 @@ def check_noise_probability(name: str, value: float | None) -> float:
     if not (0.0 <= v < MAX_NOISE_PROBABILITY):
         raise ValueError(f"{name} must lie in [0, {MAX_NOISE_PROBABILITY}); got {v}")
     return v
+
+
+#: Keyword parameters that every family builder takes (families.md §1.2), validated by :class:`CommonParams`.
+COMMON_PARAMETERS = (
+    "episodic",
+    "seed",
+    "p_rand",
+    "p_lazy",
+    "randomize_actions",
+    "make_reward_stochastic",
+    "reward_variance_multiplier",
+    "H",
+)
 
 
 class CommonParams:
@@ -109,8 +124,10 @@ class Family(abc.ABC):
     name: str = ""
     n_actions: int = 0
     node_fields: tuple[str, ...] = ()
-    #: Families whose structure never depends on the seed (only action permutations do).
+    #: False for a family that never relabels its actions (its builder forces ``randomize_actions=False``).
     randomize_actions_allowed: bool = True
+    #: False for a family without a lazy mechanic (its builder rejects a positive ``p_lazy``).
+    lazy_allowed: bool = True
 
     @abc.abstractmethod
     def outcomes(self, node: Node, action: int) -> Sequence[tuple[Node, float]]:
@@ -321,3 +338,45 @@ def build_mdp(fam: Family, common: CommonParams) -> MDP:
         layout=fam.layout() + (("successor_order", successor_order), ("start_order", start_order)),
     )
     return custom_mdp(T, P0=P0, H=H, reward_mean=reward_mean, reward_conc=reward_conc, info=info)
+
+
+def family_builder(family: type[Family]) -> Callable[[Callable[..., MDP]], Callable[..., MDP]]:
+    """Decorator making a signature-only function the builder of ``family``.
+
+    The decorated function declares the builder's public keyword-only signature (every name of
+    :data:`COMMON_PARAMETERS` plus the family's own parameters) and its docstring; its body is never run. A call binds
+    the arguments to that signature (a missing or unknown argument is a ``TypeError``, as for any function), validates
+    the common ones into :class:`CommonParams` (``randomize_actions`` forced off and a positive ``p_lazy`` rejected
+    where the family says so), constructs ``family(**own parameters, **the common values its constructor names)``
+    and returns :func:`build_mdp` of it.
+    """
+    wanted = [p for p in inspect.signature(family).parameters if p in COMMON_PARAMETERS]
+
+    def decorate(declaration: Callable[..., MDP]) -> Callable[..., MDP]:
+        signature = inspect.signature(declaration)
+        missing = [p for p in COMMON_PARAMETERS if p not in signature.parameters]
+        if missing:
+            raise TypeError(f"the builder {declaration.__name__} must declare the common parameters {missing}")
+
+        @functools.wraps(declaration)
+        def builder(*args: Any, **kwargs: Any) -> MDP:
+            try:
+                bound = signature.bind(*args, **kwargs)
+            except TypeError as e:
+                raise TypeError(f"{declaration.__name__}(): {e}") from None
+            bound.apply_defaults()
+            own = dict(bound.arguments)
+            given = {p: own.pop(p) for p in COMMON_PARAMETERS}
+            if not family.lazy_allowed and check_noise_probability("p_lazy", given["p_lazy"]) > 0:
+                raise ValueError(
+                    f"p_lazy must be None for {family.name} (it has no lazy mechanic); got {given['p_lazy']}"
+                )
+            if not family.randomize_actions_allowed:
+                given["randomize_actions"] = False
+            common = CommonParams(**given)
+            fam = family(**own, **{p: getattr(common, p) for p in wanted})
+            return build_mdp(fam, common)
+
+        return builder
+
+    return decorate

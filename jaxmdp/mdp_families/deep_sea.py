@@ -14,7 +14,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp, check_noise_probability
+from jaxmdp.mdp_families.construction import Family, family_builder
 from jaxmdp.mdp_families.distributions import Beta, Distribution, PointMass, resolve_distributions
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
@@ -34,6 +34,7 @@ class DeepSeaFamily(Family):
     name = "DeepSea"
     n_actions = 2
     node_fields = ("X", "Y")
+    lazy_allowed = False
 
     def __init__(
         self,
@@ -133,6 +134,7 @@ def render_deep_sea(info: MDPInfo, node: tuple[int, ...]) -> list[list[str]]:
 register_renderer(DeepSeaFamily.name, render_deep_sea)
 
 
+@family_builder(DeepSeaFamily)
 def deep_sea(
     *,
     episodic: bool,
@@ -160,26 +162,3 @@ def deep_sea(
       ValueError: ``size < 2``; ``p_lazy`` given (DeepSea has no lazy mechanic; ``None`` or 0 only);
         ``suboptimal_return >= optimal_return - 0.1``; ``H`` given (the episodic horizon is fixed to ``size``).
     """
-    if check_noise_probability("p_lazy", p_lazy) > 0:
-        raise ValueError(f"p_lazy must be None for DeepSea (it has no lazy mechanic); got {p_lazy}")
-    common = CommonParams(
-        episodic=episodic,
-        seed=seed,
-        p_rand=p_rand,
-        p_lazy=None,
-        randomize_actions=randomize_actions,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        H=H,
-    )
-    fam = DeepSeaFamily(
-        size=size,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        optimal_return=optimal_return,
-        suboptimal_return=suboptimal_return,
-        optimal_distribution=optimal_distribution,
-        sub_optimal_distribution=sub_optimal_distribution,
-        other_distribution=other_distribution,
-    )
-    return build_mdp(fam, common)

@@ -14,7 +14,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp
+from jaxmdp.mdp_families.construction import Family, family_builder
 from jaxmdp.mdp_families.distributions import Beta, Distribution, PointMass, resolve_distributions
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
@@ -202,6 +202,7 @@ def render_frozen_lake(info: MDPInfo, node: tuple[int, ...]) -> list[list[str]]:
 register_renderer(FrozenLakeFamily.name, render_frozen_lake)
 
 
+@family_builder(FrozenLakeFamily)
 def frozen_lake(
     *,
     episodic: bool,
@@ -232,26 +233,3 @@ def frozen_lake(
         rewards with a return outside ``(0, size^2)``; ``goal_r`` / ``default_r`` not given both or none, or not
         matching ``make_reward_stochastic``; no valid lake within ``MAX_LAKE_DRAWS`` boards.
     """
-    common = CommonParams(
-        episodic=episodic,
-        seed=seed,
-        p_rand=p_rand,
-        p_lazy=p_lazy,
-        randomize_actions=randomize_actions,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        H=H,
-    )
-    fam = FrozenLakeFamily(
-        seed=common.seed,
-        size=size,
-        p_frozen=p_frozen,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        optimal_return=optimal_return,
-        suboptimal_return=suboptimal_return,
-        is_slippery=is_slippery,
-        goal_r=goal_r,
-        default_r=default_r,
-    )
-    return build_mdp(fam, common)

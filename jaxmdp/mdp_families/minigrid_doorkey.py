@@ -51,7 +51,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp
+from jaxmdp.mdp_families.construction import Family, family_builder
 from jaxmdp.mdp_families.distributions import Distribution
 from jaxmdp.mdp_families.minigrid import (
     ARROWS,
@@ -202,6 +202,7 @@ def render_minigrid_doorkey(info: MDPInfo, node: tuple[int, ...]) -> list[list[s
 register_renderer(MiniGridDoorKeyFamily.name, render_minigrid_doorkey)
 
 
+@family_builder(MiniGridDoorKeyFamily)
 def minigrid_doorkey(
     *,
     episodic: bool,
@@ -228,22 +229,3 @@ def minigrid_doorkey(
       optimal_distribution, other_distribution: reward distributions (all or none; defaults as MiniGridEmpty).
       The other arguments are the common ones (:class:`~jaxmdp.mdp_families.construction.CommonParams`).
     """
-    common = CommonParams(
-        episodic=episodic,
-        seed=seed,
-        p_rand=p_rand,
-        p_lazy=p_lazy,
-        randomize_actions=randomize_actions,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        H=H,
-    )
-    fam = MiniGridDoorKeyFamily(
-        size=size,
-        n_starting_states=n_starting_states,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        optimal_distribution=optimal_distribution,
-        other_distribution=other_distribution,
-    )
-    return build_mdp(fam, common)

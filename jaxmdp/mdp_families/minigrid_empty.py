@@ -23,7 +23,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp
+from jaxmdp.mdp_families.construction import Family, family_builder
 from jaxmdp.mdp_families.distributions import Distribution
 from jaxmdp.mdp_families.minigrid import (
     ARROWS,
@@ -134,6 +134,7 @@ def render_minigrid_empty(info: MDPInfo, node: tuple[int, ...]) -> list[list[str
 register_renderer(MiniGridEmptyFamily.name, render_minigrid_empty)
 
 
+@family_builder(MiniGridEmptyFamily)
 def minigrid_empty(
     *,
     episodic: bool,
@@ -158,22 +159,3 @@ def minigrid_empty(
         :func:`~jaxmdp.mdp_families.minigrid.minigrid_distributions`).
       The other arguments are the common ones (:class:`~jaxmdp.mdp_families.construction.CommonParams`).
     """
-    common = CommonParams(
-        episodic=episodic,
-        seed=seed,
-        p_rand=p_rand,
-        p_lazy=p_lazy,
-        randomize_actions=randomize_actions,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        H=H,
-    )
-    fam = MiniGridEmptyFamily(
-        size=size,
-        n_starting_states=n_starting_states,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        optimal_distribution=optimal_distribution,
-        other_distribution=other_distribution,
-    )
-    return build_mdp(fam, common)

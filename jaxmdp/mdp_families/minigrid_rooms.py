@@ -27,7 +27,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp
+from jaxmdp.mdp_families.construction import Family, family_builder
 from jaxmdp.mdp_families.distributions import Distribution
 from jaxmdp.mdp_families.minigrid import (
     ARROWS,
@@ -170,6 +170,7 @@ def render_minigrid_rooms(info: MDPInfo, node: tuple[int, ...]) -> list[list[str
 register_renderer(MiniGridRoomsFamily.name, render_minigrid_rooms)
 
 
+@family_builder(MiniGridRoomsFamily)
 def minigrid_rooms(
     *,
     episodic: bool,
@@ -197,23 +198,3 @@ def minigrid_rooms(
         with ``size = int(rs sqrt(n_rooms))``.
       The other arguments are the common ones (:class:`~jaxmdp.mdp_families.construction.CommonParams`).
     """
-    common = CommonParams(
-        episodic=episodic,
-        seed=seed,
-        p_rand=p_rand,
-        p_lazy=p_lazy,
-        randomize_actions=randomize_actions,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        H=H,
-    )
-    fam = MiniGridRoomsFamily(
-        room_size=room_size,
-        n_rooms=n_rooms,
-        n_starting_states=n_starting_states,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        optimal_distribution=optimal_distribution,
-        other_distribution=other_distribution,
-    )
-    return build_mdp(fam, common)

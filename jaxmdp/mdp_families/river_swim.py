@@ -12,7 +12,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp
+from jaxmdp.mdp_families.construction import Family, family_builder
 from jaxmdp.mdp_families.distributions import Beta, Distribution, PointMass, resolve_distributions
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
@@ -115,6 +115,7 @@ def render_river_swim(info: MDPInfo, node: tuple[int, ...]) -> list[list[str]]:
 register_renderer(RiverSwimFamily.name, render_river_swim)
 
 
+@family_builder(RiverSwimFamily)
 def river_swim(
     *,
     episodic: bool,
@@ -133,25 +134,3 @@ def river_swim(
     H: int | None = None,
 ) -> MDP:
     """Build a RiverSwim MDP (families.md §2.1). Default horizon ``H = size``."""
-    common = CommonParams(
-        episodic=episodic,
-        seed=seed,
-        p_rand=p_rand,
-        p_lazy=p_lazy,
-        randomize_actions=randomize_actions,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        H=H,
-    )
-    fam = RiverSwimFamily(
-        size=size,
-        episodic=episodic,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        optimal_mean_reward=optimal_mean_reward,
-        sub_optimal_mean_reward=sub_optimal_mean_reward,
-        optimal_distribution=optimal_distribution,
-        sub_optimal_distribution=sub_optimal_distribution,
-        other_distribution=other_distribution,
-    )
-    return build_mdp(fam, common)

@@ -14,7 +14,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp
+from jaxmdp.mdp_families.construction import Family, family_builder
 from jaxmdp.mdp_families.distributions import Beta, Distribution, PointMass, resolve_distributions
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
@@ -203,6 +203,7 @@ def render_simple_grid(info: MDPInfo, node: tuple[int, ...]) -> list[list[str]]:
 register_renderer(SimpleGridFamily.name, render_simple_grid)
 
 
+@family_builder(SimpleGridFamily)
 def simple_grid(
     *,
     episodic: bool,
@@ -236,26 +237,3 @@ def simple_grid(
         ``[1, (size-1)^2]``; ``optimal_mean_reward - 0.1 <= sub_optimal_mean_reward``; stochastic default rewards
         with a mean outside (0, 1); distributions not given all-or-none or not matching ``make_reward_stochastic``.
     """
-    common = CommonParams(
-        episodic=episodic,
-        seed=seed,
-        p_rand=p_rand,
-        p_lazy=p_lazy,
-        randomize_actions=randomize_actions,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        H=H,
-    )
-    fam = SimpleGridFamily(
-        size=size,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        reward_type=reward_type,
-        n_starting_states=n_starting_states,
-        optimal_mean_reward=optimal_mean_reward,
-        sub_optimal_mean_reward=sub_optimal_mean_reward,
-        optimal_distribution=optimal_distribution,
-        sub_optimal_distribution=sub_optimal_distribution,
-        other_distribution=other_distribution,
-    )
-    return build_mdp(fam, common)

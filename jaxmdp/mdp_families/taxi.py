@@ -42,7 +42,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp
+from jaxmdp.mdp_families.construction import Family, family_builder
 from jaxmdp.mdp_families.distributions import Beta, Distribution, PointMass, resolve_distributions
 from jaxmdp.mdp_families.parameters import integer_parameter
 from jaxmdp.mdp import MDP, MDPInfo
@@ -266,6 +266,7 @@ def render_taxi(info: MDPInfo, node: tuple[int, ...]) -> list[list[str]]:
 register_renderer(TaxiFamily.name, render_taxi)
 
 
+@family_builder(TaxiFamily)
 def taxi(
     *,
     episodic: bool,
@@ -302,30 +303,3 @@ def taxi(
       randomize_actions: ignored: Taxi never relabels its actions (the reference forces it off).
       The other arguments are the common ones (:class:`~jaxmdp.mdp_families.construction.CommonParams`).
     """
-    del randomize_actions  # the reference forces it to False
-    common = CommonParams(
-        episodic=episodic,
-        seed=seed,
-        p_rand=p_rand,
-        p_lazy=p_lazy,
-        randomize_actions=False,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        H=H,
-    )
-    fam = TaxiFamily(
-        size=size,
-        episodic=episodic,
-        length=length,
-        width=width,
-        space=space,
-        n_locations=n_locations,
-        optimal_mean_reward=optimal_mean_reward,
-        sub_optimal_mean_reward=sub_optimal_mean_reward,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        default_r=default_r,
-        successfully_delivery_r=successfully_delivery_r,
-        failure_delivery_r=failure_delivery_r,
-    )
-    return build_mdp(fam, common)
