@@ -15,14 +15,19 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from jaxmdp.mdp_families.construction import Family, family_builder
-from jaxmdp.mdp_families.distributions import Beta, Distribution, PointMass, resolve_distributions
+from jaxmdp.mdp_families.distributions import (
+    Beta,
+    Distribution,
+    PointMass,
+    check_default_reward_parameter,
+    resolve_distributions,
+)
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
 __all__ = ["DeepSeaNode", "DeepSeaFamily", "deep_sea"]
 
 LEFT, RIGHT = 0, 1
-_DIST_ORDER = ("optimal_distribution", "sub_optimal_distribution", "other_distribution")
 
 
 class DeepSeaNode(NamedTuple):
@@ -64,29 +69,25 @@ class DeepSeaFamily(Family):
             "other_distribution": other_distribution,
         }
         v = reward_variance_multiplier
-        defaults: dict[str, Distribution] = {}
-        if all(d is None for d in given.values()):
-            if make_reward_stochastic:
-                # Means r_sub/size (sub-optimal), 1 - r_opt/size (optimal), 1/(1 + 10(size/r_sub - 1)) (other);
-                # the Beta parameters are positive only for returns in (0, size).
-                returns = (("suboptimal_return", self.suboptimal_return), ("optimal_return", self.optimal_return))
-                for pname, r in returns:
-                    if not 0 < r < self.size:
-                        raise ValueError(
-                            f"{pname} must lie in (0, size={self.size}) for the stochastic default rewards; got {r}"
-                        )
-                defaults = {
-                    "optimal_distribution": Beta(v * (self.size / self.optimal_return - 1), v),
-                    "sub_optimal_distribution": Beta(v, v * (self.size / self.suboptimal_return - 1)),
-                    "other_distribution": Beta(v, 10 * v * (self.size / self.suboptimal_return - 1)),
-                }
-            else:
+
+        def defaults() -> dict[str, Distribution]:
+            if not make_reward_stochastic:
                 # The deterministic small reward is 1/size^2 whatever suboptimal_return is (as in the reference).
-                defaults = {
+                return {
                     "optimal_distribution": PointMass(1.0),
                     "sub_optimal_distribution": PointMass(1.0 / self.size**2),
                     "other_distribution": PointMass(0.0),
                 }
+            # Means r_sub/size (sub-optimal), 1 - r_opt/size (optimal), 1/(1 + 10(size/r_sub - 1)) (other); the Beta
+            # parameters are positive only for returns in (0, size).
+            check_default_reward_parameter("suboptimal_return", self.suboptimal_return, self.size, f"size={self.size}")
+            check_default_reward_parameter("optimal_return", self.optimal_return, self.size, f"size={self.size}")
+            return {
+                "optimal_distribution": Beta(v * (self.size / self.optimal_return - 1), v),
+                "sub_optimal_distribution": Beta(v, v * (self.size / self.suboptimal_return - 1)),
+                "other_distribution": Beta(v, 10 * v * (self.size / self.suboptimal_return - 1)),
+            }
+
         self.dists = resolve_distributions(given, defaults, make_reward_stochastic)
 
     def outcomes(self, node: DeepSeaNode, action: int) -> list[tuple[DeepSeaNode, float]]:
@@ -114,7 +115,7 @@ class DeepSeaFamily(Family):
             ("size", self.size),
             ("optimal_return", self.optimal_return),
             ("suboptimal_return", self.suboptimal_return),
-            *((k, str(self.dists[k])) for k in _DIST_ORDER),
+            *((k, str(d)) for k, d in self.dists.items()),
         )
 
     def layout(self) -> tuple[tuple[str, Any], ...]:

@@ -15,7 +15,13 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from jaxmdp.mdp_families.construction import Family, family_builder
-from jaxmdp.mdp_families.distributions import Beta, Distribution, PointMass, resolve_distributions
+from jaxmdp.mdp_families.distributions import (
+    Beta,
+    Distribution,
+    PointMass,
+    check_default_reward_parameter,
+    resolve_distributions,
+)
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
@@ -118,26 +124,21 @@ class FrozenLakeFamily(Family):
         self.suboptimal_return = float(suboptimal_return)
         self.is_slippery = bool(is_slippery)
         given = {"goal_r": goal_r, "default_r": default_r}
-        v = reward_variance_multiplier
-        defaults: dict[str, Distribution] = {}
-        if all(d is None for d in given.values()):
-            if make_reward_stochastic:
-                # Means 1 - r_opt/size^2 (goal) and r_sub/size^2 (default); positive Beta parameters need both
-                # returns in (0, size^2).
-                returns = (("optimal_return", self.optimal_return), ("suboptimal_return", self.suboptimal_return))
-                for pname, r in returns:
-                    if not 0 < r < self.size**2:
-                        raise ValueError(
-                            f"{pname} must lie in (0, size^2={self.size**2}) for the stochastic default rewards; "
-                            f"got {r}"
-                        )
-                defaults = {
-                    "goal_r": Beta(v * (self.size**2 / self.optimal_return - 1), v),
-                    "default_r": Beta(v, v * (self.size**2 / self.suboptimal_return - 1)),
-                }
-            else:
+        v, n_cells = reward_variance_multiplier, self.size**2
+
+        def defaults() -> dict[str, Distribution]:
+            if not make_reward_stochastic:
                 # [paper≠code] the paper mentions a small step reward; deterministically it is 0.
-                defaults = {"goal_r": PointMass(1.0), "default_r": PointMass(0.0)}
+                return {"goal_r": PointMass(1.0), "default_r": PointMass(0.0)}
+            # Means 1 - r_opt/size^2 (goal) and r_sub/size^2 (default); positive Beta parameters need both returns in
+            # (0, size^2).
+            check_default_reward_parameter("optimal_return", self.optimal_return, n_cells, f"size^2={n_cells}")
+            check_default_reward_parameter("suboptimal_return", self.suboptimal_return, n_cells, f"size^2={n_cells}")
+            return {
+                "goal_r": Beta(v * (n_cells / self.optimal_return - 1), v),
+                "default_r": Beta(v, v * (n_cells / self.suboptimal_return - 1)),
+            }
+
         self.dists = resolve_distributions(given, defaults, make_reward_stochastic)
         self.lake = random_lake(self.size, self.p_frozen, seed)
 
@@ -180,8 +181,7 @@ class FrozenLakeFamily(Family):
             ("optimal_return", self.optimal_return),
             ("suboptimal_return", self.suboptimal_return),
             ("is_slippery", self.is_slippery),
-            ("goal_r", str(self.dists["goal_r"])),
-            ("default_r", str(self.dists["default_r"])),
+            *((k, str(d)) for k, d in self.dists.items()),
         )
 
     def layout(self) -> tuple[tuple[str, Any], ...]:

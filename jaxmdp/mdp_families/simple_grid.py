@@ -15,14 +15,19 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from jaxmdp.mdp_families.construction import Family, family_builder
-from jaxmdp.mdp_families.distributions import Beta, Distribution, PointMass, resolve_distributions
+from jaxmdp.mdp_families.distributions import (
+    Beta,
+    Distribution,
+    PointMass,
+    check_default_reward_parameter,
+    resolve_distributions,
+)
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
 __all__ = ["SimpleGridNode", "SimpleGridReward", "SimpleGridFamily", "simple_grid"]
 
 UP, RIGHT, DOWN, LEFT, NO_OP = 0, 1, 2, 3, 4
-_DIST_ORDER = ("optimal_distribution", "sub_optimal_distribution", "other_distribution")
 
 
 class SimpleGridReward(enum.IntEnum):
@@ -103,29 +108,25 @@ class SimpleGridFamily(Family):
             "other_distribution": other_distribution,
         }
         v = reward_variance_multiplier
-        defaults: dict[str, Distribution] = {}
-        if all(d is None for d in given.values()):
-            if make_reward_stochastic:
-                # Means: optimal mu_o, other mu_s, sub-optimal mu_s / 10; the Betas need both means in (0, 1).
-                for pname, mu in (
-                    ("optimal_mean_reward", self.optimal_mean_reward),
-                    ("sub_optimal_mean_reward", self.sub_optimal_mean_reward),
-                ):
-                    if not 0 < mu < 1:
-                        raise ValueError(f"{pname} must lie in (0, 1) for the stochastic default rewards; got {mu}")
-                mu_o, mu_s = self.optimal_mean_reward, self.sub_optimal_mean_reward
-                defaults = {
-                    "optimal_distribution": Beta(v, v * (1 / mu_o - 1)),
-                    "sub_optimal_distribution": Beta(v, v * (10 / mu_s - 1)),
-                    "other_distribution": Beta(v, v * (1 / mu_s - 1)),
-                }
-            else:
+
+        def defaults() -> dict[str, Distribution]:
+            if not make_reward_stochastic:
                 # [paper≠code] the paper calls the per-step reward small; the reference pays 0.5 deterministically.
-                defaults = {
+                return {
                     "optimal_distribution": PointMass(1.0),
                     "sub_optimal_distribution": PointMass(0.0),
                     "other_distribution": PointMass(0.5),
                 }
+            # Means: optimal mu_o, other mu_s, sub-optimal mu_s / 10; the Betas need both means in (0, 1).
+            mu_o, mu_s = self.optimal_mean_reward, self.sub_optimal_mean_reward
+            check_default_reward_parameter("optimal_mean_reward", mu_o, 1)
+            check_default_reward_parameter("sub_optimal_mean_reward", mu_s, 1)
+            return {
+                "optimal_distribution": Beta(v, v * (1 / mu_o - 1)),
+                "sub_optimal_distribution": Beta(v, v * (10 / mu_s - 1)),
+                "other_distribution": Beta(v, v * (1 / mu_s - 1)),
+            }
+
         self.dists = resolve_distributions(given, defaults, make_reward_stochastic)
 
     def outcomes(self, node: SimpleGridNode, action: int) -> list[tuple[SimpleGridNode, float]]:
@@ -179,7 +180,7 @@ class SimpleGridFamily(Family):
             ("n_starting_states", self.n_starting_states),
             ("optimal_mean_reward", self.optimal_mean_reward),
             ("sub_optimal_mean_reward", self.sub_optimal_mean_reward),
-            *((k, str(self.dists[k])) for k in _DIST_ORDER),
+            *((k, str(d)) for k, d in self.dists.items()),
         )
 
     def layout(self) -> tuple[tuple[str, Any], ...]:

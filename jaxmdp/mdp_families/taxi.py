@@ -138,25 +138,26 @@ class TaxiFamily(Family):
             "failure_delivery_r": failure_delivery_r,
         }
         v = reward_variance_multiplier
-        uses_defaults = any(d is None for d in given.values())
-        if make_reward_stochastic and uses_defaults:
+
+        def defaults() -> dict[str, Distribution]:
+            if not make_reward_stochastic:
+                return {
+                    "default_r": PointMass(0.1),
+                    "successfully_delivery_r": PointMass(1.0),
+                    "failure_delivery_r": PointMass(0.0),
+                }
             if not (0 < self.sub_optimal_mean_reward and self.optimal_mean_reward < 1):
                 raise ValueError(
                     "the stochastic default rewards need 0 < sub_optimal_mean_reward and optimal_mean_reward < 1; "
                     f"got {sub_optimal_mean_reward} and {optimal_mean_reward}"
                 )
             mu_s, mu_o = self.sub_optimal_mean_reward, self.optimal_mean_reward
-            defaults = {
+            return {
                 "default_r": Beta(v, v * (1 / mu_s - 1)),
                 "successfully_delivery_r": Beta(v, v * (1 / mu_o - 1)),
                 "failure_delivery_r": Beta(v, v * (10 / mu_s - 1)),
             }
-        else:
-            defaults = {
-                "default_r": PointMass(0.1),
-                "successfully_delivery_r": PointMass(1.0),
-                "failure_delivery_r": PointMass(0.0),
-            }
+
         self.dists = resolve_distributions(given, defaults, make_reward_stochastic)
         fail, default, success = (
             self.dists[k].mean for k in ("failure_delivery_r", "default_r", "successfully_delivery_r")
