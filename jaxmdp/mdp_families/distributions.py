@@ -82,18 +82,19 @@ def as_distribution(name: str, spec: Any) -> Distribution:
 
 def resolve_distributions(
     given: Mapping[str, Any],
-    defaults: Mapping[str, Distribution] | Callable[[], Mapping[str, Distribution]],
+    defaults: Callable[[], Mapping[str, Distribution]],
     make_reward_stochastic: bool,
 ) -> dict[str, Distribution]:
     """Explicit distributions (all or none, matching ``make_reward_stochastic``) or the family defaults, keyed in the
     order of ``given`` (the family's parameter order).
 
-    ``defaults`` may be a function; it is called only when no distribution is given, so it may validate the
-    parameters that only the defaults depend on (with :func:`check_default_reward_parameter`).
+    ``defaults()`` builds the family's default distributions for ``make_reward_stochastic``; it is called only when
+    no distribution is given, so it is where the parameters that only the defaults depend on are validated (with
+    :func:`check_default_reward_parameter`).
     """
     provided = {k: v for k, v in given.items() if v is not None}
     if not provided:
-        chosen = dict(defaults() if callable(defaults) else defaults)
+        chosen = defaults()
         return {k: chosen[k] for k in given}
     if len(provided) != len(given):
         missing = sorted(set(given) - set(provided))

@@ -71,12 +71,14 @@ def minigrid_distributions(
     are taken all or none and must match ``make_reward_stochastic``.
     """
     v = reward_variance_multiplier
-    if make_reward_stochastic:
-        defaults = {
+
+    def defaults() -> dict[str, Distribution]:
+        if not make_reward_stochastic:
+            return {"optimal_distribution": PointMass(1.0), "other_distribution": PointMass(0.0)}
+        return {
             "optimal_distribution": Beta(v * (size**2 - 1), v),
             "other_distribution": Beta(v, v * (size**2 - 1)),
         }
-    else:
-        defaults = {"optimal_distribution": PointMass(1.0), "other_distribution": PointMass(0.0)}
+
     given = {"optimal_distribution": optimal_distribution, "other_distribution": other_distribution}
     return resolve_distributions(given, defaults, make_reward_stochastic)

@@ -43,7 +43,13 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from jaxmdp.mdp_families.construction import Family, family_builder
-from jaxmdp.mdp_families.distributions import Beta, Distribution, PointMass, resolve_distributions
+from jaxmdp.mdp_families.distributions import (
+    Beta,
+    Distribution,
+    PointMass,
+    check_default_reward_parameter,
+    resolve_distributions,
+)
 from jaxmdp.mdp_families.parameters import integer_parameter
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
@@ -146,12 +152,11 @@ class TaxiFamily(Family):
                     "successfully_delivery_r": PointMass(1.0),
                     "failure_delivery_r": PointMass(0.0),
                 }
-            if not (0 < self.sub_optimal_mean_reward and self.optimal_mean_reward < 1):
-                raise ValueError(
-                    "the stochastic default rewards need 0 < sub_optimal_mean_reward and optimal_mean_reward < 1; "
-                    f"got {sub_optimal_mean_reward} and {optimal_mean_reward}"
-                )
+            # Means mu_s (default), mu_o (success), mu_s / 10 (failure); with the means' order checked above the
+            # Betas are proper exactly when both lie in (0, 1).
             mu_s, mu_o = self.sub_optimal_mean_reward, self.optimal_mean_reward
+            check_default_reward_parameter("sub_optimal_mean_reward", mu_s, 1)
+            check_default_reward_parameter("optimal_mean_reward", mu_o, 1)
             return {
                 "default_r": Beta(v, v * (1 / mu_s - 1)),
                 "successfully_delivery_r": Beta(v, v * (1 / mu_o - 1)),
@@ -296,7 +301,8 @@ def taxi(
       length, width, space: wall pattern (``0 <= length < size``, ``1 <= width < size``, ``0 <= space < 2 size``).
       n_locations: number of pick-up/drop-off locations, ``>= 3`` (continuous) or ``>= 2`` (episodic), with
         ``size > 2 sqrt(n_locations)``.
-      optimal_mean_reward, sub_optimal_mean_reward: means of the stochastic defaults (``opt - 0.1 > sub``):
+      optimal_mean_reward, sub_optimal_mean_reward: means of the stochastic defaults (``opt - 0.1 > sub``, both in
+        ``(0, 1)`` when the stochastic defaults are used):
         default ``Beta(v, v (1/sub - 1))``, success ``Beta(v, v (1/opt - 1))``, failure ``Beta(v, v (10/sub - 1))``;
         deterministic defaults 0.1, 1.0, 0.0.
       default_r, successfully_delivery_r, failure_delivery_r: reward distributions (all or none) with means
