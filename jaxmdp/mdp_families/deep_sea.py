@@ -22,6 +22,7 @@ from jaxmdp.mdp_families.distributions import (
     check_default_reward_parameter,
     resolve_distributions,
 )
+from jaxmdp.mdp_families.parameters import integer_parameter
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
@@ -53,14 +54,12 @@ class DeepSeaFamily(Family):
         sub_optimal_distribution: Any = None,
         other_distribution: Any = None,
     ) -> None:
-        if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 2:
-            raise ValueError(f"size must be an integer >= 2 for DeepSea; got {size!r}")
+        self.size = integer_parameter("size", size, 2, self.name)
         if not suboptimal_return < optimal_return - 0.1:
             raise ValueError(
                 "suboptimal_return must be below optimal_return - 0.1; "
                 f"got {suboptimal_return} and {optimal_return}"
             )
-        self.size = int(size)
         self.optimal_return = float(optimal_return)
         self.suboptimal_return = float(suboptimal_return)
         given = {

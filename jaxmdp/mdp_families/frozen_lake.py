@@ -22,6 +22,7 @@ from jaxmdp.mdp_families.distributions import (
     check_default_reward_parameter,
     resolve_distributions,
 )
+from jaxmdp.mdp_families.parameters import integer_parameter
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
@@ -108,8 +109,7 @@ class FrozenLakeFamily(Family):
         goal_r: Any = None,
         default_r: Any = None,
     ) -> None:
-        if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 3:
-            raise ValueError(f"size must be an integer >= 3 for FrozenLake; got {size!r}")
+        self.size = integer_parameter("size", size, 3, self.name)
         if isinstance(p_frozen, bool) or not isinstance(p_frozen, (int, float, np.number)) or not p_frozen >= 0.1:
             raise ValueError(f"p_frozen must be a number >= 0.1 (values above 1 act as 1); got {p_frozen!r}")
         if not suboptimal_return + 0.2 < optimal_return:
@@ -118,7 +118,6 @@ class FrozenLakeFamily(Family):
             )
         if not isinstance(is_slippery, (bool, np.bool_)):
             raise ValueError(f"is_slippery must be True or False; got {is_slippery!r}")
-        self.size = int(size)
         self.p_frozen = float(p_frozen)
         self.optimal_return = float(optimal_return)
         self.suboptimal_return = float(suboptimal_return)

@@ -20,6 +20,7 @@ from jaxmdp.mdp_families.distributions import (
     check_default_reward_parameter,
     resolve_distributions,
 )
+from jaxmdp.mdp_families.parameters import integer_parameter
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
@@ -50,14 +51,12 @@ class RiverSwimFamily(Family):
         sub_optimal_distribution: Any = None,
         other_distribution: Any = None,
     ) -> None:
-        if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 2:
-            raise ValueError(f"size must be an integer >= 2 for RiverSwim; got {size!r}")
+        self.size = integer_parameter("size", size, 2, self.name)
         if not optimal_mean_reward - 0.1 > sub_optimal_mean_reward:
             raise ValueError(
                 "optimal_mean_reward - 0.1 must exceed sub_optimal_mean_reward; "
                 f"got {optimal_mean_reward} and {sub_optimal_mean_reward}"
             )
-        self.size = int(size)
         self.optimal_mean_reward = float(optimal_mean_reward)
         self.sub_optimal_mean_reward = float(sub_optimal_mean_reward)
         given = {

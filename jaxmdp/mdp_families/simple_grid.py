@@ -22,6 +22,7 @@ from jaxmdp.mdp_families.distributions import (
     check_default_reward_parameter,
     resolve_distributions,
 )
+from jaxmdp.mdp_families.parameters import integer_parameter
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
@@ -81,20 +82,12 @@ class SimpleGridFamily(Family):
         sub_optimal_distribution: Any = None,
         other_distribution: Any = None,
     ) -> None:
-        if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 2:
-            raise ValueError(f"size must be an integer >= 2 for SimpleGrid; got {size!r}")
-        self.size = int(size)
+        self.size = integer_parameter("size", size, 2, self.name)
         self.reward_type = _reward_type(reward_type)
-        n_candidates = (self.size - 1) ** 2
-        if (
-            isinstance(n_starting_states, bool)
-            or not isinstance(n_starting_states, (int, np.integer))
-            or not 1 <= n_starting_states <= n_candidates
-        ):
-            raise ValueError(
-                f"n_starting_states must be an integer in [1, (size-1)^2 = {n_candidates}]; got {n_starting_states!r}"
-            )
-        self.n_starting_states = int(n_starting_states)
+        # The starting cells are drawn among the (size-1)^2 cells closest to the centre.
+        self.n_starting_states = integer_parameter(
+            "n_starting_states", n_starting_states, 1, self.name, (self.size - 1) ** 2
+        )
         if not optimal_mean_reward - 0.1 > sub_optimal_mean_reward:
             raise ValueError(
                 "optimal_mean_reward - 0.1 must exceed sub_optimal_mean_reward; "
