@@ -60,6 +60,7 @@ from typing import Any  # noqa: E402
 
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
+from scipy import stats  # noqa: E402  (the Student-t quantile; jax/numpy have none)
 
 import agents  # noqa: E402
 import jaxmdp  # noqa: E402
@@ -118,67 +119,14 @@ MEMBER_FIELDS = ("mdp", "seed", "normalized_regret_per_step", "cumulative_regret
 # ---------------------------------------------------------------------------------------------------------------
 
 
-def _betainc_fraction(a: float, b: float, x: float) -> float:
-    """``1 / (1 + d_1 / (1 + d_2 / (1 + ...)))``, the continued fraction of ``I_x(a, b)``, by the modified Lentz
-    method; ``d_{2m+1} = -(a+m)(a+b+m) x / ((a+2m)(a+2m+1))``, ``d_{2m} = m (b-m) x / ((a+2m-1)(a+2m))``. Converges
-    fast for ``x < (a + 1) / (a + b + 2)``."""
-    tiny = 1e-300
-    f, c, d = 1.0, 1.0, 0.0
-    for j in range(1, 10_000):
-        m = j // 2
-        if j % 2:
-            coef = -(a + m) * (a + b + m) * x / ((a + 2 * m) * (a + 2 * m + 1))
-        else:
-            coef = m * (b - m) * x / ((a + 2 * m - 1) * (a + 2 * m))
-        d = 1.0 + coef * d
-        d = 1.0 / (d if abs(d) > tiny else tiny)
-        c = 1.0 + coef / c
-        c = c if abs(c) > tiny else tiny
-        f *= c * d
-        if abs(c * d - 1.0) < 1e-15:
-            break
-    return 1.0 / f
-
-
-def betainc(a: float, b: float, x: float) -> float:
-    """Regularised incomplete beta function ``I_x(a, b)`` in float64 (continued fraction; symmetry
-    ``I_x(a, b) = 1 - I_{1-x}(b, a)`` where the fraction converges slowly)."""
-    if x <= 0.0:
-        return 0.0
-    if x >= 1.0:
-        return 1.0
-    log_front = a * math.log(x) + b * math.log1p(-x) - (math.lgamma(a) + math.lgamma(b) - math.lgamma(a + b))
-    if x < (a + 1.0) / (a + b + 2.0):
-        return math.exp(log_front) / a * _betainc_fraction(a, b, x)
-    return 1.0 - math.exp(log_front) / b * _betainc_fraction(b, a, 1.0 - x)
-
-
-def _t_cdf(t: float, df: int) -> float:
-    """Student-t CDF from the regularised incomplete beta function: ``1 - I_{df/(df+t^2)}(df/2, 1/2) / 2``, t >= 0."""
-    return 1.0 - 0.5 * betainc(df / 2.0, 0.5, df / (df + t * t))
-
-
-def t_quantile(q: float, df: int) -> float:
-    """The ``q``-quantile (``0.5 < q < 1``) of Student's t with ``df`` degrees of freedom, by bisection."""
-    if not 0.5 < q < 1 or df < 1:
-        raise ValueError(f"t_quantile needs 0.5 < q < 1 and df >= 1; got q={q}, df={df}")
-    lo, hi = 0.0, 1.0
-    while _t_cdf(hi, df) < q:
-        hi *= 2.0
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if _t_cdf(mid, df) < q else (lo, mid)
-    return 0.5 * (lo + hi)
-
-
 def mean_ci(x: np.ndarray, level: float = 0.95) -> tuple[float, float]:
-    """Mean and half-width of the two-sided ``level`` Student-t confidence interval of the mean (NaN for one
-    sample)."""
+    """Mean and half-width ``t_{(1+level)/2, n-1} s / sqrt(n)`` of the two-sided ``level`` Student-t confidence
+    interval of the mean of ``n`` samples with standard deviation ``s`` (NaN half-width for one sample)."""
     x = np.asarray(x, np.float64)
     n = x.size
     if n < 2:
         return float(x.mean()), float("nan")
-    half = t_quantile(0.5 + level / 2, n - 1) * x.std(ddof=1) / math.sqrt(n)
+    half = stats.t.ppf(0.5 + level / 2, n - 1) * x.std(ddof=1) / math.sqrt(n)
     return float(x.mean()), float(half)
 
 
