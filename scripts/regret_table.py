@@ -257,12 +257,11 @@ def run_agent(
     n_steps: int,
     log_period: int,
     run_dir: Path,
-    config: dict,
+    settings: dict,
     progress: bool = True,
 ) -> tuple[AgentRun, runner.RunResult | None]:
-    """Run (or resume, or reuse) one agent on its grid; returns its final values and the runner's result (``None``
-    when the finished run was reused from its ``.json``)."""
-    settings = {k: v for k, v in config.items() if k != "agent"}
+    """Run (or resume, or reuse) one agent on its grid with ``settings`` (the table's, without the agent); returns
+    its final values and the runner's result (``None`` when the finished run was reused from its ``.json``)."""
     stem = run_stem(name, settings)
     summary = run_dir / f"{stem}.json"
     done = load_run(run_dir, name, settings)
@@ -285,7 +284,7 @@ def run_agent(
         n_members=grid.n_members,
         n_steps=n_steps,
         agent_steps_per_second=result.agent_steps_per_second,
-        config=config,
+        config={**settings, "agent": name},
     )
     tmp = summary.with_name(summary.name + ".tmp")
     tmp.write_text(json.dumps(out.to_json(), indent=1))
@@ -355,14 +354,18 @@ def verdicts(rows: Sequence[dict]) -> list[dict]:
     return out
 
 
-def _pm(mean: float, ci: float, digits: int) -> str:
-    if math.isnan(ci):
-        return f"{mean:.{digits}f}"
-    return f"{mean:.{digits}f} ± {ci:.{digits}f}"
+def _agent_table(cell: dict, names: Sequence[str], mdps: Sequence[str], score: str, digits: int) -> list[str]:
+    """Markdown rows ``mean ± CI half-width`` (the mean alone where the CI is NaN: one seed) of ``score``, one per
+    agent, one column per MDP."""
+    def fmt(r: dict) -> str:
+        mean, ci = r[f"{score}_mean"], r[f"{score}_ci95"]
+        return f"{mean:.{digits}f}" if math.isnan(ci) else f"{mean:.{digits}f} ± {ci:.{digits}f}"
 
-
-def _raw(mean: float, ci: float) -> str:
-    return f"{mean:.1f}" if math.isnan(ci) else f"{mean:.1f} ± {ci:.1f}"
+    lines = ["| agent | " + " | ".join(mdps) + " |", "|---|" + "---|" * len(mdps)]
+    for name in names:
+        lines.append(f"| {name} | " + " | ".join(fmt(cell[name, m]) if (name, m) in cell else "" for m in mdps)
+                     + " |")
+    return lines
 
 
 def markdown(rows: Sequence[dict], runs: Sequence[AgentRun], settings: dict) -> str:
@@ -391,21 +394,10 @@ def markdown(rows: Sequence[dict], runs: Sequence[AgentRun], settings: dict) -> 
         cell = {(r["agent"], r["mdp"]): r for r in srows}
         base = {r["mdp"]: r["random_baseline_normalized_regret_per_step"] for r in srows}
         lines += [f"## {setting.capitalize()}", "", "### Normalised cumulative regret per step", ""]
-        lines.append("| agent | " + " | ".join(mdps) + " |")
-        lines.append("|---|" + "---|" * len(mdps))
-        for name in names:
-            vals = [_pm(cell[name, m]["normalized_regret_per_step_mean"],
-                        cell[name, m]["normalized_regret_per_step_ci95"], 3) if (name, m) in cell else ""
-                    for m in mdps]
-            lines.append(f"| {name} | " + " | ".join(vals) + " |")
+        lines += _agent_table(cell, names, mdps, "normalized_regret_per_step", 3)
         lines.append("| *random baseline (exact)* | " + " | ".join(f"{base[m]:.3f}" for m in mdps) + " |")
         lines += ["", "### Cumulative regret (raw, after the last step)", ""]
-        lines.append("| agent | " + " | ".join(mdps) + " |")
-        lines.append("|---|" + "---|" * len(mdps))
-        for name in names:
-            vals = [_raw(cell[name, m]["cumulative_regret_mean"], cell[name, m]["cumulative_regret_ci95"])
-                    if (name, m) in cell else "" for m in mdps]
-            lines.append(f"| {name} | " + " | ".join(vals) + " |")
+        lines += _agent_table(cell, names, mdps, "cumulative_regret", 1)
         lines.append("")
     lines += [
         "## Compute",
@@ -519,17 +511,15 @@ def main(argv: Sequence[str] | None = None) -> dict:
             print(f"[{i + 1}/{len(names)}] {name}: {len(mdps[agent.episodic][0])} MDPs x {len(seeds)} seeds, "
                   f"{args.steps} steps", file=sys.stderr, flush=True)
         run, result = run_agent(name, *mdps[agent.episodic], seeds, args.steps, args.log_period, run_dir,
-                                {**config, "agent": name}, progress=not args.quiet)
+                                config, progress=not args.quiet)
         if result is not None:
             results[name] = result
         if not args.quiet:
             state = "reused" if result is None else f"compile {run.compile_s:.1f} s, run {run.run_s:.1f} s"
             print(f"    {name}: {state}, {run.agent_steps_per_second:,.0f} agent-steps/s", file=sys.stderr,
                   flush=True)
-        runs = finished_runs(run_dir, config)
+        runs = finished_runs(run_dir, config)  # the table after every agent, so an interruption keeps it
         rows = write_outputs(out, runs, settings)
-    runs = finished_runs(run_dir, config)
-    rows = write_outputs(out, runs, settings)
     if not args.quiet:
         print(f"wrote {out / 'regret_table.md'} and {out / 'regret_table.csv'}", file=sys.stderr)
     return {"rows": rows, "runs": runs, "results": results}
