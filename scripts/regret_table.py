@@ -65,7 +65,7 @@ from scipy import stats  # noqa: E402  (the Student-t quantile; jax/numpy have n
 import agents  # noqa: E402
 import jaxmdp  # noqa: E402
 from agents import psrl_continuous  # noqa: E402
-from jaxmdp import runner  # noqa: E402
+from jaxmdp import run_output, runner  # noqa: E402
 
 EPISODIC_AGENTS = ("random_episodic", "q_learning_episodic", "psrl_episodic")
 CONTINUOUS_AGENTS = ("random_continuous", "q_learning_continuous", "psrl_continuous", "ucrl2")
@@ -436,25 +436,21 @@ def markdown(rows: Sequence[dict], runs: Sequence[AgentRun], settings: dict) -> 
     return "\n".join(lines)
 
 
-def _fmt(x: Any) -> str:
-    if isinstance(x, float):
-        return f"{x:.9g}"
-    return str(x)
+def _write_csv(path: Path, header: Sequence[str], rows: Sequence[list]) -> None:
+    """A CSV in the runner's number format (:func:`jaxmdp.run_output.format_row`: floats to 9 significant digits)."""
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        w.writerows(run_output.format_row(r) for r in rows)
 
 
 def write_outputs(out: Path, runs: Sequence[AgentRun], settings: dict) -> list[dict]:
     """Write the table (markdown and CSV) and the per-member CSV; returns the table rows."""
     rows = table_rows(runs)
-    with (out / "regret_table.csv").open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(TABLE_COLUMNS)
-        w.writerows([_fmt(r[c]) for c in TABLE_COLUMNS] for r in rows)
-    with (out / "regret_table_members.csv").open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(("setting", "agent") + MEMBER_FIELDS)
-        for r in runs:
-            for m in r.members:
-                w.writerow(["episodic" if r.episodic else "continuous", r.agent] + [_fmt(m[k]) for k in MEMBER_FIELDS])
+    _write_csv(out / "regret_table.csv", TABLE_COLUMNS, [[r[c] for c in TABLE_COLUMNS] for r in rows])
+    _write_csv(out / "regret_table_members.csv", ("setting", "agent") + MEMBER_FIELDS,
+               [["episodic" if r.episodic else "continuous", r.agent] + [m[k] for k in MEMBER_FIELDS]
+                for r in runs for m in r.members])
     (out / "regret_table.md").write_text(markdown(rows, runs, settings))
     return rows
 
