@@ -23,6 +23,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 import agents as agent_registry
@@ -75,6 +76,11 @@ def _check_int(name: str, value: Any, minimum: int) -> int:
     return int(value)
 
 
+def _keys(seeds: Sequence[int] | np.ndarray) -> jax.Array:
+    """``jax.random.key(s)`` of every seed: the keys :func:`jaxmdp.runner.product` gives members of those seeds."""
+    return jax.vmap(jax.random.key)(jnp.asarray(seeds))
+
+
 def tuned_regret(
     mdps: MDP,
     eval_seeds: Sequence[int],
@@ -113,24 +119,27 @@ def tuned_regret(
         raise ValueError(f"eval_seeds must be below {TUNING_SEED_OFFSET} (the tuning seeds start there)")
     agent = near_optimal_agent(mdps.episodic)
 
+    # Candidate 0 is the default set, so one candidate is the defaults without a search.
+    cands = sample_candidates(agent, jax.random.key(search_seed), n_candidates)
     run_s = compile_s = 0.0
     if n_candidates > 1:
-        cands = sample_candidates(agent, jax.random.key(search_seed), n_candidates)
-        cand_list = [jax.tree.map(lambda x, i=i: x[i], cands) for i in range(n_candidates)]
-        tuning_seeds = [TUNING_SEED_OFFSET + j for j in range(n_tuning_seeds)]
-        search = runner.run(agent, runner.product(mdps, cand_list, tuning_seeds), n_steps, progress=progress)
+        # Member (m, c, j) of the search: MDP m, candidate c, tuning seed j (MDP-major, as runner.product orders).
+        m, c, j = np.unravel_index(np.arange(M * n_candidates * n_tuning_seeds), (M, n_candidates, n_tuning_seeds))
+        tuning_seeds = TUNING_SEED_OFFSET + j
+        g = runner.grid(mdps, jax.tree.map(lambda x: x[c], cands), _keys(tuning_seeds), mdp_index=m,
+                        hparams_index=c, seeds=tuning_seeds)
+        search = runner.run(agent, g, n_steps, progress=progress)
         scores = search.column("normalized_cumulative_regret")[-1].reshape(M, n_candidates, n_tuning_seeds)
         scores = scores.mean(axis=-1)
         best = np.argmin(scores, axis=1)
-        best_hparams = jax.tree.map(lambda x: np.asarray(x)[best], cands)
         run_s += search.run_s
         compile_s += search.compile_s
     else:
         scores = np.zeros((M, 0))
-        best_hparams = jax.tree.map(lambda x: np.repeat(np.asarray(x)[None], M, axis=0), agent.default_hparams)
+        best = np.zeros(M, np.int64)
+    best_hparams = jax.tree.map(lambda x: x[best], cands)
 
-    keys = np.stack([np.asarray(jax.random.key_data(jax.random.key(s))) for s in eval_seeds])
-    g = runner.grid(mdps, best_hparams, keys, mdp_index=np.arange(M), seeds=eval_seeds)
+    g = runner.grid(mdps, best_hparams, _keys(eval_seeds), mdp_index=np.arange(M), seeds=eval_seeds)
     final = runner.run(agent, g, n_steps, progress=progress)
     return NearOptimalRegret(
         agent=agent.name,

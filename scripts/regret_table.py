@@ -60,11 +60,12 @@ from typing import Any  # noqa: E402
 
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
+from scipy import stats  # noqa: E402  (the Student-t quantile; jax/numpy have none)
 
 import agents  # noqa: E402
 import jaxmdp  # noqa: E402
 from agents import psrl_continuous  # noqa: E402
-from jaxmdp import runner  # noqa: E402
+from jaxmdp import run_output, runner  # noqa: E402
 
 EPISODIC_AGENTS = ("random_episodic", "q_learning_episodic", "psrl_episodic")
 CONTINUOUS_AGENTS = ("random_continuous", "q_learning_continuous", "psrl_continuous", "ucrl2")
@@ -118,67 +119,14 @@ MEMBER_FIELDS = ("mdp", "seed", "normalized_regret_per_step", "cumulative_regret
 # ---------------------------------------------------------------------------------------------------------------
 
 
-def _betainc_fraction(a: float, b: float, x: float) -> float:
-    """``1 / (1 + d_1 / (1 + d_2 / (1 + ...)))``, the continued fraction of ``I_x(a, b)``, by the modified Lentz
-    method; ``d_{2m+1} = -(a+m)(a+b+m) x / ((a+2m)(a+2m+1))``, ``d_{2m} = m (b-m) x / ((a+2m-1)(a+2m))``. Converges
-    fast for ``x < (a + 1) / (a + b + 2)``."""
-    tiny = 1e-300
-    f, c, d = 1.0, 1.0, 0.0
-    for j in range(1, 10_000):
-        m = j // 2
-        if j % 2:
-            coef = -(a + m) * (a + b + m) * x / ((a + 2 * m) * (a + 2 * m + 1))
-        else:
-            coef = m * (b - m) * x / ((a + 2 * m - 1) * (a + 2 * m))
-        d = 1.0 + coef * d
-        d = 1.0 / (d if abs(d) > tiny else tiny)
-        c = 1.0 + coef / c
-        c = c if abs(c) > tiny else tiny
-        f *= c * d
-        if abs(c * d - 1.0) < 1e-15:
-            break
-    return 1.0 / f
-
-
-def betainc(a: float, b: float, x: float) -> float:
-    """Regularised incomplete beta function ``I_x(a, b)`` in float64 (continued fraction; symmetry
-    ``I_x(a, b) = 1 - I_{1-x}(b, a)`` where the fraction converges slowly)."""
-    if x <= 0.0:
-        return 0.0
-    if x >= 1.0:
-        return 1.0
-    log_front = a * math.log(x) + b * math.log1p(-x) - (math.lgamma(a) + math.lgamma(b) - math.lgamma(a + b))
-    if x < (a + 1.0) / (a + b + 2.0):
-        return math.exp(log_front) / a * _betainc_fraction(a, b, x)
-    return 1.0 - math.exp(log_front) / b * _betainc_fraction(b, a, 1.0 - x)
-
-
-def _t_cdf(t: float, df: int) -> float:
-    """Student-t CDF from the regularised incomplete beta function: ``1 - I_{df/(df+t^2)}(df/2, 1/2) / 2``, t >= 0."""
-    return 1.0 - 0.5 * betainc(df / 2.0, 0.5, df / (df + t * t))
-
-
-def t_quantile(q: float, df: int) -> float:
-    """The ``q``-quantile (``0.5 < q < 1``) of Student's t with ``df`` degrees of freedom, by bisection."""
-    if not 0.5 < q < 1 or df < 1:
-        raise ValueError(f"t_quantile needs 0.5 < q < 1 and df >= 1; got q={q}, df={df}")
-    lo, hi = 0.0, 1.0
-    while _t_cdf(hi, df) < q:
-        hi *= 2.0
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if _t_cdf(mid, df) < q else (lo, mid)
-    return 0.5 * (lo + hi)
-
-
 def mean_ci(x: np.ndarray, level: float = 0.95) -> tuple[float, float]:
-    """Mean and half-width of the two-sided ``level`` Student-t confidence interval of the mean (NaN for one
-    sample)."""
+    """Mean and half-width ``t_{(1+level)/2, n-1} s / sqrt(n)`` of the two-sided ``level`` Student-t confidence
+    interval of the mean of ``n`` samples with standard deviation ``s`` (NaN half-width for one sample)."""
     x = np.asarray(x, np.float64)
     n = x.size
     if n < 2:
         return float(x.mean()), float("nan")
-    half = t_quantile(0.5 + level / 2, n - 1) * x.std(ddof=1) / math.sqrt(n)
+    half = stats.t.ppf(0.5 + level / 2, n - 1) * x.std(ddof=1) / math.sqrt(n)
     return float(x.mean()), float(half)
 
 
@@ -309,12 +257,11 @@ def run_agent(
     n_steps: int,
     log_period: int,
     run_dir: Path,
-    config: dict,
+    settings: dict,
     progress: bool = True,
 ) -> tuple[AgentRun, runner.RunResult | None]:
-    """Run (or resume, or reuse) one agent on its grid; returns its final values and the runner's result (``None``
-    when the finished run was reused from its ``.json``)."""
-    settings = {k: v for k, v in config.items() if k != "agent"}
+    """Run (or resume, or reuse) one agent on its grid with ``settings`` (the table's, without the agent); returns
+    its final values and the runner's result (``None`` when the finished run was reused from its ``.json``)."""
     stem = run_stem(name, settings)
     summary = run_dir / f"{stem}.json"
     done = load_run(run_dir, name, settings)
@@ -337,7 +284,7 @@ def run_agent(
         n_members=grid.n_members,
         n_steps=n_steps,
         agent_steps_per_second=result.agent_steps_per_second,
-        config=config,
+        config={**settings, "agent": name},
     )
     tmp = summary.with_name(summary.name + ".tmp")
     tmp.write_text(json.dumps(out.to_json(), indent=1))
@@ -407,14 +354,18 @@ def verdicts(rows: Sequence[dict]) -> list[dict]:
     return out
 
 
-def _pm(mean: float, ci: float, digits: int) -> str:
-    if math.isnan(ci):
-        return f"{mean:.{digits}f}"
-    return f"{mean:.{digits}f} ± {ci:.{digits}f}"
+def _agent_table(cell: dict, names: Sequence[str], mdps: Sequence[str], score: str, digits: int) -> list[str]:
+    """Markdown rows ``mean ± CI half-width`` (the mean alone where the CI is NaN: one seed) of ``score``, one per
+    agent, one column per MDP."""
+    def fmt(r: dict) -> str:
+        mean, ci = r[f"{score}_mean"], r[f"{score}_ci95"]
+        return f"{mean:.{digits}f}" if math.isnan(ci) else f"{mean:.{digits}f} ± {ci:.{digits}f}"
 
-
-def _raw(mean: float, ci: float) -> str:
-    return f"{mean:.1f}" if math.isnan(ci) else f"{mean:.1f} ± {ci:.1f}"
+    lines = ["| agent | " + " | ".join(mdps) + " |", "|---|" + "---|" * len(mdps)]
+    for name in names:
+        lines.append(f"| {name} | " + " | ".join(fmt(cell[name, m]) if (name, m) in cell else "" for m in mdps)
+                     + " |")
+    return lines
 
 
 def markdown(rows: Sequence[dict], runs: Sequence[AgentRun], settings: dict) -> str:
@@ -443,21 +394,10 @@ def markdown(rows: Sequence[dict], runs: Sequence[AgentRun], settings: dict) -> 
         cell = {(r["agent"], r["mdp"]): r for r in srows}
         base = {r["mdp"]: r["random_baseline_normalized_regret_per_step"] for r in srows}
         lines += [f"## {setting.capitalize()}", "", "### Normalised cumulative regret per step", ""]
-        lines.append("| agent | " + " | ".join(mdps) + " |")
-        lines.append("|---|" + "---|" * len(mdps))
-        for name in names:
-            vals = [_pm(cell[name, m]["normalized_regret_per_step_mean"],
-                        cell[name, m]["normalized_regret_per_step_ci95"], 3) if (name, m) in cell else ""
-                    for m in mdps]
-            lines.append(f"| {name} | " + " | ".join(vals) + " |")
+        lines += _agent_table(cell, names, mdps, "normalized_regret_per_step", 3)
         lines.append("| *random baseline (exact)* | " + " | ".join(f"{base[m]:.3f}" for m in mdps) + " |")
         lines += ["", "### Cumulative regret (raw, after the last step)", ""]
-        lines.append("| agent | " + " | ".join(mdps) + " |")
-        lines.append("|---|" + "---|" * len(mdps))
-        for name in names:
-            vals = [_raw(cell[name, m]["cumulative_regret_mean"], cell[name, m]["cumulative_regret_ci95"])
-                    if (name, m) in cell else "" for m in mdps]
-            lines.append(f"| {name} | " + " | ".join(vals) + " |")
+        lines += _agent_table(cell, names, mdps, "cumulative_regret", 1)
         lines.append("")
     lines += [
         "## Compute",
@@ -496,25 +436,21 @@ def markdown(rows: Sequence[dict], runs: Sequence[AgentRun], settings: dict) -> 
     return "\n".join(lines)
 
 
-def _fmt(x: Any) -> str:
-    if isinstance(x, float):
-        return f"{x:.9g}"
-    return str(x)
+def _write_csv(path: Path, header: Sequence[str], rows: Sequence[list]) -> None:
+    """A CSV in the runner's number format (:func:`jaxmdp.run_output.format_row`: floats to 9 significant digits)."""
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        w.writerows(run_output.format_row(r) for r in rows)
 
 
 def write_outputs(out: Path, runs: Sequence[AgentRun], settings: dict) -> list[dict]:
     """Write the table (markdown and CSV) and the per-member CSV; returns the table rows."""
     rows = table_rows(runs)
-    with (out / "regret_table.csv").open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(TABLE_COLUMNS)
-        w.writerows([_fmt(r[c]) for c in TABLE_COLUMNS] for r in rows)
-    with (out / "regret_table_members.csv").open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(("setting", "agent") + MEMBER_FIELDS)
-        for r in runs:
-            for m in r.members:
-                w.writerow(["episodic" if r.episodic else "continuous", r.agent] + [_fmt(m[k]) for k in MEMBER_FIELDS])
+    _write_csv(out / "regret_table.csv", TABLE_COLUMNS, [[r[c] for c in TABLE_COLUMNS] for r in rows])
+    _write_csv(out / "regret_table_members.csv", ("setting", "agent") + MEMBER_FIELDS,
+               [["episodic" if r.episodic else "continuous", r.agent] + [m[k] for k in MEMBER_FIELDS]
+                for r in runs for m in r.members])
     (out / "regret_table.md").write_text(markdown(rows, runs, settings))
     return rows
 
@@ -571,17 +507,15 @@ def main(argv: Sequence[str] | None = None) -> dict:
             print(f"[{i + 1}/{len(names)}] {name}: {len(mdps[agent.episodic][0])} MDPs x {len(seeds)} seeds, "
                   f"{args.steps} steps", file=sys.stderr, flush=True)
         run, result = run_agent(name, *mdps[agent.episodic], seeds, args.steps, args.log_period, run_dir,
-                                {**config, "agent": name}, progress=not args.quiet)
+                                config, progress=not args.quiet)
         if result is not None:
             results[name] = result
         if not args.quiet:
             state = "reused" if result is None else f"compile {run.compile_s:.1f} s, run {run.run_s:.1f} s"
             print(f"    {name}: {state}, {run.agent_steps_per_second:,.0f} agent-steps/s", file=sys.stderr,
                   flush=True)
-        runs = finished_runs(run_dir, config)
+        runs = finished_runs(run_dir, config)  # the table after every agent, so an interruption keeps it
         rows = write_outputs(out, runs, settings)
-    runs = finished_runs(run_dir, config)
-    rows = write_outputs(out, runs, settings)
     if not args.quiet:
         print(f"wrote {out / 'regret_table.md'} and {out / 'regret_table.csv'}", file=sys.stderr)
     return {"rows": rows, "runs": runs, "results": results}

@@ -5,6 +5,9 @@ notebooks at once, so the suite pays for the slowest one rather than their sum);
 notebooks check their own numbers with ``numpy.testing`` asserts (padding changes no measure, a kernel transform
 equals the construction from scratch, the random agent's logged regret is the exact random baseline, a resumed run
 equals the uninterrupted one), so running them is a real test, not a smoke test.
+
+The test runs them with smaller run lengths (:data:`SMALL`: every check stays, only fewer steps are simulated; the
+build script runs them at full size). Their time is mostly XLA compilation, which does not depend on these sizes.
 """
 
 from __future__ import annotations
@@ -22,6 +25,13 @@ ROOT = Path(__file__).resolve().parent.parent
 NOTEBOOK_DIR = ROOT / "notebooks"
 NAMES = ("01_mdps_and_hardness", "02_agents_and_regret")
 TIMEOUT_S = 600
+#: Source lines replaced before a notebook runs in the test: ``(full size, small)``. Each must occur exactly once, so
+#: a notebook edit that renames a parameter fails here instead of silently running at full size. 02's runs are
+#: step-bound (12 members x 20 000 steps, twice, plus the resumed run); 2 000 steps still make 20 chunks, so the
+#: interruption after 5 chunks and the resume are exercised the same way.
+SMALL = {
+    "02_agents_and_regret": [("N_STEPS = 20_000\n", "N_STEPS = 2_000\n")],
+}
 
 
 def _load_builder():
@@ -39,6 +49,15 @@ def _code(name: str) -> str:
     return "\n\n".join("".join(c["source"]) for c in _cells(name) if c["cell_type"] == "code")
 
 
+def _small_code(name: str) -> str:
+    """The notebook's code with the :data:`SMALL` replacements."""
+    code = _code(name)
+    for full, small in SMALL.get(name, []):
+        assert code.count(full) == 1, f"{name}: expected {full!r} exactly once; update SMALL in {__file__}"
+        code = code.replace(full, small)
+    return code
+
+
 @pytest.fixture(scope="module")
 def launched(request, tmp_path_factory):
     """Start every selected notebook at once, each in its own process and scratch directory; yields
@@ -51,7 +70,7 @@ def launched(request, tmp_path_factory):
     for name in sorted(selected):
         workdir = tmp_path_factory.mktemp(name)
         script = workdir / "notebook.py"
-        script.write_text(_code(name))
+        script.write_text(_small_code(name))
         log = workdir / "output.txt"
         with open(log, "w") as out:
             procs[name] = (
