@@ -80,9 +80,9 @@ def test_stack_pads_without_changing_members():
     np.testing.assert_array_equal(T0[:3, 2], T0[:3, 0])
     back = jaxmdp.unstack(batch)
     for a, b in zip(mdps, back):
-        for name in ("T", "R", "P0", "reward_mean", "reward_conc"):
+        for name in ("T", "R", "P0", "reward_mean", "reward_conc", "succ", "succ_p", "state_mask", "action_mask"):
             np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
-        assert b.H == a.H
+        assert b.H == a.H and b.stochastic_rewards == a.stochastic_rewards
 
 
 def test_stack_rejects_mixed_settings():
