@@ -9,6 +9,9 @@ Padding rules (so that one compiled program serves a grid and no trajectory can 
   sums, ``p_rand``) uses the mask;
 * successor lists are padded with zero-probability self entries;
 * time: the static ``H`` becomes the largest horizon and each member keeps its own traced ``horizon``.
+
+Padding costs work: every member of a stack pays for the largest one. :func:`size_buckets` splits a heterogeneous
+collection into a few stacks of similar sizes, so that a handful of compiled programs serve it with little padding.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ import numpy as np
 
 from jaxmdp.mdp import MDP, MDPInfo
 
-__all__ = ["stack", "unstack", "pad", "permute_states", "state_permutation"]
+__all__ = ["stack", "unstack", "pad", "size_buckets", "permute_states", "state_permutation"]
 
 # The traced leaves of an MDP.
 _ARRAY_FIELDS = ("T", "R", "P0", "reward_mean", "reward_conc", "succ", "succ_p", "state_mask", "action_mask", "horizon")
@@ -104,6 +107,48 @@ def stack(mdps: Sequence[MDP]) -> MDP:
         info=MDPInfo(family="stack", members=tuple(m.info for m in mdps)),
         stochastic_rewards=any(m.stochastic_rewards for m in mdps),
     )
+
+
+def size_buckets(mdps: Sequence[MDP], n_buckets: int) -> list[list[int]]:
+    """Split ``mdps`` (all episodic or all continuous) into at most ``n_buckets`` groups to :func:`stack` separately.
+
+    With the members sorted by ``(S, A, K, H)``, the groups are the contiguous runs that minimise the padded work
+    ``sum_b |b| * S_b^2 * A_b * K_b * H_b`` (``X_b`` the largest ``X`` in group ``b``; ``H = 1`` when continuous), the
+    cost of one all-pairs backup per member, found by dynamic programming over the ``O(n^2)`` runs. Returns the
+    members' indices per group, smallest group first; every index appears once.
+    """
+    mdps = list(mdps)
+    if int(n_buckets) != n_buckets or n_buckets < 1:
+        raise ValueError(f"n_buckets must be a positive integer; got {n_buckets}")
+    if not mdps:
+        return []
+    if len({m.episodic for m in mdps}) > 1:
+        raise ValueError("size_buckets needs MDPs that are all episodic or all continuous")
+    dims = np.array([(m.n_states, m.n_actions, m.max_successors, m.H or 1) for m in mdps], np.float64)
+    order = np.lexsort(dims.T[::-1])
+    dims = dims[order]
+    n = len(mdps)
+    # cost[i, j]: members order[i:j] stacked together.
+    cost = np.full((n + 1, n + 1), np.inf)
+    for i in range(n):
+        top = np.maximum.accumulate(dims[i:], axis=0)
+        size = np.arange(1, n - i + 1)
+        cost[i, i + 1 :] = size * top[:, 0] ** 2 * top[:, 1] * top[:, 2] * top[:, 3]
+    best = np.full((int(n_buckets) + 1, n + 1), np.inf)
+    cut = np.zeros((int(n_buckets) + 1, n + 1), np.int64)
+    best[0, 0] = 0.0
+    for b in range(1, int(n_buckets) + 1):
+        for j in range(1, n + 1):
+            total = best[b - 1, :j] + cost[:j, j]
+            cut[b, j] = int(np.argmin(total))
+            best[b, j] = total[cut[b, j]]
+    b = int(np.argmin(best[:, n]))
+    groups, j = [], n
+    while j > 0:
+        i = cut[b, j]
+        groups.append([int(k) for k in order[i:j]])
+        j, b = i, b - 1
+    return groups[::-1]
 
 
 def unstack(batch: MDP) -> list[MDP]:
