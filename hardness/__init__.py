@@ -1,11 +1,13 @@
 """Hardness measures of MDPs (paper §2.2): diameter, environmental value norm, sum of reciprocal sub-optimality gaps.
 
 Every measure takes one :class:`jaxmdp.MDP` and returns a :class:`MeasureResult` (``value``, ``converged``,
-``finite``); ``jax.vmap`` runs it over a stacked batch (:func:`jaxmdp.stack`), and padding changes nothing.
+``finite``); ``jax.vmap`` runs it over a stacked batch (:func:`jaxmdp.stack`), and padding changes nothing;
+:func:`measures_many` computes all three for a collection of MDPs of different sizes (size buckets).
 ``variant="paper"`` (default) computes the paper's definitions exactly; ``variant="colosseum"`` reproduces the
 reference package's procedures and numbers (measures.md). :func:`normalize` is the min-max scaling of App. E.
 """
 
+from hardness.batched import measures_many
 from hardness.diameter import diameter, strongly_connected
 from hardness.gaps import suboptimality_gaps, sum_reciprocal_gaps
 from hardness.measures import HardnessMeasures, measures, normalize
@@ -19,6 +21,7 @@ __all__ = [
     "value_norm",
     "sum_reciprocal_gaps",
     "measures",
+    "measures_many",
     "normalize",
     "suboptimality_gaps",
     "strongly_connected",

@@ -11,6 +11,7 @@ entry of the ``curves`` mapping.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -23,6 +24,7 @@ LABELS: Mapping[str, str] = {
     "diameter": "Diameter",
     "value_norm": "Environmental value norm",
     "sum_reciprocal_gaps": "Sum of reciprocals of sub-optimality gaps",
+    "agent_regret": "Cumulative regret of the tuned near-optimal agent",
 }
 
 #: x-axis labels of the swept parameters.
@@ -46,14 +48,15 @@ def bootstrap_means(samples: np.ndarray, n_resamples: int = 1000, seed: int = 0)
         raise ValueError(f"samples must have shape [n_seeds, n_values] with both >= 1; got {x.shape}")
     if isinstance(n_resamples, bool) or not isinstance(n_resamples, (int, np.integer)) or n_resamples < 1:
         raise ValueError(f"n_resamples must be an integer >= 1; got {n_resamples!r}")
-    rng = np.random.default_rng(seed)
-    idx = rng.integers(0, x.shape[0], size=(int(n_resamples), x.shape[0]))
-    drawn = x[idx]  # [B, n_seeds, n_values]
-    finite = np.isfinite(drawn)
-    count = finite.sum(axis=1)
-    total = np.where(finite, drawn, 0.0).sum(axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(count > 0, total / np.maximum(count, 1), np.nan)
+    idx = np.random.default_rng(seed).integers(0, x.shape[0], size=(int(n_resamples), x.shape[0]))
+    return _finite_mean(x[idx], axis=1)  # [B, n_seeds, n_values] -> [B, n_values]
+
+
+def _finite_mean(x: np.ndarray, axis: int) -> np.ndarray:
+    """Mean of the finite entries along ``axis``; NaN (without a warning) where there is none."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # "Mean of empty slice"
+        return np.nanmean(np.where(np.isfinite(x), x, np.nan), axis=axis)
 
 
 def bootstrap_ci(
@@ -68,17 +71,11 @@ def bootstrap_ci(
         raise ValueError(f"level must lie in (0, 1); got {level!r}")
     x = np.asarray(samples, np.float64)
     means = bootstrap_means(x, n_resamples, seed)
-    finite = np.isfinite(x)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = np.where(finite.any(0), np.where(finite, x, 0.0).sum(0) / np.maximum(finite.sum(0), 1), np.nan)
     alpha = (1.0 - float(level)) / 2.0
-    lo = np.full(x.shape[1], np.nan)
-    hi = np.full(x.shape[1], np.nan)
-    for j in range(x.shape[1]):  # columns may hold NaN resamples; quantiles over the rest
-        col = means[:, j][np.isfinite(means[:, j])]
-        if col.size:
-            lo[j], hi[j] = np.quantile(col, [alpha, 1.0 - alpha])
-    return mean, lo, hi
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # "All-NaN slice": a column without any finite resample
+        lo, hi = np.nanquantile(means, [alpha, 1.0 - alpha], axis=0)  # over the finite resamples of each column
+    return _finite_mean(x, axis=0), lo, hi
 
 
 def plot_scenario(

@@ -65,6 +65,7 @@ __all__ = [
     "scenario_spec",
     "prepare",
     "compute",
+    "grid_mdps",
     "normalize_measures",
     "run_scenario",
     "sweep_p_rand",
@@ -117,7 +118,7 @@ FAMILY_DEFAULTS: Mapping[str, FamilyDefaults] = MappingProxyType(
         "DeepSea": _defaults("size", (4, 8, 12, 16, 20, 24), size=10),
         "SimpleGrid": _defaults("size", (4, 6, 8, 10, 12, 14), size=8),
         "FrozenLake": _defaults("size", (3, 4, 5, 6, 7, 8), size=5, p_frozen=0.8),
-        "MiniGridEmpty": _defaults("size", (4, 5, 6, 7, 8, 9, 10), size=8),
+        "MiniGridEmpty": _defaults("size", (4, 5, 6, 7, 8, 9, 10), size=5),
         "MiniGridRooms": _defaults("room_size", (2, 3, 4, 5), room_size=3, n_rooms=4),
         "Taxi": _defaults("size", (4, 5, 6), size=4, length=1, n_locations=3),
         "MiniGridDoorKey": _defaults("size", (3, 4, 5), size=4),
@@ -340,6 +341,22 @@ def _batch_measures(batch: MDP, forms: Any, variant: str, gamma: float) -> Hardn
     if forms is None:
         return jax.vmap(lambda m: measures(m, gamma, variant=variant))(batch)
     return jax.vmap(lambda m, cf: measures(m, gamma, variant=variant, continuous_form=cf))(batch, forms)
+
+
+@functools.partial(jax.jit, static_argnames=("kind",))
+def _transformed(bases: MDP, values: jax.Array, kind: str) -> MDP:
+    transform = jaxmdp.apply_p_rand if kind == "p_rand" else jaxmdp.apply_p_lazy
+    grid = jax.vmap(lambda base: jax.vmap(lambda v: transform(base, v))(values))(bases)
+    return jax.tree.map(lambda x: x.reshape(-1, *x.shape[2:]), grid)
+
+
+def grid_mdps(grid: ScenarioGrid) -> MDP:
+    """Every MDP of a prepared grid as one stacked batch ``[n_seeds * n_values]`` (seed-major), e.g. to run agents
+    on them: the kernel transform of each base (scenarios 1-2, ``variant="paper"``) or the built MDPs."""
+    spec = grid.spec
+    if not spec.uses_transform:
+        return grid.batch
+    return _transformed(grid.batch, jnp.asarray(spec.values, grid.batch.dtype), spec.parameter)
 
 
 def compute(grid: ScenarioGrid) -> dict[str, np.ndarray]:

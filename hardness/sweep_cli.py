@@ -22,23 +22,37 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, TextIO
 
+import jax.numpy as jnp
 import numpy as np
 
 import jaxmdp
 from hardness import scenarios
+from hardness.measures import normalize
+from hardness.near_optimal import NEAR_OPTIMAL_AGENTS, tuned_regret
 from hardness.plotting import plot_scenario
 
 MEASURES = scenarios.MEASURES
+#: Columns of the tuned near-optimal agent (empty when ``--agent-steps 0``): its expected cumulative regret, the
+#: per-step normalised version (App. E) and that one min-max normalised over the table (the figure's curve).
+AGENT_COLUMNS = ("agent", "agent_cumulative_regret", "agent_normalized_cumulative_regret", "agent_regret_normalized")
 COLUMNS = (
     ["scenario", "family", "setting", "variant", "seed", "parameter", "value", "n_states"]
     + list(MEASURES)
     + [f"{m}_converged" for m in MEASURES]
     + [f"{m}_normalized" for m in MEASURES]
+    + list(AGENT_COLUMNS)
 )
+#: Name of the agent curve in the figure (:data:`hardness.plotting.LABELS`).
+AGENT_CURVE = "agent_regret"
 
 DEFAULT_FAMILY = "MiniGridEmpty"
 DEFAULT_SETTING = "episodic"
-DEFAULT_SEEDS = (0, 1, 2, 3, 4)
+DEFAULT_SEEDS = (0, 1, 2)
+# Tuned near-optimal agent: small defaults so that the main job runs in minutes on 2 cores (the paper: 200 000 steps,
+# 120 candidates, 3 seeds; hardness.near_optimal).
+DEFAULT_AGENT_STEPS = 10_000
+DEFAULT_AGENT_CANDIDATES = 4
+DEFAULT_AGENT_TUNING_SEEDS = 1
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -92,6 +106,13 @@ def build_parser(description: str, default_out: str, scenario_choices: Sequence[
     parser.add_argument("--resume", action="store_true",
                         help="keep the finished seeds of an earlier run with the same settings in --out")
     parser.add_argument("--no-plot", action="store_true", help="skip the PNG figure")
+    parser.add_argument("--agent-steps", type=int, default=DEFAULT_AGENT_STEPS,
+                        help="steps of the tuned near-optimal agent (PSRL episodic, UCRL2 continuous) per MDP; "
+                             "0 leaves the agent out (default %(default)s)")
+    parser.add_argument("--agent-candidates", type=int, default=DEFAULT_AGENT_CANDIDATES,
+                        help="random-search candidates per MDP; 1: the default hyperparameters (default %(default)s)")
+    parser.add_argument("--agent-tuning-seeds", type=int, default=DEFAULT_AGENT_TUNING_SEEDS,
+                        help="seeds per candidate in the search (default %(default)s)")
     return parser
 
 
@@ -136,7 +157,17 @@ class Progress:
 # ---------------------------------------------------------------------------------------------------------------
 
 
-def config_of(spec: scenarios.ScenarioSpec) -> dict[str, Any]:
+def agent_config(args: argparse.Namespace, spec: scenarios.ScenarioSpec) -> dict[str, Any] | None:
+    """The tuned agent's settings, or ``None`` when ``--agent-steps 0``."""
+    if args.agent_steps == 0:
+        return None
+    return dict(
+        agent=NEAR_OPTIMAL_AGENTS[spec.setting], steps=args.agent_steps, candidates=args.agent_candidates,
+        tuning_seeds=args.agent_tuning_seeds,
+    )
+
+
+def config_of(spec: scenarios.ScenarioSpec, agent: dict[str, Any] | None = None) -> dict[str, Any]:
     """The settings a results table depends on (everything but the seeds), JSON-friendly."""
     return dict(
         scenario=spec.scenario,
@@ -147,6 +178,7 @@ def config_of(spec: scenarios.ScenarioSpec) -> dict[str, Any]:
         params={k: repr(v) for k, v in spec.params},
         variant=spec.variant,
         gamma=spec.gamma,
+        agent=agent,
     )
 
 
@@ -166,6 +198,10 @@ def rows_from_raw(spec: scenarios.ScenarioSpec, seeds: Sequence[int], raw: dict[
             for m in MEASURES:
                 row[m] = float(raw[m][i, j])
                 row[f"{m}_converged"] = bool(raw[f"{m}_converged"][i, j])
+            if "agent" in raw:
+                row["agent"] = raw["agent"]
+                row["agent_cumulative_regret"] = float(raw["agent_cumulative_regret"][i, j])
+                row["agent_normalized_cumulative_regret"] = float(raw["agent_normalized_cumulative_regret"][i, j])
             rows.append(row)
     return rows
 
@@ -184,6 +220,10 @@ def read_rows(path: Path, spec: scenarios.ScenarioSpec) -> list[dict]:
             for m in MEASURES:
                 row[m] = float(rec[m])
                 row[f"{m}_converged"] = rec[f"{m}_converged"] == "True"
+            if rec.get("agent"):
+                row["agent"] = rec["agent"]
+                row["agent_cumulative_regret"] = float(rec["agent_cumulative_regret"])
+                row["agent_normalized_cumulative_regret"] = float(rec["agent_normalized_cumulative_regret"])
             rows.append(row)
     return rows
 
@@ -195,9 +235,20 @@ def ordered(spec: scenarios.ScenarioSpec, rows: list[dict]) -> list[dict]:
     return sorted(rows, key=lambda r: (seed_pos[r["seed"]], value_pos[r["value"]]))
 
 
+def curves_of(rows: list[dict], shape: tuple[int, ...] = (1, -1)) -> dict[str, np.ndarray]:
+    """App. E min-max normalisation over all rows of every measure and, when the rows have it, of the agent's
+    per-step normalised cumulative regret (:data:`AGENT_CURVE`), each reshaped to ``shape``."""
+    raw = {m: np.asarray([r[m] for r in rows], np.float64).reshape(shape) for m in MEASURES}
+    curves = scenarios.normalize_measures(raw)
+    if rows and all("agent" in r for r in rows):
+        regret = np.asarray([r["agent_normalized_cumulative_regret"] for r in rows], np.float64).reshape(shape)
+        curves[AGENT_CURVE] = np.asarray(normalize(jnp.asarray(regret, jnp.float32)), np.float64)
+    return curves
+
+
 def write_table(path: Path, rows: list[dict]) -> None:
     """Write all rows with the normalisation over all of them, atomically (a crash never leaves half a file)."""
-    normalized = scenarios.normalize_measures({m: np.asarray([[r[m] for r in rows]]) for m in MEASURES})
+    normalized = curves_of(rows)
     tmp = path.with_name(path.name + ".tmp")
     with tmp.open("w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=COLUMNS)
@@ -207,6 +258,8 @@ def write_table(path: Path, rows: list[dict]) -> None:
             for m in MEASURES:
                 out[m] = repr(float(row[m]))
                 out[f"{m}_normalized"] = repr(float(normalized[m][0, k]))
+            if AGENT_CURVE in normalized:
+                out["agent_regret_normalized"] = repr(float(normalized[AGENT_CURVE][0, k]))
             out["value"] = repr(row["value"])
             writer.writerow(out)
     os.replace(tmp, path)
@@ -237,11 +290,17 @@ def run(args: argparse.Namespace, scenario: int, parser: argparse.ArgumentParser
         parser.error(str(err))
     if args.seeds_per_call < 1:
         parser.error(f"--seeds-per-call must be >= 1; got {args.seeds_per_call}")
+    if args.agent_steps < 0:
+        parser.error(f"--agent-steps must be >= 0 (0: no agent); got {args.agent_steps}")
+    if args.agent_candidates < 1 or args.agent_tuning_seeds < 1:
+        parser.error("--agent-candidates and --agent-tuning-seeds must be >= 1; got "
+                     f"{args.agent_candidates} and {args.agent_tuning_seeds}")
+    agent = agent_config(args, spec)
 
     args.out.mkdir(parents=True, exist_ok=True)
     stem = stem_of(spec)
     csv_path, json_path, png_path = (args.out / f"{stem}{ext}" for ext in (".csv", ".json", ".png"))
-    config = config_of(spec)
+    config = config_of(spec, agent)
 
     rows: list[dict] = []
     done: set[int] = set()
@@ -268,8 +327,11 @@ def run(args: argparse.Namespace, scenario: int, parser: argparse.ArgumentParser
         for start in range(0, len(todo), k):
             chunk = todo[start : start + k]
             # A short last chunk is filled up with copies of its first seed so that it reuses the compiled program.
-            raw = scenarios.compute(grid.take(chunk + [chunk[0]] * (k - len(chunk))))
-            rows += rows_from_raw(spec, chunk, {name: a[: len(chunk)] for name, a in raw.items()})
+            chunk_grid = grid.take(chunk + [chunk[0]] * (k - len(chunk)))
+            raw = scenarios.compute(chunk_grid)
+            if agent is not None:
+                raw.update(agent_regret(chunk_grid, agent))
+            rows += rows_from_raw(spec, chunk, {name: a if name == "agent" else a[: len(chunk)] for name, a in raw.items()})
             write_table(csv_path, ordered(spec, rows))
             bar.advance(len(chunk))
         bar.close()
@@ -284,11 +346,25 @@ def run(args: argparse.Namespace, scenario: int, parser: argparse.ArgumentParser
     return written
 
 
+def agent_regret(grid: scenarios.ScenarioGrid, agent: dict[str, Any]) -> dict[str, Any]:
+    """The tuned near-optimal agent's regret on every MDP of ``grid`` (:func:`hardness.near_optimal.tuned_regret`);
+    MDP ``(seed, value)`` is evaluated with that seed. Arrays ``[n_seeds, n_values]``."""
+    n, V = len(grid.seeds), len(grid.spec.values)
+    result = tuned_regret(
+        scenarios.grid_mdps(grid), np.repeat(grid.seeds, V), n_steps=agent["steps"],
+        n_candidates=agent["candidates"], n_tuning_seeds=agent["tuning_seeds"],
+    )
+    return {
+        "agent": result.agent,
+        "agent_cumulative_regret": result.cumulative_regret.reshape(n, V),
+        "agent_normalized_cumulative_regret": result.normalized_cumulative_regret.reshape(n, V),
+    }
+
+
 def figure(spec: scenarios.ScenarioSpec, rows: list[dict], path: Path) -> Path:
     """The scenario's figure from its table rows (normalised over all rows, as in the table)."""
     n, V = len(spec.seeds), len(spec.values)
-    grid = {m: np.asarray([r[m] for r in rows], np.float64).reshape(n, V) for m in MEASURES}
-    curves = scenarios.normalize_measures(grid)
+    curves = curves_of(rows, (n, V))
     if spec.scenario in (3, 4):
         x = np.asarray([r["n_states"] for r in rows], np.float64).reshape(n, V).mean(axis=0)
         xlabel = "n_states"
@@ -296,6 +372,9 @@ def figure(spec: scenarios.ScenarioSpec, rows: list[dict], path: Path) -> Path:
         x, xlabel = np.asarray(spec.values, np.float64), spec.parameter
     fixed = ", ".join(f"{k}={v}" for k, v in spec.params if v is not None)
     title = f"Scenario {spec.scenario}: {spec.family} {spec.setting} ({spec.variant}), {n} seeds\n{fixed}"
+    agents_seen = sorted({r["agent"] for r in rows if "agent" in r})
+    if agents_seen:
+        title += f"; tuned agent: {', '.join(agents_seen)}"
     return plot_scenario(x, curves, path, xlabel=xlabel, title=title)
 
 

@@ -11,7 +11,7 @@ _xla_cpu.disable_ynn_fusion()
 
 from jaxmdp import dynamic_programming  # noqa: E402
 from jaxmdp.communication import CommunicationClass, communication_class
-from jaxmdp.batching import pad, permute_states, stack, state_permutation, unstack
+from jaxmdp.batching import pad, permute_states, size_buckets, stack, state_permutation, unstack
 from jaxmdp.env import EnvState, reset, sample_action, step
 from jaxmdp.mdp_families import Beta, PointMass
 from jaxmdp.mdp import MDP, MDPInfo, custom_mdp
@@ -32,6 +32,7 @@ __all__ = [
     "apply_noise",
     "stack",
     "unstack",
+    "size_buckets",
     "pad",
     "permute_states",
     "state_permutation",

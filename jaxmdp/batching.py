@@ -9,6 +9,9 @@ Padding rules (so that one compiled program serves a grid and no trajectory can 
   sums, ``p_rand``) uses the mask;
 * successor lists are padded with zero-probability self entries;
 * time: the static ``H`` becomes the largest horizon and each member keeps its own traced ``horizon``.
+
+Padding costs work: every member of a stack pays for the largest one. :func:`size_buckets` splits a heterogeneous
+collection into a few stacks of similar sizes, so that a handful of compiled programs serve it with little padding.
 """
 
 from __future__ import annotations
@@ -22,64 +25,66 @@ import numpy as np
 
 from jaxmdp.mdp import MDP, MDPInfo
 
-__all__ = ["stack", "unstack", "pad", "permute_states", "state_permutation"]
+__all__ = ["stack", "unstack", "pad", "size_buckets", "permute_states", "state_permutation"]
+
+# The traced leaves of an MDP.
+_ARRAY_FIELDS = ("T", "R", "P0", "reward_mean", "reward_conc", "succ", "succ_p", "state_mask", "action_mask", "horizon")
 
 
-def pad(mdp: MDP, n_states: int, n_actions: int, n_successors: int, H: int | None = None) -> MDP:
-    """Pad one (unbatched) MDP to ``n_states``, ``n_actions``, ``n_successors`` and time length ``H``."""
-    S, A, K = mdp.succ.shape
+def _pad_host(mdp: MDP, n_states: int, n_actions: int, n_successors: int, H: int | None) -> dict[str, np.ndarray]:
+    """The padded arrays of one MDP as numpy arrays (host side: padding is pure data movement, and eager ``jnp``
+    ops on members of different shapes would compile a fresh XLA program for every op and member)."""
     if mdp.T.ndim != 3:
         raise ValueError("pad expects a single MDP, not a batch")
+    S, A, K = mdp.succ.shape
     if n_states < S or n_actions < A or n_successors < K:
         raise ValueError(f"cannot pad (S, A, K) = {(S, A, K)} down to {(n_states, n_actions, n_successors)}")
     if mdp.episodic and (H is None or H < mdp.H):
         raise ValueError(f"H must be at least the MDP's horizon {mdp.H}; got {H}")
-    dS, dA, dK = n_states - S, n_actions - A, n_successors - K
-    dt = mdp.dtype
+    dt = np.dtype(mdp.dtype)
+    # Padded actions copy action 0; padded states get the defaults set below.
+    acts = np.concatenate([np.arange(A), np.zeros(n_actions - A, np.int64)])
 
-    def pad_actions(x: jax.Array, axis: int) -> jax.Array:
-        # Copies of action 0 on the action axis.
-        first = jax.lax.index_in_dim(x, 0, axis=axis, keepdims=True)
-        return jnp.concatenate([x] + [first] * dA, axis=axis) if dA else x
+    def dense(x, fill=0.0):
+        out = np.full((n_states, n_actions, n_states), fill, dt)
+        out[:S, :, :S] = np.asarray(x)[:, acts]
+        return out
 
-    T = pad_actions(mdp.T, 1)
-    T = jnp.pad(T, ((0, dS), (0, 0), (0, dS)))
-    pad_rows = jnp.eye(n_states, dtype=dt)[S:]  # [dS, n_states]
-    T = T.at[S:].set(jnp.broadcast_to(pad_rows[:, None, :], (dS, n_actions, n_states)))
-    R = jnp.pad(pad_actions(mdp.R, 1), ((0, dS), (0, 0)))
-    rm = jnp.pad(pad_actions(mdp.reward_mean, 1), ((0, dS), (0, 0), (0, dS)))
-    rc = jnp.pad(pad_actions(mdp.reward_conc, 1), ((0, dS), (0, 0), (0, dS)))
-
-    own = jnp.arange(n_states, dtype=mdp.succ.dtype)
-    succ = pad_actions(mdp.succ, 1)
-    succ = jnp.concatenate([succ, jnp.broadcast_to(own[:S, None, None], (S, n_actions, dK))], axis=-1)
-    succ = jnp.concatenate([succ, jnp.broadcast_to(own[S:, None, None], (dS, n_actions, n_successors))], axis=0)
-    succ_p = jnp.pad(pad_actions(mdp.succ_p, 1), ((0, 0), (0, 0), (0, dK)))
-    pad_p = jnp.zeros((dS, n_actions, n_successors), dt).at[:, :, 0].set(1.0)
-    succ_p = jnp.concatenate([succ_p, pad_p], axis=0)
-
-    return MDP(
+    T = dense(mdp.T)
+    T[np.arange(S, n_states), :, np.arange(S, n_states)] = 1.0  # padded states are absorbing
+    R = np.zeros((n_states, n_actions), dt)
+    R[:S] = np.asarray(mdp.R)[:, acts]
+    own = np.arange(n_states, dtype=np.asarray(mdp.succ).dtype)
+    succ = np.broadcast_to(own[:, None, None], (n_states, n_actions, n_successors)).copy()  # zero-probability self
+    succ[:S, :, :K] = np.asarray(mdp.succ)[:, acts]
+    succ_p = np.zeros((n_states, n_actions, n_successors), dt)
+    succ_p[:S, :, :K] = np.asarray(mdp.succ_p)[:, acts]
+    succ_p[S:, :, 0] = 1.0
+    return dict(
         T=T,
         R=R,
-        P0=jnp.pad(mdp.P0, (0, dS)),
-        reward_mean=rm,
-        reward_conc=rc,
+        P0=np.pad(np.asarray(mdp.P0), (0, n_states - S)),
+        reward_mean=dense(mdp.reward_mean),
+        reward_conc=dense(mdp.reward_conc),
         succ=succ,
         succ_p=succ_p,
-        state_mask=jnp.pad(mdp.state_mask, (0, dS)),
-        action_mask=jnp.pad(mdp.action_mask, (0, dA)),
-        horizon=mdp.horizon,
-        H=H if mdp.episodic else None,
-        info=mdp.info,
-        stochastic_rewards=mdp.stochastic_rewards,
+        state_mask=np.pad(np.asarray(mdp.state_mask), (0, n_states - S)),
+        action_mask=np.pad(np.asarray(mdp.action_mask), (0, n_actions - A)),
+        horizon=np.asarray(mdp.horizon),
     )
+
+
+def pad(mdp: MDP, n_states: int, n_actions: int, n_successors: int, H: int | None = None) -> MDP:
+    """Pad one (unbatched) MDP to ``n_states``, ``n_actions``, ``n_successors`` and time length ``H`` (host side)."""
+    arrays = _pad_host(mdp, n_states, n_actions, n_successors, H)
+    return mdp.replace(H=H if mdp.episodic else None, **{k: jnp.asarray(v) for k, v in arrays.items()})
 
 
 def stack(mdps: Sequence[MDP]) -> MDP:
     """Pad MDPs to common ``S``, ``A``, ``K`` (and ``H``) and stack them along a new leading batch axis.
 
     All members must be episodic or all continuous, with the same dtype. The result's ``info.members`` holds the
-    members' metadata; ``jax.vmap`` over the result runs them in lockstep.
+    members' metadata; ``jax.vmap`` over the result runs them in lockstep. Host side (numpy), one transfer per field.
     """
     mdps = list(mdps)
     if not mdps:
@@ -94,41 +99,92 @@ def stack(mdps: Sequence[MDP]) -> MDP:
     A = max(m.n_actions for m in mdps)
     K = max(m.max_successors for m in mdps)
     H = max(m.H for m in mdps) if mdps[0].episodic else None
-    padded = [pad(m.strip(), S, A, K, H) for m in mdps]
-    stochastic = any(m.stochastic_rewards for m in mdps)
-    batch = jax.tree.map(lambda *xs: jnp.stack(xs), *[m.replace(stochastic_rewards=stochastic) for m in padded])
-    return batch.replace(info=MDPInfo(family="stack", members=tuple(m.info for m in mdps)))
+    padded = [_pad_host(m, S, A, K, H) for m in mdps]
+    arrays = {k: jnp.asarray(np.stack([p[k] for p in padded])) for k in padded[0]}
+    return MDP(
+        **arrays,
+        H=H,
+        info=MDPInfo(family="stack", members=tuple(m.info for m in mdps)),
+        stochastic_rewards=any(m.stochastic_rewards for m in mdps),
+    )
+
+
+def size_buckets(mdps: Sequence[MDP], n_buckets: int) -> list[list[int]]:
+    """Split ``mdps`` (all episodic or all continuous) into at most ``n_buckets`` groups to :func:`stack` separately.
+
+    With the members sorted by ``(S, A, K, H)``, the groups are the contiguous runs that minimise the padded work
+    ``sum_b |b| * S_b^2 * A_b * K_b * H_b`` (``X_b`` the largest ``X`` in group ``b``; ``H = 1`` when continuous), the
+    cost of one all-pairs backup per member, found by dynamic programming over the ``O(n^2)`` runs. Returns the
+    members' indices per group, smallest group first; every index appears once.
+    """
+    mdps = list(mdps)
+    if int(n_buckets) != n_buckets or n_buckets < 1:
+        raise ValueError(f"n_buckets must be a positive integer; got {n_buckets}")
+    if not mdps:
+        return []
+    if len({m.episodic for m in mdps}) > 1:
+        raise ValueError("size_buckets needs MDPs that are all episodic or all continuous")
+    dims = np.array([(m.n_states, m.n_actions, m.max_successors, m.H or 1) for m in mdps], np.float64)
+    order = np.lexsort(dims.T[::-1])
+    dims = dims[order]
+    n = len(mdps)
+    # cost[i, j]: members order[i:j] stacked together.
+    cost = np.full((n + 1, n + 1), np.inf)
+    for i in range(n):
+        top = np.maximum.accumulate(dims[i:], axis=0)
+        size = np.arange(1, n - i + 1)
+        cost[i, i + 1 :] = size * top[:, 0] ** 2 * top[:, 1] * top[:, 2] * top[:, 3]
+    best = np.full((int(n_buckets) + 1, n + 1), np.inf)
+    cut = np.zeros((int(n_buckets) + 1, n + 1), np.int64)
+    best[0, 0] = 0.0
+    for b in range(1, int(n_buckets) + 1):
+        for j in range(1, n + 1):
+            total = best[b - 1, :j] + cost[:j, j]
+            cut[b, j] = int(np.argmin(total))
+            best[b, j] = total[cut[b, j]]
+    b = int(np.argmin(best[:, n]))
+    groups, j = [], n
+    while j > 0:
+        i = cut[b, j]
+        groups.append([int(k) for k in order[i:j]])
+        j, b = i, b - 1
+    return groups[::-1]
 
 
 def unstack(batch: MDP) -> list[MDP]:
-    """Split a stacked batch back into its members, removing the padding (inverse of :func:`stack`)."""
+    """Split a stacked batch back into its members, removing the padding (inverse of :func:`stack`; host side)."""
     if batch.T.ndim != 4:
         raise ValueError("unstack expects a batch with one leading axis")
-    out = []
+    arrays = {k: np.asarray(getattr(batch, k)) for k in _ARRAY_FIELDS}
     n = batch.T.shape[0]
     members = batch.info.members or (MDPInfo(),) * n
+    out = []
     for i in range(n):
-        m = jax.tree.map(lambda x: x[i], batch)
-        S = int(np.sum(np.asarray(m.state_mask)))
-        A = int(np.sum(np.asarray(m.action_mask)))
-        keep_k = np.asarray(m.succ_p[:S, :A] > 0).any(axis=(0, 1))
+        m = {k: v[i] for k, v in arrays.items()}
+        S = int(np.sum(m["state_mask"]))
+        A = int(np.sum(m["action_mask"]))
+        keep_k = (m["succ_p"][:S, :A] > 0).any(axis=(0, 1))
         K = int(np.max(np.nonzero(keep_k)[0]) + 1) if keep_k.any() else 1
-        H = int(m.horizon) if batch.H is not None else None
+        T = m["T"][:S, :A, :S]
+        conc = m["reward_conc"][:S, :A, :S]
+        member = dict(
+            T=T,
+            R=m["R"][:S, :A],
+            P0=m["P0"][:S],
+            reward_mean=m["reward_mean"][:S, :A, :S],
+            reward_conc=conc,
+            succ=m["succ"][:S, :A, :K],
+            succ_p=m["succ_p"][:S, :A, :K],
+            state_mask=m["state_mask"][:S],
+            action_mask=m["action_mask"][:A],
+            horizon=m["horizon"],
+        )
         out.append(
             MDP(
-                T=m.T[:S, :A, :S],
-                R=m.R[:S, :A],
-                P0=m.P0[:S],
-                reward_mean=m.reward_mean[:S, :A, :S],
-                reward_conc=m.reward_conc[:S, :A, :S],
-                succ=m.succ[:S, :A, :K],
-                succ_p=m.succ_p[:S, :A, :K],
-                state_mask=m.state_mask[:S],
-                action_mask=m.action_mask[:A],
-                horizon=m.horizon,
-                H=H,
+                **{k: jnp.asarray(v) for k, v in member.items()},
+                H=int(m["horizon"]) if batch.H is not None else None,
                 info=members[i],
-                stochastic_rewards=bool(np.any(np.asarray(m.reward_conc[:S, :A, :S])[np.asarray(m.T[:S, :A, :S]) > 0] > 0)),
+                stochastic_rewards=bool(np.any(conc[T > 0] > 0)),
             )
         )
     return out

@@ -26,6 +26,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from jaxmdp.linalg import solve as linear_solve
 from jaxmdp.mdp import MDP
 
 Model = MDP | jax.Array
@@ -181,11 +182,14 @@ def value_iteration(
 def policy_evaluation(
     model: Model, pi: jax.Array, gamma: float | jax.Array = 0.99, rewards: jax.Array | None = None
 ) -> tuple[jax.Array, jax.Array]:
-    """Exact discounted evaluation of a stationary policy: ``V = (I - gamma P_pi)^{-1} r_pi`` and its ``Q``."""
+    """Exact discounted evaluation of a stationary policy: ``V = (I - gamma P_pi)^{-1} r_pi`` and its ``Q``.
+
+    The solve is :func:`jaxmdp.linalg.solve` (one system at a time under ``vmap``: jaxlib 0.10.2's batched CPU solve
+    can deadlock)."""
     R = _rewards(model, rewards)
     P = policy_matrix(model, pi)
     S = P.shape[0]
-    V = jnp.linalg.solve(jnp.eye(S, dtype=P.dtype) - gamma * P, policy_rewards(model, pi, R))
+    V = linear_solve(jnp.eye(S, dtype=P.dtype) - gamma * P, policy_rewards(model, pi, R))
     return q_values(model, V, gamma, R), V
 
 

@@ -22,15 +22,17 @@ import jaxmdp
 
 
 def benchmark_mdps() -> list[tuple[str, jaxmdp.MDP]]:
-    """An S~100 and an S~1000 MDP with stochastic dynamics and Beta rewards (SimpleGrid if registered)."""
+    """An S~100 and an S~1000 MDP with stochastic dynamics and Beta rewards (SimpleGrid if registered), and the
+    S~100 one with point-mass rewards (no reward draw is compiled: the cost of the dynamics alone)."""
     if "SimpleGrid" in jaxmdp.families():
-        make = lambda size: jaxmdp.make(  # noqa: E731
-            "SimpleGrid", episodic=False, seed=0, size=size, p_lazy=0.1, p_rand=0.1, make_reward_stochastic=True
+        make = lambda size, beta=True: jaxmdp.make(  # noqa: E731
+            "SimpleGrid", episodic=False, seed=0, size=size, p_lazy=0.1, p_rand=0.1, make_reward_stochastic=beta
         )
-        return [("SimpleGrid size 10", make(10)), ("SimpleGrid size 32", make(32))]
-    make = lambda size: jaxmdp.make(  # noqa: E731
-        "RiverSwim", episodic=False, seed=0, size=size, p_lazy=0.1, p_rand=0.1, make_reward_stochastic=True
-    )
+        return [
+            ("SimpleGrid size 10", make(10)),
+            ("SimpleGrid size 10, point-mass rewards", make(10, False)),
+            ("SimpleGrid size 32", make(32)),
+        ]
     return [("RiverSwim size 100", make(100)), ("RiverSwim size 1000", make(1000))]
 
 

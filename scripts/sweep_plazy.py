@@ -3,7 +3,7 @@
 One base MDP per seed; every value of ``p_lazy`` is the jittable kernel transform of it (``jaxmdp.apply_p_lazy``).
 Writes ``results/sweep_plazy/``. DeepSea has no lazy mechanic and is refused.
 
-    python scripts/sweep_plazy.py                                   # MiniGridEmpty episodic, p_lazy 0..0.5, 5 seeds
+    python scripts/sweep_plazy.py                                   # MiniGridEmpty (size 5) episodic, p_lazy 0..0.5, 3 seeds, tuned PSRL
     python scripts/sweep_plazy.py --family SimpleGrid --setting continuous --param size=10
 """
 

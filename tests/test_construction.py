@@ -1,6 +1,8 @@
-"""Construction order of the action permutations (families.md §1.4, §1.6; refined in construction.py)."""
+"""Construction (construction.py): the order of the action permutations (families.md §1.4, §1.6) and the horizon's
+eccentricity search (§1.8)."""
 
 import numpy as np
+import pytest
 
 import jaxmdp
 
@@ -35,3 +37,38 @@ def test_stochastic_rewards_draw_permutations_after_the_first_subtree():
     order = [0] + list(range(49, 0, -1))
     expected = {x: int(u[i, 0] > u[i, 1]) for i, x in enumerate(order)}
     assert _action0_moves_right(m) == [expected[x] for x in range(49)]
+
+
+def test_eccentricity_of_many_sources_matches_one_search_per_source():
+    from collections import deque
+
+    from jaxmdp.mdp_families.construction import _eccentricity
+
+    rng = np.random.RandomState(0)
+    for trial in range(20):
+        n = int(rng.randint(2, 40))
+        succ = {i: [int(j) for j in rng.choice(n, size=rng.randint(0, 4))] for i in range(n)}
+        sources = [int(s) for s in rng.choice(n, size=rng.randint(1, 6))]  # duplicates allowed
+        best = 0
+        for src in sources:
+            dist, queue = {src: 0}, deque([src])
+            while queue:
+                a = queue.popleft()
+                for b in succ[a]:
+                    if b not in dist:
+                        dist[b] = dist[a] + 1
+                        queue.append(b)
+            best = max(best, max(dist.values()))
+        assert _eccentricity(succ.__getitem__, sources) == best, trial
+
+
+def test_a_family_with_a_formula_horizon_skips_the_eccentricity_search(monkeypatch):
+    from jaxmdp.mdp_families import construction
+
+    def fail(*args):
+        raise AssertionError("the eccentricity search ran")
+
+    monkeypatch.setattr(construction, "_eccentricity", fail)
+    assert jaxmdp.make("Taxi", episodic=True, seed=0, size=4, length=1, n_locations=3).H == 24
+    with pytest.raises(AssertionError, match="search ran"):
+        jaxmdp.make("RiverSwim", episodic=True, seed=0, size=3)

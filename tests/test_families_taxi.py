@@ -167,7 +167,8 @@ def test_stochastic_defaults():
             "failure_delivery_r < default_r < successfully_delivery_r",
         ),  # fmt: skip
         (dict(size=5, default_r=("deterministic", (0.1,))), "all or none"),
-        (dict(size=5, sub_optimal_mean_reward=0.0, make_reward_stochastic=True), r"need 0 < sub_optimal_mean_reward"),
+        (dict(size=5, sub_optimal_mean_reward=0.0, make_reward_stochastic=True), r"^sub_optimal_mean_reward .*\(0, 1"),
+        (dict(size=5, optimal_mean_reward=1.0, make_reward_stochastic=True), r"^optimal_mean_reward .*\(0, 1\)"),
         (dict(size=9, length=8, width=8), r"quadrant 1 of the 9x9 Taxi grid has no free cell"),
     ],
 )

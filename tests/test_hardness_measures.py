@@ -92,3 +92,28 @@ def test_normalize_hand_worked():
     out = np.asarray(hardness.normalize(np.array([1.0, np.inf, 3.0])))
     np.testing.assert_allclose(out[[0, 2]], [0.0, 1.0])
     assert np.isnan(out[1])
+
+
+@pytest.mark.parametrize("variant", ["paper", "colosseum"])
+def test_measures_many_equals_single_calls_in_input_order(continuous_members, episodic_members, variant):
+    # Episodic and continuous members interleaved; two buckets per setting, so members are regrouped and reordered.
+    mdps = [episodic_members[2], continuous_members[1], episodic_members[0], continuous_members[2],
+            continuous_members[0], episodic_members[1]]
+    single = np.stack(
+        [all_values(m, variant, episodic.continuous_form(m) if m.episodic and variant == "colosseum" else None)
+         for m in mdps]
+    )
+    for batch_size in (1, 2):
+        out = hardness.measures_many(mdps, variant=variant, n_buckets=2, batch_size=batch_size)
+        got = np.stack([out.diameter.value, out.value_norm.value, out.sum_reciprocal_gaps.value], axis=1)
+        np.testing.assert_allclose(got, single, rtol=RTOL[variant])
+        assert out.diameter.converged.shape == (6,) and np.all(out.diameter.converged)
+
+
+def test_measures_many_rejects_bad_input(continuous_members):
+    with pytest.raises(ValueError, match="at least one"):
+        hardness.measures_many([])
+    with pytest.raises(ValueError, match="batch_size"):
+        hardness.measures_many(continuous_members, batch_size=0)
+    with pytest.raises(ValueError, match="not stacked"):
+        hardness.measures_many([jaxmdp.stack(continuous_members)])

@@ -76,8 +76,6 @@ def built():
     def get(entry):
         if entry["family"] not in jaxmdp.families():
             pytest.skip(f"family {entry['family']} is not implemented yet")
-        if entry["constructor_params"].get("randomize_actions", True):
-            pytest.skip("randomize_actions permutation stream not reproduced yet (see test_reference_parity)")
         if entry["id"] not in cache:
             cache[entry["id"]] = build_reference_mdp(entry)
         return cache[entry["id"]]

@@ -1,5 +1,7 @@
 """The MDP pytree: construction from arrays, validation errors, padding and stacking."""
 
+import itertools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -80,9 +82,9 @@ def test_stack_pads_without_changing_members():
     np.testing.assert_array_equal(T0[:3, 2], T0[:3, 0])
     back = jaxmdp.unstack(batch)
     for a, b in zip(mdps, back):
-        for name in ("T", "R", "P0", "reward_mean", "reward_conc"):
+        for name in ("T", "R", "P0", "reward_mean", "reward_conc", "succ", "succ_p", "state_mask", "action_mask"):
             np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
-        assert b.H == a.H
+        assert b.H == a.H and b.stochastic_rewards == a.stochastic_rewards
 
 
 def test_stack_rejects_mixed_settings():
@@ -118,3 +120,41 @@ def test_register_custom_family():
     np.testing.assert_allclose(jaxmdp.optimal_value(m), 0.5)
     with pytest.raises(ValueError, match="already registered"):
         jaxmdp.register("TwoStateTest", two_state)
+
+
+def _partitions(n, k):
+    """Every split of range(n) into at most k contiguous non-empty runs, as lists of cut points."""
+    for m in range(1, k + 1):
+        for cuts in itertools.combinations(range(1, n), m - 1):
+            yield [0, *cuts, n]
+
+
+def test_size_buckets_minimise_padded_work_brute_force():
+    rng = np.random.default_rng(5)
+    for trial in range(4):
+        episodic = trial % 2 == 1
+        shapes = [(int(rng.integers(2, 9)), int(rng.integers(1, 4))) for _ in range(7)]
+        mdps = [random_mdp(rng, S, A, H=int(rng.integers(2, 6)) if episodic else None) for S, A in shapes]
+        dims = np.array([(m.n_states, m.n_actions, m.max_successors, m.H or 1) for m in mdps], float)
+        order = np.lexsort(dims.T[::-1])
+
+        def work(group):
+            top = dims[group].max(axis=0)
+            return len(group) * top[0] ** 2 * top[1] * top[2] * top[3]
+
+        for k in (1, 2, 3):
+            groups = jaxmdp.size_buckets(mdps, k)
+            assert len(groups) <= k and sorted(i for g in groups for i in g) == list(range(7))
+            brute = min(
+                sum(work(order[a:b]) for a, b in zip(cuts, cuts[1:])) for cuts in _partitions(7, k)
+            )
+            assert sum(work(g) for g in groups) == brute
+    assert len(jaxmdp.size_buckets(mdps, 1)) == 1
+
+
+def test_size_buckets_rejects_bad_input():
+    rng = np.random.default_rng(6)
+    with pytest.raises(ValueError, match="n_buckets"):
+        jaxmdp.size_buckets([random_mdp(rng, 3, 2)], 0)
+    with pytest.raises(ValueError, match="all episodic or all continuous"):
+        jaxmdp.size_buckets([random_mdp(rng, 3, 2, H=3), random_mdp(rng, 3, 2)], 2)

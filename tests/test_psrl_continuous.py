@@ -167,7 +167,8 @@ def test_plan_is_gain_optimal_in_the_explicit_extended_mdp(planned):
     R, P = _redraw(state)
     n_psi = int(state.constants.psi)
     T, Rx = _extended_mdp(R, P, n_psi)
-    ref = jax.jit(lambda T, R: dp.optimal_gain(T, rewards=R, tol=1e-7))(T, Rx)
+    # tol: span of one sweep; gains ~8 leave float32 ~1e-6 of resolution, so 1e-7 cannot be met by every draw.
+    ref = jax.jit(lambda T, R: dp.optimal_gain(T, rewards=R, tol=2e-6))(T, Rx)
     assert bool(ref.converged) and bool(new.plan_converged)
     np.testing.assert_allclose(new.Q.max(-1) - new.u, float(ref.gain), atol=2e-5)
     # The executed real action is that of the best extended action, whose reward is its own action's draw.

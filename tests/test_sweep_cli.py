@@ -32,7 +32,8 @@ from hardness_helpers import normalize_by_hand
 REPO = Path(__file__).resolve().parents[1]
 SEEDS = (0, 1, 3)
 VALUES = (0.0, 0.2)
-ARGV = ["--family", "FrozenLake", "--param", "size=3", "--values", "0", "0.2", "--seeds", "0", "1", "3"]
+ARGV = ["--family", "FrozenLake", "--param", "size=3", "--values", "0", "0.2", "--seeds", "0", "1", "3",
+        "--agent-steps", "0"]
 STEM = "scenario1_FrozenLake_episodic"
 # The CLI computes a seed at a time (a 1-seed slice of the padded grid); the reference is the whole grid in one
 # vmapped call. Same operations per row; allow float32 round-off of a differently batched program.
@@ -258,7 +259,7 @@ def fake_backend(monkeypatch):
 
 def fake_argv(out: Path, seeds=(0, 1, 3), *extra: str, plot: bool = False) -> list[str]:
     argv = ["--family", "RiverSwim", "--setting", "continuous", "--param", "size=5", "--values", "0", "0.1", "0.3",
-            "--out", str(out), "--seeds", *map(str, seeds), *extra]
+            "--out", str(out), "--seeds", *map(str, seeds), "--agent-steps", "0", *extra]
     return argv + ([] if plot else ["--no-plot"])
 
 
@@ -336,7 +337,7 @@ def test_size_script_scenario_4_and_figure_axes(fake_backend, tmp_path, monkeypa
 
     monkeypatch.setattr(sweep_cli, "plot_scenario", fake_plot)
     argv = ["--scenario", "4", "--family", "DeepSea", "--setting", "continuous", "--values", "3", "4",
-            "--seeds", "0", "3", "--out", str(tmp_path)]
+            "--seeds", "0", "3", "--out", str(tmp_path), "--agent-steps", "0"]
     run_main(3, argv, scenario_choices=(3, 4))
     stem = tmp_path / "scenario4_DeepSea_continuous"
     config = json.loads(stem.with_suffix(".json").read_text())
@@ -404,7 +405,7 @@ def test_colosseum_variant_gets_its_own_stem(fake_backend, tmp_path):
     ],
 )
 def test_bad_arguments_exit_naming_the_option(scenario, argv, name, tmp_path, capsys):
-    base = ["--family", "RiverSwim", "--seeds", "0", "--out", str(tmp_path / "o"), "--no-plot"]
+    base = ["--family", "RiverSwim", "--seeds", "0", "--out", str(tmp_path / "o"), "--no-plot", "--agent-steps", "0"]
     if scenario in (1, 2):
         base += ["--param", "size=5", "--values", "0", "0.1"]
     else:
@@ -456,7 +457,7 @@ def test_sweep_size_script_smoke(tmp_path):
     deterministic DeepSea of size n is 2n - 2 (from (0, 1) down, back to the start, down the diagonal)."""
     env = dict(os.environ, PYTHONPATH=str(REPO))
     cmd = [sys.executable, str(REPO / "scripts" / "sweep_size.py"), "--family", "DeepSea", "--setting", "continuous",
-           "--values", "3", "4", "--seeds", "0", "--no-plot", "--out", str(tmp_path)]
+           "--values", "3", "4", "--seeds", "0", "--no-plot", "--out", str(tmp_path), "--agent-steps", "0"]
     proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     csv_path = tmp_path / "scenario3_DeepSea_continuous.csv"
@@ -467,3 +468,72 @@ def test_sweep_size_script_smoke(tmp_path):
     np.testing.assert_allclose(column(rows, "diameter"), [4.0, 6.0], rtol=1e-6)
     assert all(r[f"{k}_converged"] == "True" for r in rows for k in MEASURES)
     check_normalized(rows)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The tuned near-optimal agent's columns
+# ---------------------------------------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def fake_agent(monkeypatch):
+    """``tuned_regret`` replaced by known regrets ``seed + 0.5 j`` (normalised) per MDP; records its calls."""
+    calls = []
+
+    def tuned_regret(mdps, eval_seeds, **kwargs):
+        calls.append((list(eval_seeds), kwargs))
+        n = len(eval_seeds)
+        V = n // len(set(eval_seeds))
+        norm = np.asarray([s + 0.5 * (i % V) for i, s in enumerate(eval_seeds)], np.float64)
+        return types.SimpleNamespace(agent="ucrl2", cumulative_regret=4 * norm, normalized_cumulative_regret=norm)
+
+    monkeypatch.setattr(sweep_cli, "tuned_regret", tuned_regret)
+    monkeypatch.setattr(scenarios, "grid_mdps", lambda grid: None)
+    return calls
+
+
+def test_agent_columns_hold_the_tuned_regret_and_its_normalisation(fake_backend, fake_agent, tmp_path):
+    argv = fake_argv(tmp_path, (0, 1))
+    argv[argv.index("--agent-steps") + 1] = "300"
+    run_main(1, argv + ["--agent-candidates", "3", "--agent-tuning-seeds", "2"])
+    assert [c[0] for c in fake_agent] == [[0, 0, 0], [1, 1, 1]]  # one call per seed, one MDP per grid value
+    assert fake_agent[0][1] == dict(n_steps=300, n_candidates=3, n_tuning_seeds=2)
+    rows = read_table(tmp_path / "scenario1_RiverSwim_continuous.csv")
+    norm = np.asarray([0, 0.5, 1.0, 1.0, 1.5, 2.0])
+    assert all(r["agent"] == "ucrl2" for r in rows)
+    np.testing.assert_allclose(column(rows, "agent_normalized_cumulative_regret"), norm)
+    np.testing.assert_allclose(column(rows, "agent_cumulative_regret"), 4 * norm)
+    np.testing.assert_allclose(column(rows, "agent_regret_normalized"), norm / 2.0, atol=1e-7)
+    config = json.loads((tmp_path / "scenario1_RiverSwim_continuous.json").read_text())
+    assert config["agent"] == dict(agent="ucrl2", steps=300, candidates=3, tuning_seeds=2)
+    # resuming with the same agent settings recomputes nothing; with other settings it is refused
+    run_main(1, argv + ["--agent-candidates", "3", "--agent-tuning-seeds", "2", "--resume"])
+    assert len(fake_agent) == 2
+    with pytest.raises(SystemExit):
+        sweep_cli.main(1, argv + ["--agent-candidates", "4", "--agent-tuning-seeds", "2", "--resume"])
+
+
+def test_agent_curve_reaches_the_figure(fake_backend, fake_agent, tmp_path, monkeypatch):
+    seen = {}
+
+    def fake_plot(x, curves, path, *, xlabel, title=""):
+        seen.update(curves=curves, title=title)
+        Path(path).write_bytes(b"")
+        return Path(path)
+
+    monkeypatch.setattr(sweep_cli, "plot_scenario", fake_plot)
+    argv = fake_argv(tmp_path, (0, 1), plot=True)
+    argv[argv.index("--agent-steps") + 1] = "100"
+    run_main(1, argv)
+    np.testing.assert_allclose(seen["curves"][sweep_cli.AGENT_CURVE], [[0, 0.25, 0.5], [0.5, 0.75, 1.0]], atol=1e-7)
+    assert "tuned agent: ucrl2" in seen["title"]
+
+
+@pytest.mark.parametrize(
+    "extra, name",
+    [(["--agent-steps", "-1"], "--agent-steps"), (["--agent-candidates", "0"], "--agent-candidates")],
+)
+def test_bad_agent_arguments(extra, name, tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        sweep_cli.main(1, fake_argv(tmp_path) + extra)
+    assert name in capsys.readouterr().err

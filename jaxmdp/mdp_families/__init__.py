@@ -1,7 +1,9 @@
 """The MDP families of the paper (App. C), built host-side and registered under their Colosseum names.
 
 Each family lives in its own module (``jaxmdp.mdp_families.river_swim``, ...), which defines the family's dynamics as a
-:class:`Family` and a builder function of the same name; the builders are registered in :data:`BUILTIN_FAMILIES`.
+:class:`Family` and declares a builder function of the same name (its public signature and docstring) that
+:func:`~jaxmdp.mdp_families.construction.family_builder` turns into the call ``CommonParams -> Family -> build_mdp``;
+the builders are registered in :data:`BUILTIN_FAMILIES`.
 """
 
 from jaxmdp.mdp_families import (

@@ -16,7 +16,7 @@ turns it into an :class:`~jaxmdp.MDP` exactly as families.md §1 states:
 4. ``T[s, sigma_n[b], s'] += p`` for every entry, and ``reward_mean/conc[s, sigma_n[b], s'] = D(n, b, n')``, filled for
    every ``s'`` a kernel transform could add (``s`` itself and every action's successors);
 5. the horizon (§1.8): ``max(H_min, H)`` with ``H_min = 1 + max eccentricity of the possible starting nodes`` unless
-   the family overrides it.
+   the family overrides it (the eccentricity search then does not run).
 
 The draws from ``F`` made while expanding (the seeds of the reference's per-pair samplers) influence nothing
 structural and are skipped. Agent action ``k`` executes base action ``sigma_n^{-1}[k]`` and is rewarded with that
@@ -27,9 +27,10 @@ agree in every shipped family because their action-dependent rewards have ``A = 
 from __future__ import annotations
 
 import abc
+import functools
+import inspect
 import random
-from collections import deque
-from collections.abc import Hashable, Iterator, Sequence
+from collections.abc import Callable, Hashable, Iterator, Sequence
 from typing import Any
 
 import numpy as np
@@ -38,7 +39,7 @@ from jaxmdp.mdp_families.distributions import Distribution, PointMass
 from jaxmdp.mdp import MDP, MDPInfo, custom_mdp
 from jaxmdp.transforms import MAX_NOISE_PROBABILITY
 
-__all__ = ["Family", "CommonParams", "build_mdp", "check_noise_probability"]
+__all__ = ["Family", "CommonParams", "COMMON_PARAMETERS", "build_mdp", "family_builder", "check_noise_probability"]
 
 Node = Hashable
 
@@ -54,6 +55,19 @@ def check_noise_probability(name: str, value: float | None) -> float:
     if not (0.0 <= v < MAX_NOISE_PROBABILITY):
         raise ValueError(f"{name} must lie in [0, {MAX_NOISE_PROBABILITY}); got {v}")
     return v
+
+
+#: Keyword parameters that every family builder takes (families.md §1.2), validated by :class:`CommonParams`.
+COMMON_PARAMETERS = (
+    "episodic",
+    "seed",
+    "p_rand",
+    "p_lazy",
+    "randomize_actions",
+    "make_reward_stochastic",
+    "reward_variance_multiplier",
+    "H",
+)
 
 
 class CommonParams:
@@ -110,8 +124,10 @@ class Family(abc.ABC):
     name: str = ""
     n_actions: int = 0
     node_fields: tuple[str, ...] = ()
-    #: Families whose structure never depends on the seed (only action permutations do).
+    #: False for a family that never relabels its actions (its builder forces ``randomize_actions=False``).
     randomize_actions_allowed: bool = True
+    #: False for a family without a lazy mechanic (its builder rejects a positive ``p_lazy``).
+    lazy_allowed: bool = True
 
     @abc.abstractmethod
     def outcomes(self, node: Node, action: int) -> Sequence[tuple[Node, float]]:
@@ -131,10 +147,11 @@ class Family(abc.ABC):
         """The family's own parameters in the reference's order (families.md, each family's 'parameter dict')."""
         return ()
 
-    def minimum_horizon(self, eccentricity: int) -> int:
-        """``H_min`` of the episodic version; ``eccentricity`` is the largest shortest-path distance from a possible
-        starting node (default: ``1 + eccentricity``, families.md §1.8)."""
-        return 1 + eccentricity
+    def minimum_horizon(self, eccentricity: Callable[[], int]) -> int:
+        """``H_min`` of the episodic version; ``eccentricity()`` searches the graph for the largest shortest-path
+        distance from a possible starting node (default: ``1 + eccentricity()``, families.md §1.8). A family whose
+        horizon does not depend on the graph should not call it."""
+        return 1 + eccentricity()
 
     def fixed_horizon(self) -> int | None:
         """A horizon that the family imposes (and that the user may not set), or None."""
@@ -153,42 +170,49 @@ class Family(abc.ABC):
         return ()
 
 
-def _effective_outcomes(fam: Family, node: Node, b: int, p_rand: float, p_lazy: float) -> list[tuple[Node, float]]:
-    """families.md §1.3: own outcomes, then the lazy self-loop, then the other actions' outcomes."""
-    A = fam.n_actions
+def _effective_outcomes(
+    base: Sequence[Sequence[tuple[Node, float]]], node: Node, b: int, p_rand: float, p_lazy: float
+) -> list[tuple[Node, float]]:
+    """families.md §1.3: own outcomes, then the lazy self-loop, then the other actions' outcomes (``base[c]`` is the
+    base outcome list of action ``c`` at ``node``)."""
+    A = len(base)
     own_w = (1.0 - p_lazy) * ((1.0 - p_rand) + p_rand / A)
-    out = [(n2, q * own_w) for n2, q in fam.outcomes(node, b)]
+    out = [(n2, q * own_w) for n2, q in base[b]]
     if p_lazy > 0:
         out.append((node, p_lazy))
     if p_rand > 0:
         other_w = (1.0 - p_lazy) * p_rand / A
         for c in range(A):
             if c != b:
-                out.extend((n2, q * other_w) for n2, q in fam.outcomes(node, c))
+                out.extend((n2, q * other_w) for n2, q in base[c])
     return out
 
 
-def _eccentricity(fam: Family, sources: Sequence[Node]) -> int:
-    """Largest shortest-path distance from any source in the graph of base outcomes (§1.8)."""
-    successors: dict[Node, list[Node]] = {}  # one outcome query per node, shared by all the searches
+def _eccentricity(successors: Callable[[Node], Sequence[Node]], sources: Sequence[Node]) -> int:
+    """Largest shortest-path distance from any source (§1.8).
 
-    def succ(n: Node) -> list[Node]:
-        if n not in successors:
-            successors[n] = [n2 for a in range(fam.n_actions) for n2, q in fam.outcomes(n, a) if q > 0]
-        return successors[n]
-
-    best = 0
-    for src in sources:
-        dist = {src: 0}
-        queue = deque([src])
-        while queue:
-            n = queue.popleft()
-            for n2 in succ(n):
-                if n2 not in dist:
-                    dist[n2] = dist[n] + 1
-                    queue.append(n2)
-        best = max(best, max(dist.values()))
-    return best
+    One breadth-first search serves all the sources: each node carries the set of sources that have reached it as the
+    bits of a Python integer, and a level adds to a node the sources that reach it first at that distance. The last
+    level that adds anything is the largest distance of all.
+    """
+    reached: dict[Node, int] = {}
+    for i, src in enumerate(sources):
+        reached[src] = reached.get(src, 0) | (1 << i)
+    frontier = dict(reached)
+    depth = 0
+    while True:
+        new: dict[Node, int] = {}
+        for n, bits in frontier.items():
+            for n2 in successors(n):
+                fresh = bits & ~reached.get(n2, 0)
+                if fresh:
+                    new[n2] = new.get(n2, 0) | fresh
+        if not new:
+            return depth
+        for n2, bits in new.items():
+            reached[n2] = reached.get(n2, 0) | bits
+        frontier = new
+        depth += 1
 
 
 def build_mdp(fam: Family, common: CommonParams) -> MDP:
@@ -199,6 +223,15 @@ def build_mdp(fam: Family, common: CommonParams) -> MDP:
     starts, start_probs, possible_starts = fam.starting_nodes(G, F)
     randomize = common.randomize_actions and fam.randomize_actions_allowed
     r, l = common.p_rand, common.p_lazy  # noqa: E741
+
+    base: dict[Node, list[Sequence[tuple[Node, float]]]] = {}
+
+    def outcomes(n: Node) -> list[Sequence[tuple[Node, float]]]:
+        # Every base action's outcome list, asked of the family once per node (the effective lists, the reward
+        # neighbourhood and the eccentricity search all reuse it).
+        if n not in base:
+            base[n] = [fam.outcomes(n, c) for c in range(A)]
+        return base[n]
 
     index: dict[Node, int] = {}
     sigma: dict[Node, np.ndarray] = {}
@@ -226,7 +259,7 @@ def build_mdp(fam: Family, common: CommonParams) -> MDP:
     def expand(n: Node) -> Iterator[Node]:
         # One frame of the reference's recursive visit; yields each child to expand before continuing.
         for b in range(A):
-            lst = _effective_outcomes(fam, n, b, r, l)
+            lst = _effective_outcomes(outcomes(n), n, b, r, l)
             discover(n)
             for n2, _ in lst:
                 discover(n2)
@@ -261,8 +294,8 @@ def build_mdp(fam: Family, common: CommonParams) -> MDP:
     for n in nodes:
         s = index[n]
         neighbours = {n}
-        for c in range(A):
-            neighbours.update(n2 for n2, _ in fam.outcomes(n, c))
+        for lst in outcomes(n):
+            neighbours.update(n2 for n2, _ in lst)
         for b in range(A):
             k = int(sigma[n][b])
             for n2, p in lists[(n, b)]:
@@ -284,7 +317,10 @@ def build_mdp(fam: Family, common: CommonParams) -> MDP:
                 raise ValueError(f"{fam.name} fixes its horizon to {fixed}; H must not be given")
             H = fixed
         else:
-            H_min = fam.minimum_horizon(_eccentricity(fam, possible_starts))
+            def successors(n: Node) -> list[Node]:
+                return [n2 for lst in outcomes(n) for n2, q in lst if q > 0]
+
+            H_min = fam.minimum_horizon(lambda: _eccentricity(successors, possible_starts))
             H = H_min if common.H is None else max(H_min, common.H)
 
     # The reference's episodic graph (families.md §1.8) walks each node's successors in edge-creation order and the
@@ -302,3 +338,45 @@ def build_mdp(fam: Family, common: CommonParams) -> MDP:
         layout=fam.layout() + (("successor_order", successor_order), ("start_order", start_order)),
     )
     return custom_mdp(T, P0=P0, H=H, reward_mean=reward_mean, reward_conc=reward_conc, info=info)
+
+
+def family_builder(family: type[Family]) -> Callable[[Callable[..., MDP]], Callable[..., MDP]]:
+    """Decorator making a signature-only function the builder of ``family``.
+
+    The decorated function declares the builder's public keyword-only signature (every name of
+    :data:`COMMON_PARAMETERS` plus the family's own parameters) and its docstring; its body is never run. A call binds
+    the arguments to that signature (a missing or unknown argument is a ``TypeError``, as for any function), validates
+    the common ones into :class:`CommonParams` (``randomize_actions`` forced off and a positive ``p_lazy`` rejected
+    where the family says so), constructs ``family(**own parameters, **the common values its constructor names)``
+    and returns :func:`build_mdp` of it.
+    """
+    wanted = [p for p in inspect.signature(family).parameters if p in COMMON_PARAMETERS]
+
+    def decorate(declaration: Callable[..., MDP]) -> Callable[..., MDP]:
+        signature = inspect.signature(declaration)
+        missing = [p for p in COMMON_PARAMETERS if p not in signature.parameters]
+        if missing:
+            raise TypeError(f"the builder {declaration.__name__} must declare the common parameters {missing}")
+
+        @functools.wraps(declaration)
+        def builder(*args: Any, **kwargs: Any) -> MDP:
+            try:
+                bound = signature.bind(*args, **kwargs)
+            except TypeError as e:
+                raise TypeError(f"{declaration.__name__}(): {e}") from None
+            bound.apply_defaults()
+            own = dict(bound.arguments)
+            given = {p: own.pop(p) for p in COMMON_PARAMETERS}
+            if not family.lazy_allowed and check_noise_probability("p_lazy", given["p_lazy"]) > 0:
+                raise ValueError(
+                    f"p_lazy must be None for {family.name} (it has no lazy mechanic); got {given['p_lazy']}"
+                )
+            if not family.randomize_actions_allowed:
+                given["randomize_actions"] = False
+            common = CommonParams(**given)
+            fam = family(**own, **{p: getattr(common, p) for p in wanted})
+            return build_mdp(fam, common)
+
+        return builder
+
+    return decorate

@@ -14,15 +14,21 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp, check_noise_probability
-from jaxmdp.mdp_families.distributions import Beta, Distribution, PointMass, resolve_distributions
+from jaxmdp.mdp_families.construction import Family, family_builder
+from jaxmdp.mdp_families.distributions import (
+    Beta,
+    Distribution,
+    PointMass,
+    check_default_reward_parameter,
+    resolve_distributions,
+)
+from jaxmdp.mdp_families.parameters import integer_parameter
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
 __all__ = ["DeepSeaNode", "DeepSeaFamily", "deep_sea"]
 
 LEFT, RIGHT = 0, 1
-_DIST_ORDER = ("optimal_distribution", "sub_optimal_distribution", "other_distribution")
 
 
 class DeepSeaNode(NamedTuple):
@@ -34,6 +40,7 @@ class DeepSeaFamily(Family):
     name = "DeepSea"
     n_actions = 2
     node_fields = ("X", "Y")
+    lazy_allowed = False
 
     def __init__(
         self,
@@ -47,14 +54,12 @@ class DeepSeaFamily(Family):
         sub_optimal_distribution: Any = None,
         other_distribution: Any = None,
     ) -> None:
-        if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 2:
-            raise ValueError(f"size must be an integer >= 2 for DeepSea; got {size!r}")
+        self.size = integer_parameter("size", size, 2, self.name)
         if not suboptimal_return < optimal_return - 0.1:
             raise ValueError(
                 "suboptimal_return must be below optimal_return - 0.1; "
                 f"got {suboptimal_return} and {optimal_return}"
             )
-        self.size = int(size)
         self.optimal_return = float(optimal_return)
         self.suboptimal_return = float(suboptimal_return)
         given = {
@@ -63,29 +68,25 @@ class DeepSeaFamily(Family):
             "other_distribution": other_distribution,
         }
         v = reward_variance_multiplier
-        defaults: dict[str, Distribution] = {}
-        if all(d is None for d in given.values()):
-            if make_reward_stochastic:
-                # Means r_sub/size (sub-optimal), 1 - r_opt/size (optimal), 1/(1 + 10(size/r_sub - 1)) (other);
-                # the Beta parameters are positive only for returns in (0, size).
-                returns = (("suboptimal_return", self.suboptimal_return), ("optimal_return", self.optimal_return))
-                for pname, r in returns:
-                    if not 0 < r < self.size:
-                        raise ValueError(
-                            f"{pname} must lie in (0, size={self.size}) for the stochastic default rewards; got {r}"
-                        )
-                defaults = {
-                    "optimal_distribution": Beta(v * (self.size / self.optimal_return - 1), v),
-                    "sub_optimal_distribution": Beta(v, v * (self.size / self.suboptimal_return - 1)),
-                    "other_distribution": Beta(v, 10 * v * (self.size / self.suboptimal_return - 1)),
-                }
-            else:
+
+        def defaults() -> dict[str, Distribution]:
+            if not make_reward_stochastic:
                 # The deterministic small reward is 1/size^2 whatever suboptimal_return is (as in the reference).
-                defaults = {
+                return {
                     "optimal_distribution": PointMass(1.0),
                     "sub_optimal_distribution": PointMass(1.0 / self.size**2),
                     "other_distribution": PointMass(0.0),
                 }
+            # Means r_sub/size (sub-optimal), 1 - r_opt/size (optimal), 1/(1 + 10(size/r_sub - 1)) (other); the Beta
+            # parameters are positive only for returns in (0, size).
+            check_default_reward_parameter("suboptimal_return", self.suboptimal_return, self.size, f"size={self.size}")
+            check_default_reward_parameter("optimal_return", self.optimal_return, self.size, f"size={self.size}")
+            return {
+                "optimal_distribution": Beta(v * (self.size / self.optimal_return - 1), v),
+                "sub_optimal_distribution": Beta(v, v * (self.size / self.suboptimal_return - 1)),
+                "other_distribution": Beta(v, 10 * v * (self.size / self.suboptimal_return - 1)),
+            }
+
         self.dists = resolve_distributions(given, defaults, make_reward_stochastic)
 
     def outcomes(self, node: DeepSeaNode, action: int) -> list[tuple[DeepSeaNode, float]]:
@@ -113,7 +114,7 @@ class DeepSeaFamily(Family):
             ("size", self.size),
             ("optimal_return", self.optimal_return),
             ("suboptimal_return", self.suboptimal_return),
-            *((k, str(self.dists[k])) for k in _DIST_ORDER),
+            *((k, str(d)) for k, d in self.dists.items()),
         )
 
     def layout(self) -> tuple[tuple[str, Any], ...]:
@@ -133,6 +134,7 @@ def render_deep_sea(info: MDPInfo, node: tuple[int, ...]) -> list[list[str]]:
 register_renderer(DeepSeaFamily.name, render_deep_sea)
 
 
+@family_builder(DeepSeaFamily)
 def deep_sea(
     *,
     episodic: bool,
@@ -160,26 +162,3 @@ def deep_sea(
       ValueError: ``size < 2``; ``p_lazy`` given (DeepSea has no lazy mechanic; ``None`` or 0 only);
         ``suboptimal_return >= optimal_return - 0.1``; ``H`` given (the episodic horizon is fixed to ``size``).
     """
-    if check_noise_probability("p_lazy", p_lazy) > 0:
-        raise ValueError(f"p_lazy must be None for DeepSea (it has no lazy mechanic); got {p_lazy}")
-    common = CommonParams(
-        episodic=episodic,
-        seed=seed,
-        p_rand=p_rand,
-        p_lazy=None,
-        randomize_actions=randomize_actions,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        H=H,
-    )
-    fam = DeepSeaFamily(
-        size=size,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        optimal_return=optimal_return,
-        suboptimal_return=suboptimal_return,
-        optimal_distribution=optimal_distribution,
-        sub_optimal_distribution=sub_optimal_distribution,
-        other_distribution=other_distribution,
-    )
-    return build_mdp(fam, common)

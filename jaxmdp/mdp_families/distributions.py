@@ -8,10 +8,17 @@ objects or as Colosseum-style tuples ``("beta", (a, b))`` / ``("deterministic", 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
-__all__ = ["Beta", "PointMass", "Distribution", "as_distribution", "resolve_distributions"]
+__all__ = [
+    "Beta",
+    "PointMass",
+    "Distribution",
+    "as_distribution",
+    "resolve_distributions",
+    "check_default_reward_parameter",
+]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,12 +81,21 @@ def as_distribution(name: str, spec: Any) -> Distribution:
 
 
 def resolve_distributions(
-    given: Mapping[str, Any], defaults: Mapping[str, Distribution], make_reward_stochastic: bool
+    given: Mapping[str, Any],
+    defaults: Callable[[], Mapping[str, Distribution]],
+    make_reward_stochastic: bool,
 ) -> dict[str, Distribution]:
-    """Explicit distributions (all or none, matching ``make_reward_stochastic``) or the family defaults."""
+    """Explicit distributions (all or none, matching ``make_reward_stochastic``) or the family defaults, keyed in the
+    order of ``given`` (the family's parameter order).
+
+    ``defaults()`` builds the family's default distributions for ``make_reward_stochastic``; it is called only when
+    no distribution is given, so it is where the parameters that only the defaults depend on are validated (with
+    :func:`check_default_reward_parameter`).
+    """
     provided = {k: v for k, v in given.items() if v is not None}
     if not provided:
-        return dict(defaults)
+        chosen = defaults()
+        return {k: chosen[k] for k in given}
     if len(provided) != len(given):
         missing = sorted(set(given) - set(provided))
         raise ValueError(f"reward distributions must be given all or none; missing {missing}")
@@ -90,3 +106,11 @@ def resolve_distributions(
         if not make_reward_stochastic and not isinstance(d, PointMass):
             raise ValueError(f"{k} is stochastic but make_reward_stochastic=False")
     return dists
+
+
+def check_default_reward_parameter(name: str, value: float, upper: float, upper_text: str | None = None) -> None:
+    """Raise ``ValueError`` unless ``0 < value < upper``: the range in which the family's stochastic default rewards
+    have positive Beta parameters. ``upper_text`` is how the message writes ``upper`` (e.g. ``"size=4"``)."""
+    if not 0 < value < upper:
+        bound = f"{upper:g}" if upper_text is None else upper_text
+        raise ValueError(f"{name} must lie in (0, {bound}) for the stochastic default rewards; got {value}")

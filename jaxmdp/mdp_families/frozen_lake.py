@@ -14,8 +14,15 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp
-from jaxmdp.mdp_families.distributions import Beta, Distribution, PointMass, resolve_distributions
+from jaxmdp.mdp_families.construction import Family, family_builder
+from jaxmdp.mdp_families.distributions import (
+    Beta,
+    Distribution,
+    PointMass,
+    check_default_reward_parameter,
+    resolve_distributions,
+)
+from jaxmdp.mdp_families.parameters import integer_parameter
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
@@ -102,8 +109,7 @@ class FrozenLakeFamily(Family):
         goal_r: Any = None,
         default_r: Any = None,
     ) -> None:
-        if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 3:
-            raise ValueError(f"size must be an integer >= 3 for FrozenLake; got {size!r}")
+        self.size = integer_parameter("size", size, 3, self.name)
         if isinstance(p_frozen, bool) or not isinstance(p_frozen, (int, float, np.number)) or not p_frozen >= 0.1:
             raise ValueError(f"p_frozen must be a number >= 0.1 (values above 1 act as 1); got {p_frozen!r}")
         if not suboptimal_return + 0.2 < optimal_return:
@@ -112,32 +118,26 @@ class FrozenLakeFamily(Family):
             )
         if not isinstance(is_slippery, (bool, np.bool_)):
             raise ValueError(f"is_slippery must be True or False; got {is_slippery!r}")
-        self.size = int(size)
         self.p_frozen = float(p_frozen)
         self.optimal_return = float(optimal_return)
         self.suboptimal_return = float(suboptimal_return)
         self.is_slippery = bool(is_slippery)
         given = {"goal_r": goal_r, "default_r": default_r}
-        v = reward_variance_multiplier
-        defaults: dict[str, Distribution] = {}
-        if all(d is None for d in given.values()):
-            if make_reward_stochastic:
-                # Means 1 - r_opt/size^2 (goal) and r_sub/size^2 (default); positive Beta parameters need both
-                # returns in (0, size^2).
-                returns = (("optimal_return", self.optimal_return), ("suboptimal_return", self.suboptimal_return))
-                for pname, r in returns:
-                    if not 0 < r < self.size**2:
-                        raise ValueError(
-                            f"{pname} must lie in (0, size^2={self.size**2}) for the stochastic default rewards; "
-                            f"got {r}"
-                        )
-                defaults = {
-                    "goal_r": Beta(v * (self.size**2 / self.optimal_return - 1), v),
-                    "default_r": Beta(v, v * (self.size**2 / self.suboptimal_return - 1)),
-                }
-            else:
+        v, n_cells = reward_variance_multiplier, self.size**2
+
+        def defaults() -> dict[str, Distribution]:
+            if not make_reward_stochastic:
                 # [paper≠code] the paper mentions a small step reward; deterministically it is 0.
-                defaults = {"goal_r": PointMass(1.0), "default_r": PointMass(0.0)}
+                return {"goal_r": PointMass(1.0), "default_r": PointMass(0.0)}
+            # Means 1 - r_opt/size^2 (goal) and r_sub/size^2 (default); positive Beta parameters need both returns in
+            # (0, size^2).
+            check_default_reward_parameter("optimal_return", self.optimal_return, n_cells, f"size^2={n_cells}")
+            check_default_reward_parameter("suboptimal_return", self.suboptimal_return, n_cells, f"size^2={n_cells}")
+            return {
+                "goal_r": Beta(v * (n_cells / self.optimal_return - 1), v),
+                "default_r": Beta(v, v * (n_cells / self.suboptimal_return - 1)),
+            }
+
         self.dists = resolve_distributions(given, defaults, make_reward_stochastic)
         self.lake = random_lake(self.size, self.p_frozen, seed)
 
@@ -180,8 +180,7 @@ class FrozenLakeFamily(Family):
             ("optimal_return", self.optimal_return),
             ("suboptimal_return", self.suboptimal_return),
             ("is_slippery", self.is_slippery),
-            ("goal_r", str(self.dists["goal_r"])),
-            ("default_r", str(self.dists["default_r"])),
+            *((k, str(d)) for k, d in self.dists.items()),
         )
 
     def layout(self) -> tuple[tuple[str, Any], ...]:
@@ -202,6 +201,7 @@ def render_frozen_lake(info: MDPInfo, node: tuple[int, ...]) -> list[list[str]]:
 register_renderer(FrozenLakeFamily.name, render_frozen_lake)
 
 
+@family_builder(FrozenLakeFamily)
 def frozen_lake(
     *,
     episodic: bool,
@@ -232,26 +232,3 @@ def frozen_lake(
         rewards with a return outside ``(0, size^2)``; ``goal_r`` / ``default_r`` not given both or none, or not
         matching ``make_reward_stochastic``; no valid lake within ``MAX_LAKE_DRAWS`` boards.
     """
-    common = CommonParams(
-        episodic=episodic,
-        seed=seed,
-        p_rand=p_rand,
-        p_lazy=p_lazy,
-        randomize_actions=randomize_actions,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        H=H,
-    )
-    fam = FrozenLakeFamily(
-        seed=common.seed,
-        size=size,
-        p_frozen=p_frozen,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        optimal_return=optimal_return,
-        suboptimal_return=suboptimal_return,
-        is_slippery=is_slippery,
-        goal_r=goal_r,
-        default_r=default_r,
-    )
-    return build_mdp(fam, common)

@@ -4,13 +4,16 @@ The agent stands on a cell ``(X, Y)`` facing a direction ``Dir``: ``UP = 0`` (``
 ``DOWN = 2`` (``Y - 1``), ``LEFT = 3`` (``X - 1``). Base actions ``0 = MoveForward`` (one cell in the facing
 direction when the family admits it), ``1 = TurnRight`` (``Dir + 1 mod 4``) and ``2 = TurnLeft`` (``Dir - 1 mod 4``).
 Every MiniGrid family pays its *optimal* reward distribution when the next node stands on the goal cell (whatever the
-direction, so turning on the goal keeps paying) and its *other* distribution otherwise.
+direction, so turning on the goal keeps paying) and its *other* distribution otherwise; :class:`MiniGridFamily` holds
+that reward and the node labels, :func:`render_minigrid` the text grid they all draw.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Any
 
+from jaxmdp.mdp_families.construction import Family
 from jaxmdp.mdp_families.distributions import Beta, Distribution, PointMass, resolve_distributions
 
 __all__ = [
@@ -25,8 +28,9 @@ __all__ = [
     "ARROWS",
     "forward_cell",
     "turned",
-    "minigrid_label",
+    "MiniGridFamily",
     "minigrid_distributions",
+    "render_minigrid",
 ]
 
 UP, RIGHT, DOWN, LEFT = 0, 1, 2, 3
@@ -50,11 +54,21 @@ def turned(d: int, action: int) -> int:
     return (d + 1) % 4 if action == TURN_RIGHT else (d - 1) % 4
 
 
-def minigrid_label(fields: tuple[str, ...], node: tuple[int, ...]) -> str:
-    """Colosseum's ``str(node)`` for MiniGrid nodes: the ``Dir`` field by name (``"X=0,Y=2,Dir=LEFT"``)."""
-    return ",".join(
-        f"{f}={DIRECTION_NAMES[v] if f == 'Dir' else v}" for f, v in zip(fields, node)
-    )
+class MiniGridFamily(Family):
+    """Base of the MiniGrid families: nodes start with ``(X, Y, Dir)``; subclasses set ``self.dists`` (from
+    :func:`minigrid_distributions`) in ``__init__`` and ``self.goal`` when drawing their starting nodes."""
+
+    goal: tuple[int, int] | None = None
+    dists: dict[str, Distribution]
+
+    def reward(self, node: tuple[int, ...], action: int, next_node: tuple[int, ...]) -> Distribution:
+        """The optimal distribution when ``next_node`` stands on the goal cell, the other one otherwise."""
+        on_goal = (next_node[0], next_node[1]) == self.goal
+        return self.dists["optimal_distribution" if on_goal else "other_distribution"]
+
+    def node_label(self, node: tuple[int, ...]) -> str:
+        """Colosseum's ``str(node)``: the ``Dir`` field by name (``"X=0,Y=2,Dir=LEFT"``)."""
+        return ",".join(f"{f}={DIRECTION_NAMES[v] if f == 'Dir' else v}" for f, v in zip(self.node_fields, node))
 
 
 def minigrid_distributions(
@@ -71,12 +85,28 @@ def minigrid_distributions(
     are taken all or none and must match ``make_reward_stochastic``.
     """
     v = reward_variance_multiplier
-    if make_reward_stochastic:
-        defaults = {
+
+    def defaults() -> dict[str, Distribution]:
+        if not make_reward_stochastic:
+            return {"optimal_distribution": PointMass(1.0), "other_distribution": PointMass(0.0)}
+        return {
             "optimal_distribution": Beta(v * (size**2 - 1), v),
             "other_distribution": Beta(v, v * (size**2 - 1)),
         }
-    else:
-        defaults = {"optimal_distribution": PointMass(1.0), "other_distribution": PointMass(0.0)}
+
     given = {"optimal_distribution": optimal_distribution, "other_distribution": other_distribution}
     return resolve_distributions(given, defaults, make_reward_stochastic)
+
+
+def render_minigrid(
+    size: int, node: tuple[int, ...], marks: Iterable[tuple[tuple[int, int], str]]
+) -> list[list[str]]:
+    """A ``size x size`` grid of blanks with ``symbol`` at each ``(x, y)`` of ``marks`` (a later mark covers an earlier
+    one) and the agent's arrow (``^ > v <``) on top at ``node``'s ``(X, Y, Dir)``; the top printed row is
+    ``Y = size-1``."""
+    rows = [[" "] * size for _ in range(size)]
+    for (x, y), symbol in marks:
+        rows[y][x] = symbol
+    x, y, d = node[:3]
+    rows[y][x] = ARROWS[d]
+    return rows[::-1]

@@ -51,16 +51,15 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp
-from jaxmdp.mdp_families.distributions import Distribution
+from jaxmdp.mdp_families.construction import family_builder
 from jaxmdp.mdp_families.minigrid import (
-    ARROWS,
-    DIRECTION_NAMES,
     MOVE_FORWARD,
     TURN_LEFT,
     TURN_RIGHT,
+    MiniGridFamily,
     forward_cell,
     minigrid_distributions,
+    render_minigrid,
     turned,
 )
 from jaxmdp.mdp_families.parameters import integer_parameter
@@ -80,7 +79,7 @@ class MiniGridDoorKeyNode(NamedTuple):
     DoorOpen: int
 
 
-class MiniGridDoorKeyFamily(Family):
+class MiniGridDoorKeyFamily(MiniGridFamily):
     name = "MiniGridDoorKey"
     n_actions = 5
     node_fields = ("X", "Y", "Dir", "HasKey", "DoorOpen")
@@ -147,20 +146,12 @@ class MiniGridDoorKeyFamily(Family):
             return [(MiniGridDoorKeyNode(x, y, d, has_key, 1), 1.0)]
         return [(node, 1.0)]
 
-    def reward(self, node: MiniGridDoorKeyNode, action: int, next_node: MiniGridDoorKeyNode) -> Distribution:
-        on_goal = (next_node.X, next_node.Y) == self.goal
-        return self.dists["optimal_distribution" if on_goal else "other_distribution"]
-
     def starting_nodes(self, G: np.random.RandomState, F: random.Random):
         agent_room = self._draw_layout(G)
         possible = [MiniGridDoorKeyNode(x, y, d, 0, 0) for x, y in agent_room if (x, y) != self.key for d in range(4)]
         G.shuffle(possible)
         starts = possible[: self.n_starting_states]
         return starts, [1.0 / len(starts)] * len(starts), possible
-
-    def node_label(self, node: MiniGridDoorKeyNode) -> str:
-        x, y, d, has_key, door_open = node
-        return f"X={x},Y={y},Dir={DIRECTION_NAMES[d]},HasKey={has_key},DoorOpen={door_open}"
 
     def params(self) -> tuple[tuple[str, Any], ...]:
         return (
@@ -183,25 +174,19 @@ def render_minigrid_doorkey(info: MDPInfo, node: tuple[int, ...]) -> list[list[s
     """``W`` walls, ``C``/``O`` the closed/open door, ``K`` the key while on the floor, ``G`` the goal and the agent's
     arrow (``^ > v <``) on top; the top printed row is ``Y = size-1``.
     Symbols ``[" ", ">", "<", "v", "^", "G", "W", "K", "C", "O"]``."""
-    size = info.layout_value("size")
-    x, y, d, has_key, door_open = node
-    rows = [[" "] * size for _ in range(size)]
-    for wx, wy in info.layout_value("walls"):
-        rows[wy][wx] = "W"
-    dx, dy = info.layout_value("door")
-    rows[dy][dx] = "O" if door_open else "C"
+    has_key, door_open = node[3], node[4]
+    marks = [(cell, "W") for cell in info.layout_value("walls")]
+    marks.append((info.layout_value("door"), "O" if door_open else "C"))
     if not has_key:
-        kx, ky = info.layout_value("key")
-        rows[ky][kx] = "K"
-    gx, gy = info.layout_value("goal")
-    rows[gy][gx] = "G"
-    rows[y][x] = ARROWS[d]
-    return rows[::-1]
+        marks.append((info.layout_value("key"), "K"))
+    marks.append((info.layout_value("goal"), "G"))
+    return render_minigrid(info.layout_value("size"), node, marks)
 
 
 register_renderer(MiniGridDoorKeyFamily.name, render_minigrid_doorkey)
 
 
+@family_builder(MiniGridDoorKeyFamily)
 def minigrid_doorkey(
     *,
     episodic: bool,
@@ -228,22 +213,3 @@ def minigrid_doorkey(
       optimal_distribution, other_distribution: reward distributions (all or none; defaults as MiniGridEmpty).
       The other arguments are the common ones (:class:`~jaxmdp.mdp_families.construction.CommonParams`).
     """
-    common = CommonParams(
-        episodic=episodic,
-        seed=seed,
-        p_rand=p_rand,
-        p_lazy=p_lazy,
-        randomize_actions=randomize_actions,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        H=H,
-    )
-    fam = MiniGridDoorKeyFamily(
-        size=size,
-        n_starting_states=n_starting_states,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        optimal_distribution=optimal_distribution,
-        other_distribution=other_distribution,
-    )
-    return build_mdp(fam, common)

@@ -23,14 +23,13 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp
-from jaxmdp.mdp_families.distributions import Distribution
+from jaxmdp.mdp_families.construction import family_builder
 from jaxmdp.mdp_families.minigrid import (
-    ARROWS,
     MOVE_FORWARD,
+    MiniGridFamily,
     forward_cell,
     minigrid_distributions,
-    minigrid_label,
+    render_minigrid,
     turned,
 )
 from jaxmdp.mdp_families.parameters import integer_parameter
@@ -58,7 +57,7 @@ def side_cells(size: int, side: int) -> list[tuple[int, int]]:
     return [(last - i, last) for i in range(size)]
 
 
-class MiniGridEmptyFamily(Family):
+class MiniGridEmptyFamily(MiniGridFamily):
     name = "MiniGridEmpty"
     n_actions = 3
     node_fields = ("X", "Y", "Dir")
@@ -79,7 +78,6 @@ class MiniGridEmptyFamily(Family):
         self.dists = minigrid_distributions(
             self.size, make_reward_stochastic, reward_variance_multiplier, optimal_distribution, other_distribution
         )
-        self.goal: tuple[int, int] | None = None
 
     def outcomes(self, node: MiniGridEmptyNode, action: int) -> list[tuple[MiniGridEmptyNode, float]]:
         x, y, d = node
@@ -88,10 +86,6 @@ class MiniGridEmptyFamily(Family):
             nx, ny = min(max(nx, 0), self.size - 1), min(max(ny, 0), self.size - 1)
             return [(MiniGridEmptyNode(nx, ny, d), 1.0)]
         return [(MiniGridEmptyNode(x, y, turned(d, action)), 1.0)]
-
-    def reward(self, node: MiniGridEmptyNode, action: int, next_node: MiniGridEmptyNode) -> Distribution:
-        on_goal = (next_node.X, next_node.Y) == self.goal
-        return self.dists["optimal_distribution" if on_goal else "other_distribution"]
 
     def starting_nodes(self, G: np.random.RandomState, F: random.Random):
         side = int(G.randint(4))
@@ -102,9 +96,6 @@ class MiniGridEmptyFamily(Family):
         F.randint(0, 10000)  # the reference's starting-sampler seed; keeps F in step
         possible = [MiniGridEmptyNode(x, y, d) for x, y in cells for d in range(4)]
         return starts, [1.0 / len(starts)] * len(starts), possible
-
-    def node_label(self, node: MiniGridEmptyNode) -> str:
-        return minigrid_label(self.node_fields, node)
 
     def params(self) -> tuple[tuple[str, Any], ...]:
         return (
@@ -122,18 +113,13 @@ def render_minigrid_empty(info: MDPInfo, node: tuple[int, ...]) -> list[list[str
 
     Symbols ``[" ", ">", "<", "v", "^", "G"]``.
     """
-    size = info.layout_value("size")
-    gx, gy = info.layout_value("goal")
-    rows = [[" "] * size for _ in range(size)]
-    rows[gy][gx] = "G"
-    x, y, d = node
-    rows[y][x] = ARROWS[d]
-    return rows[::-1]
+    return render_minigrid(info.layout_value("size"), node, [(info.layout_value("goal"), "G")])
 
 
 register_renderer(MiniGridEmptyFamily.name, render_minigrid_empty)
 
 
+@family_builder(MiniGridEmptyFamily)
 def minigrid_empty(
     *,
     episodic: bool,
@@ -158,22 +144,3 @@ def minigrid_empty(
         :func:`~jaxmdp.mdp_families.minigrid.minigrid_distributions`).
       The other arguments are the common ones (:class:`~jaxmdp.mdp_families.construction.CommonParams`).
     """
-    common = CommonParams(
-        episodic=episodic,
-        seed=seed,
-        p_rand=p_rand,
-        p_lazy=p_lazy,
-        randomize_actions=randomize_actions,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        H=H,
-    )
-    fam = MiniGridEmptyFamily(
-        size=size,
-        n_starting_states=n_starting_states,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        optimal_distribution=optimal_distribution,
-        other_distribution=other_distribution,
-    )
-    return build_mdp(fam, common)

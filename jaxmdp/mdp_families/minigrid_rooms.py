@@ -27,14 +27,13 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp
-from jaxmdp.mdp_families.distributions import Distribution
+from jaxmdp.mdp_families.construction import family_builder
 from jaxmdp.mdp_families.minigrid import (
-    ARROWS,
     MOVE_FORWARD,
+    MiniGridFamily,
     forward_cell,
     minigrid_distributions,
-    minigrid_label,
+    render_minigrid,
     turned,
 )
 from jaxmdp.mdp_families.parameters import integer_parameter
@@ -67,7 +66,7 @@ def admissible_cells(room_size: int, k: int) -> frozenset[tuple[int, int]]:
     return frozenset(cells)
 
 
-class MiniGridRoomsFamily(Family):
+class MiniGridRoomsFamily(MiniGridFamily):
     name = "MiniGridRooms"
     n_actions = 3
     node_fields = ("X", "Y", "Dir")
@@ -104,7 +103,6 @@ class MiniGridRoomsFamily(Family):
             optimal_distribution,
             other_distribution,
         )
-        self.goal: tuple[int, int] | None = None
 
     def outcomes(self, node: MiniGridRoomsNode, action: int) -> list[tuple[MiniGridRoomsNode, float]]:
         x, y, d = node
@@ -112,10 +110,6 @@ class MiniGridRoomsFamily(Family):
             nxt = forward_cell(x, y, d)
             return [(MiniGridRoomsNode(*nxt, d) if nxt in self.cells else node, 1.0)]
         return [(MiniGridRoomsNode(x, y, turned(d, action)), 1.0)]
-
-    def reward(self, node: MiniGridRoomsNode, action: int, next_node: MiniGridRoomsNode) -> Distribution:
-        on_goal = (next_node.X, next_node.Y) == self.goal
-        return self.dists["optimal_distribution" if on_goal else "other_distribution"]
 
     def starting_nodes(self, G: np.random.RandomState, F: random.Random):
         last = self.k - 1
@@ -130,9 +124,6 @@ class MiniGridRoomsFamily(Family):
         F.randint(0, 10000)  # the reference's starting-sampler seed; keeps F in step
         starts = possible[: self.n_starting_states]
         return starts, [1.0 / len(starts)] * len(starts), possible
-
-    def node_label(self, node: MiniGridRoomsNode) -> str:
-        return minigrid_label(self.node_fields, node)
 
     def params(self) -> tuple[tuple[str, Any], ...]:
         return (
@@ -155,21 +146,19 @@ def render_minigrid_rooms(info: MDPInfo, node: tuple[int, ...]) -> list[list[str
     """
     rs, k, g = (info.layout_value(n) for n in ("room_size", "rooms_per_side", "side"))
     doors = {rs // 2 + i * (rs + 1) + 1 for i in range(k)}
-    rows = [[" "] * g for _ in range(g)]
-    for x in range(1, g + 1):
-        for y in range(1, g + 1):
-            if (x != g and x % (rs + 1) == 0 and y not in doors) or (y != g and y % (rs + 1) == 0 and x not in doors):
-                rows[y - 1][x - 1] = "W"
-    gx, gy = info.layout_value("goal")
-    rows[gy][gx] = "G"
-    x, y, d = node
-    rows[y][x] = ARROWS[d]
-    return rows[::-1]
+    walls = [
+        ((x - 1, y - 1), "W")
+        for x in range(1, g + 1)
+        for y in range(1, g + 1)
+        if (x != g and x % (rs + 1) == 0 and y not in doors) or (y != g and y % (rs + 1) == 0 and x not in doors)
+    ]
+    return render_minigrid(g, node, [*walls, (info.layout_value("goal"), "G")])
 
 
 register_renderer(MiniGridRoomsFamily.name, render_minigrid_rooms)
 
 
+@family_builder(MiniGridRoomsFamily)
 def minigrid_rooms(
     *,
     episodic: bool,
@@ -197,23 +186,3 @@ def minigrid_rooms(
         with ``size = int(rs sqrt(n_rooms))``.
       The other arguments are the common ones (:class:`~jaxmdp.mdp_families.construction.CommonParams`).
     """
-    common = CommonParams(
-        episodic=episodic,
-        seed=seed,
-        p_rand=p_rand,
-        p_lazy=p_lazy,
-        randomize_actions=randomize_actions,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        H=H,
-    )
-    fam = MiniGridRoomsFamily(
-        room_size=room_size,
-        n_rooms=n_rooms,
-        n_starting_states=n_starting_states,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        optimal_distribution=optimal_distribution,
-        other_distribution=other_distribution,
-    )
-    return build_mdp(fam, common)

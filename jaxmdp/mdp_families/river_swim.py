@@ -12,8 +12,15 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp
-from jaxmdp.mdp_families.distributions import Beta, Distribution, PointMass, resolve_distributions
+from jaxmdp.mdp_families.construction import Family, family_builder
+from jaxmdp.mdp_families.distributions import (
+    Beta,
+    Distribution,
+    PointMass,
+    check_default_reward_parameter,
+    resolve_distributions,
+)
+from jaxmdp.mdp_families.parameters import integer_parameter
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
@@ -44,36 +51,41 @@ class RiverSwimFamily(Family):
         sub_optimal_distribution: Any = None,
         other_distribution: Any = None,
     ) -> None:
-        if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 2:
-            raise ValueError(f"size must be an integer >= 2 for RiverSwim; got {size!r}")
+        self.size = integer_parameter("size", size, 2, self.name)
         if not optimal_mean_reward - 0.1 > sub_optimal_mean_reward:
             raise ValueError(
                 "optimal_mean_reward - 0.1 must exceed sub_optimal_mean_reward; "
                 f"got {optimal_mean_reward} and {sub_optimal_mean_reward}"
             )
-        self.size = int(size)
         self.optimal_mean_reward = float(optimal_mean_reward)
         self.sub_optimal_mean_reward = float(sub_optimal_mean_reward)
-        v = reward_variance_multiplier
-        if make_reward_stochastic:
-            mu_s = self.sub_optimal_mean_reward / (self.size if episodic else 1)
-            mu_o = self.optimal_mean_reward
-            defaults = {
-                "optimal_distribution": Beta(v, v * (1 / mu_o - 1)),
-                "sub_optimal_distribution": Beta(v, v * (1 / mu_s - 1)),
-                "other_distribution": Beta(v, v * (10 / mu_s - 1)),
-            }
-        else:
-            defaults = {
-                "optimal_distribution": PointMass(1.0),
-                "sub_optimal_distribution": PointMass(0.005),
-                "other_distribution": PointMass(0.0),
-            }
         given = {
             "optimal_distribution": optimal_distribution,
             "sub_optimal_distribution": sub_optimal_distribution,
             "other_distribution": other_distribution,
         }
+        v = reward_variance_multiplier
+
+        def defaults() -> dict[str, Distribution]:
+            if not make_reward_stochastic:
+                return {
+                    "optimal_distribution": PointMass(1.0),
+                    "sub_optimal_distribution": PointMass(0.005),
+                    "other_distribution": PointMass(0.0),
+                }
+            # Means mu_o (optimal), mu_s (sub-optimal) and mu_s / 10 (other), mu_s = sub_optimal_mean_reward / size
+            # when episodic; with sub_optimal_mean_reward < optimal_mean_reward - 0.1 the Betas are proper exactly
+            # when both means lie in (0, 1).
+            check_default_reward_parameter("optimal_mean_reward", self.optimal_mean_reward, 1)
+            check_default_reward_parameter("sub_optimal_mean_reward", self.sub_optimal_mean_reward, 1)
+            mu_s = self.sub_optimal_mean_reward / (self.size if episodic else 1)
+            mu_o = self.optimal_mean_reward
+            return {
+                "optimal_distribution": Beta(v, v * (1 / mu_o - 1)),
+                "sub_optimal_distribution": Beta(v, v * (1 / mu_s - 1)),
+                "other_distribution": Beta(v, v * (10 / mu_s - 1)),
+            }
+
         self.dists = resolve_distributions(given, defaults, make_reward_stochastic)
 
     def outcomes(self, node: RiverSwimNode, action: int) -> list[tuple[RiverSwimNode, float]]:
@@ -115,6 +127,7 @@ def render_river_swim(info: MDPInfo, node: tuple[int, ...]) -> list[list[str]]:
 register_renderer(RiverSwimFamily.name, render_river_swim)
 
 
+@family_builder(RiverSwimFamily)
 def river_swim(
     *,
     episodic: bool,
@@ -132,26 +145,15 @@ def river_swim(
     other_distribution: Any = None,
     H: int | None = None,
 ) -> MDP:
-    """Build a RiverSwim MDP (families.md §2.1). Default horizon ``H = size``."""
-    common = CommonParams(
-        episodic=episodic,
-        seed=seed,
-        p_rand=p_rand,
-        p_lazy=p_lazy,
-        randomize_actions=randomize_actions,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        H=H,
-    )
-    fam = RiverSwimFamily(
-        size=size,
-        episodic=episodic,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        optimal_mean_reward=optimal_mean_reward,
-        sub_optimal_mean_reward=sub_optimal_mean_reward,
-        optimal_distribution=optimal_distribution,
-        sub_optimal_distribution=sub_optimal_distribution,
-        other_distribution=other_distribution,
-    )
-    return build_mdp(fam, common)
+    """Build a RiverSwim MDP (families.md §2.1). Default horizon ``H = size``.
+
+    Default rewards: deterministic optimal 1, sub-optimal 0.005, other 0; stochastic (``v =
+    reward_variance_multiplier``, ``mu_o = optimal_mean_reward``, ``mu_s = sub_optimal_mean_reward``, divided by
+    ``size`` when episodic) optimal ``Beta(v, v (1/mu_o - 1))``, sub-optimal ``Beta(v, v (1/mu_s - 1))``, other
+    ``Beta(v, v (10/mu_s - 1))``.
+
+    Raises:
+      ValueError: ``size < 2``; ``optimal_mean_reward - 0.1 <= sub_optimal_mean_reward``; stochastic default rewards
+        with ``optimal_mean_reward`` or ``sub_optimal_mean_reward`` outside ``(0, 1)``; distributions not given
+        all-or-none or not matching ``make_reward_stochastic``.
+    """

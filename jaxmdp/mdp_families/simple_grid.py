@@ -14,15 +14,21 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp
-from jaxmdp.mdp_families.distributions import Beta, Distribution, PointMass, resolve_distributions
+from jaxmdp.mdp_families.construction import Family, family_builder
+from jaxmdp.mdp_families.distributions import (
+    Beta,
+    Distribution,
+    PointMass,
+    check_default_reward_parameter,
+    resolve_distributions,
+)
+from jaxmdp.mdp_families.parameters import integer_parameter
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
 __all__ = ["SimpleGridNode", "SimpleGridReward", "SimpleGridFamily", "simple_grid"]
 
 UP, RIGHT, DOWN, LEFT, NO_OP = 0, 1, 2, 3, 4
-_DIST_ORDER = ("optimal_distribution", "sub_optimal_distribution", "other_distribution")
 
 
 class SimpleGridReward(enum.IntEnum):
@@ -76,20 +82,12 @@ class SimpleGridFamily(Family):
         sub_optimal_distribution: Any = None,
         other_distribution: Any = None,
     ) -> None:
-        if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 2:
-            raise ValueError(f"size must be an integer >= 2 for SimpleGrid; got {size!r}")
-        self.size = int(size)
+        self.size = integer_parameter("size", size, 2, self.name)
         self.reward_type = _reward_type(reward_type)
-        n_candidates = (self.size - 1) ** 2
-        if (
-            isinstance(n_starting_states, bool)
-            or not isinstance(n_starting_states, (int, np.integer))
-            or not 1 <= n_starting_states <= n_candidates
-        ):
-            raise ValueError(
-                f"n_starting_states must be an integer in [1, (size-1)^2 = {n_candidates}]; got {n_starting_states!r}"
-            )
-        self.n_starting_states = int(n_starting_states)
+        # The starting cells are drawn among the (size-1)^2 cells closest to the centre.
+        self.n_starting_states = integer_parameter(
+            "n_starting_states", n_starting_states, 1, self.name, (self.size - 1) ** 2
+        )
         if not optimal_mean_reward - 0.1 > sub_optimal_mean_reward:
             raise ValueError(
                 "optimal_mean_reward - 0.1 must exceed sub_optimal_mean_reward; "
@@ -103,29 +101,25 @@ class SimpleGridFamily(Family):
             "other_distribution": other_distribution,
         }
         v = reward_variance_multiplier
-        defaults: dict[str, Distribution] = {}
-        if all(d is None for d in given.values()):
-            if make_reward_stochastic:
-                # Means: optimal mu_o, other mu_s, sub-optimal mu_s / 10; the Betas need both means in (0, 1).
-                for pname, mu in (
-                    ("optimal_mean_reward", self.optimal_mean_reward),
-                    ("sub_optimal_mean_reward", self.sub_optimal_mean_reward),
-                ):
-                    if not 0 < mu < 1:
-                        raise ValueError(f"{pname} must lie in (0, 1) for the stochastic default rewards; got {mu}")
-                mu_o, mu_s = self.optimal_mean_reward, self.sub_optimal_mean_reward
-                defaults = {
-                    "optimal_distribution": Beta(v, v * (1 / mu_o - 1)),
-                    "sub_optimal_distribution": Beta(v, v * (10 / mu_s - 1)),
-                    "other_distribution": Beta(v, v * (1 / mu_s - 1)),
-                }
-            else:
+
+        def defaults() -> dict[str, Distribution]:
+            if not make_reward_stochastic:
                 # [paper≠code] the paper calls the per-step reward small; the reference pays 0.5 deterministically.
-                defaults = {
+                return {
                     "optimal_distribution": PointMass(1.0),
                     "sub_optimal_distribution": PointMass(0.0),
                     "other_distribution": PointMass(0.5),
                 }
+            # Means: optimal mu_o, other mu_s, sub-optimal mu_s / 10; the Betas need both means in (0, 1).
+            mu_o, mu_s = self.optimal_mean_reward, self.sub_optimal_mean_reward
+            check_default_reward_parameter("optimal_mean_reward", mu_o, 1)
+            check_default_reward_parameter("sub_optimal_mean_reward", mu_s, 1)
+            return {
+                "optimal_distribution": Beta(v, v * (1 / mu_o - 1)),
+                "sub_optimal_distribution": Beta(v, v * (10 / mu_s - 1)),
+                "other_distribution": Beta(v, v * (1 / mu_s - 1)),
+            }
+
         self.dists = resolve_distributions(given, defaults, make_reward_stochastic)
 
     def outcomes(self, node: SimpleGridNode, action: int) -> list[tuple[SimpleGridNode, float]]:
@@ -179,7 +173,7 @@ class SimpleGridFamily(Family):
             ("n_starting_states", self.n_starting_states),
             ("optimal_mean_reward", self.optimal_mean_reward),
             ("sub_optimal_mean_reward", self.sub_optimal_mean_reward),
-            *((k, str(self.dists[k])) for k in _DIST_ORDER),
+            *((k, str(d)) for k, d in self.dists.items()),
         )
 
     def layout(self) -> tuple[tuple[str, Any], ...]:
@@ -203,6 +197,7 @@ def render_simple_grid(info: MDPInfo, node: tuple[int, ...]) -> list[list[str]]:
 register_renderer(SimpleGridFamily.name, render_simple_grid)
 
 
+@family_builder(SimpleGridFamily)
 def simple_grid(
     *,
     episodic: bool,
@@ -236,26 +231,3 @@ def simple_grid(
         ``[1, (size-1)^2]``; ``optimal_mean_reward - 0.1 <= sub_optimal_mean_reward``; stochastic default rewards
         with a mean outside (0, 1); distributions not given all-or-none or not matching ``make_reward_stochastic``.
     """
-    common = CommonParams(
-        episodic=episodic,
-        seed=seed,
-        p_rand=p_rand,
-        p_lazy=p_lazy,
-        randomize_actions=randomize_actions,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        H=H,
-    )
-    fam = SimpleGridFamily(
-        size=size,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        reward_type=reward_type,
-        n_starting_states=n_starting_states,
-        optimal_mean_reward=optimal_mean_reward,
-        sub_optimal_mean_reward=sub_optimal_mean_reward,
-        optimal_distribution=optimal_distribution,
-        sub_optimal_distribution=sub_optimal_distribution,
-        other_distribution=other_distribution,
-    )
-    return build_mdp(fam, common)

@@ -30,9 +30,6 @@ Departures from the reference, where it would crash or hang: a quadrant without 
 and so does a location draw that is rejected :data:`MAX_LOCATION_DRAWS` times in a row. Validation is also a little
 stricter: ``width >= 1`` (the reference accepts 0 and builds the walls of 1), ``length, space >= 0`` (negative values
 are meaningless or crash there), and partial reward distributions raise (the reference then ignores them).
-
-Building the episodic version also runs the engine's eccentricity search, whose result Taxi ignores (about 1 s for
-``size = 7``).
 """
 
 from __future__ import annotations
@@ -40,12 +37,19 @@ from __future__ import annotations
 import itertools
 import math
 import random
+from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp
-from jaxmdp.mdp_families.distributions import Beta, Distribution, PointMass, resolve_distributions
+from jaxmdp.mdp_families.construction import Family, family_builder
+from jaxmdp.mdp_families.distributions import (
+    Beta,
+    Distribution,
+    PointMass,
+    check_default_reward_parameter,
+    resolve_distributions,
+)
 from jaxmdp.mdp_families.parameters import integer_parameter
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
@@ -140,25 +144,25 @@ class TaxiFamily(Family):
             "failure_delivery_r": failure_delivery_r,
         }
         v = reward_variance_multiplier
-        uses_defaults = any(d is None for d in given.values())
-        if make_reward_stochastic and uses_defaults:
-            if not (0 < self.sub_optimal_mean_reward and self.optimal_mean_reward < 1):
-                raise ValueError(
-                    "the stochastic default rewards need 0 < sub_optimal_mean_reward and optimal_mean_reward < 1; "
-                    f"got {sub_optimal_mean_reward} and {optimal_mean_reward}"
-                )
+
+        def defaults() -> dict[str, Distribution]:
+            if not make_reward_stochastic:
+                return {
+                    "default_r": PointMass(0.1),
+                    "successfully_delivery_r": PointMass(1.0),
+                    "failure_delivery_r": PointMass(0.0),
+                }
+            # Means mu_s (default), mu_o (success), mu_s / 10 (failure); with the means' order checked above the
+            # Betas are proper exactly when both lie in (0, 1).
             mu_s, mu_o = self.sub_optimal_mean_reward, self.optimal_mean_reward
-            defaults = {
+            check_default_reward_parameter("sub_optimal_mean_reward", mu_s, 1)
+            check_default_reward_parameter("optimal_mean_reward", mu_o, 1)
+            return {
                 "default_r": Beta(v, v * (1 / mu_s - 1)),
                 "successfully_delivery_r": Beta(v, v * (1 / mu_o - 1)),
                 "failure_delivery_r": Beta(v, v * (10 / mu_s - 1)),
             }
-        else:
-            defaults = {
-                "default_r": PointMass(0.1),
-                "successfully_delivery_r": PointMass(1.0),
-                "failure_delivery_r": PointMass(0.0),
-            }
+
         self.dists = resolve_distributions(given, defaults, make_reward_stochastic)
         fail, default, success = (
             self.dists[k].mean for k in ("failure_delivery_r", "default_r", "successfully_delivery_r")
@@ -229,8 +233,8 @@ class TaxiFamily(Family):
         F.randint(0, 10000)  # the reference's starting-sampler seed; keeps F in step
         return starts, [1.0 / len(starts)] * len(starts), starts
 
-    def minimum_horizon(self, eccentricity: int) -> int:
-        """``floor(1.5 size^2)`` whatever the graph (families.md §1.8)."""
+    def minimum_horizon(self, eccentricity: Callable[[], int]) -> int:
+        """``floor(1.5 size^2)`` whatever the graph (families.md §1.8); the eccentricity search is skipped."""
         return int(1.5 * self.size**2)
 
     def params(self) -> tuple[tuple[str, Any], ...]:
@@ -268,6 +272,7 @@ def render_taxi(info: MDPInfo, node: tuple[int, ...]) -> list[list[str]]:
 register_renderer(TaxiFamily.name, render_taxi)
 
 
+@family_builder(TaxiFamily)
 def taxi(
     *,
     episodic: bool,
@@ -296,7 +301,8 @@ def taxi(
       length, width, space: wall pattern (``0 <= length < size``, ``1 <= width < size``, ``0 <= space < 2 size``).
       n_locations: number of pick-up/drop-off locations, ``>= 3`` (continuous) or ``>= 2`` (episodic), with
         ``size > 2 sqrt(n_locations)``.
-      optimal_mean_reward, sub_optimal_mean_reward: means of the stochastic defaults (``opt - 0.1 > sub``):
+      optimal_mean_reward, sub_optimal_mean_reward: means of the stochastic defaults (``opt - 0.1 > sub``, both in
+        ``(0, 1)`` when the stochastic defaults are used):
         default ``Beta(v, v (1/sub - 1))``, success ``Beta(v, v (1/opt - 1))``, failure ``Beta(v, v (10/sub - 1))``;
         deterministic defaults 0.1, 1.0, 0.0.
       default_r, successfully_delivery_r, failure_delivery_r: reward distributions (all or none) with means
@@ -304,30 +310,3 @@ def taxi(
       randomize_actions: ignored: Taxi never relabels its actions (the reference forces it off).
       The other arguments are the common ones (:class:`~jaxmdp.mdp_families.construction.CommonParams`).
     """
-    del randomize_actions  # the reference forces it to False
-    common = CommonParams(
-        episodic=episodic,
-        seed=seed,
-        p_rand=p_rand,
-        p_lazy=p_lazy,
-        randomize_actions=False,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        H=H,
-    )
-    fam = TaxiFamily(
-        size=size,
-        episodic=episodic,
-        length=length,
-        width=width,
-        space=space,
-        n_locations=n_locations,
-        optimal_mean_reward=optimal_mean_reward,
-        sub_optimal_mean_reward=sub_optimal_mean_reward,
-        make_reward_stochastic=make_reward_stochastic,
-        reward_variance_multiplier=reward_variance_multiplier,
-        default_r=default_r,
-        successfully_delivery_r=successfully_delivery_r,
-        failure_delivery_r=failure_delivery_r,
-    )
-    return build_mdp(fam, common)

@@ -1,0 +1,87 @@
+"""The three measures of many MDPs of different sizes at once: size buckets, one compiled program per bucket.
+
+``jax.vmap(hardness.measures)`` over one :func:`jaxmdp.stack` is right for a grid of equal shapes (a ``p_rand``
+sweep). A heterogeneous collection, such as the 80 MDPs of the benchmark (15 to 948 states, 2 to 6 actions, 1 to 8
+successors), pays twice in one padded stack: every member does the all-pairs work of the largest one
+(``S^2 A K`` per backup), and under ``vmap`` every iterative solver runs until the slowest member has converged.
+:func:`measures_many` avoids both: it splits the members by setting and then into :func:`jaxmdp.size_buckets`
+(minimal padded work), and maps the measures over each bucket's stack with ``lax.map``, so that each member's
+iterations stop at its own convergence. ``batch_size > 1`` vmaps chunks of that many members instead (for
+accelerators, where lockstep members run in parallel). Values are those of :func:`hardness.measures` (padding
+changes no measure).
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Sequence
+from typing import Any, Literal
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from hardness.measures import HardnessMeasures, measures
+from jaxmdp.batching import size_buckets, stack
+from jaxmdp.episodic import continuous_form, stack_continuous_forms
+from jaxmdp.mdp import MDP
+
+__all__ = ["measures_many"]
+
+
+@functools.partial(jax.jit, static_argnames=("gamma", "variant", "batch_size"))
+def _bucket_measures(batch: MDP, forms: Any, gamma: float, variant: str, batch_size: int) -> HardnessMeasures:
+    def one(args):
+        m, cf = args
+        return measures(m, gamma, variant=variant, continuous_form=cf)
+
+    return jax.lax.map(one, (batch, forms), batch_size=batch_size)
+
+
+def measures_many(
+    mdps: Sequence[MDP],
+    gamma: float = 0.99,
+    *,
+    variant: Literal["paper", "colosseum"] = "paper",
+    n_buckets: int = 8,
+    batch_size: int = 1,
+) -> HardnessMeasures:
+    """:func:`hardness.measures` of every MDP of ``mdps`` (episodic and continuous ones may be mixed), as one
+    :class:`~hardness.HardnessMeasures` whose arrays have a leading axis in the order of ``mdps``.
+
+    Args:
+      mdps: single (unstacked) MDPs of any sizes.
+      gamma: discount of the value norm and the gap sum, in ``(0, 1)``.
+      variant: ``"paper"`` or ``"colosseum"``, as in :func:`hardness.measures`.
+      n_buckets: most stacks (hence compiled programs) per setting; more buckets mean less padding and more
+        compilations (module docstring).
+      batch_size: members per ``lax.map`` step; ``1`` runs them one after another (best on CPU), larger values
+        vmap that many in lockstep.
+    """
+    mdps = list(mdps)
+    if not mdps:
+        raise ValueError("mdps must hold at least one MDP")
+    if any(m.T.ndim != 3 for m in mdps):
+        raise ValueError("mdps must be single MDPs, not stacked batches")
+    if variant not in ("paper", "colosseum"):
+        raise ValueError(f"variant must be 'paper' or 'colosseum'; got {variant!r}")
+    if not (0.0 < float(gamma) < 1.0):
+        raise ValueError(f"gamma must lie in (0, 1); got {gamma}")
+    if int(batch_size) != batch_size or batch_size < 1:
+        raise ValueError(f"batch_size must be a positive integer; got {batch_size}")
+    parts: list[tuple[np.ndarray, HardnessMeasures]] = []
+    for is_episodic in (False, True):
+        idx = [i for i, m in enumerate(mdps) if m.episodic == is_episodic]
+        if not idx:
+            continue
+        for group in size_buckets([mdps[i] for i in idx], n_buckets):
+            members = [mdps[idx[g]] for g in group]
+            forms = None
+            if variant == "colosseum" and is_episodic:
+                forms = stack_continuous_forms([continuous_form(m) for m in members])
+            out = _bucket_measures(stack(members).strip(), forms, float(gamma), variant, int(batch_size))
+            parts.append((np.asarray([idx[g] for g in group]), out))
+    where = np.concatenate([p[0] for p in parts])
+    inverse = np.empty_like(where)
+    inverse[where] = np.arange(len(where))
+    return jax.tree.map(lambda *xs: jnp.concatenate(xs)[inverse], *[p[1] for p in parts])

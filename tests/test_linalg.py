@@ -1,0 +1,89 @@
+"""jaxmdp.linalg.solve: jnp.linalg.solve's numbers under any vmap, and no deadlock of jaxlib 0.10.2's CPU pool.
+
+The deadlock check runs in a subprocess with ``NPROC=2`` (XLA's intra-op pool of two threads, whatever the machine)
+and a program with eight independent batched solves in a loop. With ``vmap(jnp.linalg.solve)`` in place of
+:func:`jaxmdp.linalg.solve`, this program and two like it hung in each of 9 tries (1 and 2 host devices, jaxlib
+0.10.2), so the subprocess's timeout is the regression test.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from conftest import REPO
+from jaxmdp.linalg import solve
+
+
+def _systems(key, shape, S):
+    ka, kb = jax.random.split(key)
+    a = 2.0 * jnp.eye(S) + 0.3 * jax.random.uniform(ka, (*shape, S, S))
+    b = jax.random.uniform(kb, (*shape, S))
+    return a, b
+
+
+def test_unbatched_is_jnp_solve_and_solves_the_system():
+    a, b = _systems(jax.random.key(0), (), 6)
+    x = jax.jit(solve)(a, b)
+    np.testing.assert_array_equal(np.asarray(x), np.asarray(jax.jit(jnp.linalg.solve)(a, b)))
+    np.testing.assert_allclose(np.asarray(a, np.float64) @ np.asarray(x, np.float64), np.asarray(b), atol=2e-6)
+
+
+def test_vmap_equals_batched_lapack_bitwise():
+    a, b = _systems(jax.random.key(1), (7,), 9)
+    ours = jax.jit(jax.vmap(solve))(a, b)
+    lapack = jax.jit(jax.vmap(jnp.linalg.solve))(a, b)
+    np.testing.assert_array_equal(np.asarray(ours), np.asarray(lapack))
+
+
+def test_nested_vmap_and_unbatched_operands():
+    a, b = _systems(jax.random.key(2), (3, 4), 5)
+    a64, b64 = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    tol = dict(rtol=2e-5, atol=2e-6)
+    expected = np.linalg.solve(a64, b64[..., None])[..., 0]
+    np.testing.assert_allclose(np.asarray(jax.jit(jax.vmap(jax.vmap(solve)))(a, b)), expected, **tol)
+    # One matrix with many right-hand sides, and many matrices with one right-hand side.
+    one_matrix = jax.vmap(solve, in_axes=(None, 0))(a[0, 0], b[0])
+    np.testing.assert_allclose(np.asarray(one_matrix), np.linalg.solve(a64[0, 0], b64[0].T).T, **tol)
+    one_rhs = jax.vmap(solve, in_axes=(0, None))(a[0], b[0, 0])
+    expected_one_rhs = np.linalg.solve(a64[0], np.broadcast_to(b64[0, 0], (4, 5))[..., None])[..., 0]
+    np.testing.assert_allclose(np.asarray(one_rhs), expected_one_rhs, **tol)
+
+
+DEADLOCK_PROGRAM = textwrap.dedent(
+    """
+    import jax, jax.numpy as jnp
+    from jaxmdp.linalg import solve
+
+    S, B, K = 55, 10, 8
+    a = 2.0 * jnp.eye(S) + 0.01 * jax.random.normal(jax.random.key(0), (B, S, S))
+    b = jnp.ones((B, S))
+
+    def step(i, x):
+        # K independent batched solves: XLA runs them concurrently on its intra-op pool.
+        return sum(jax.vmap(solve)(a + k, x) for k in range(K)) / (2.0 * K) + b
+
+    out = jax.jit(lambda x: jax.lax.fori_loop(0, 100, step, x))(b)
+    print("finite", bool(jnp.all(jnp.isfinite(out))))
+    """
+)
+
+
+def test_many_concurrent_batched_solves_do_not_deadlock_the_cpu_pool():
+    env = {**os.environ, "NPROC": "2", "JAX_PLATFORMS": "cpu", "PYTHONPATH": str(REPO)}
+    env.pop("XLA_FLAGS", None)
+    try:
+        done = subprocess.run([sys.executable, "-c", DEADLOCK_PROGRAM], env=env, capture_output=True, text=True,
+                              timeout=90, cwd=REPO)
+    except subprocess.TimeoutExpired:
+        pytest.fail("batched solves deadlocked XLA's CPU thread pool (jaxmdp.linalg.solve must map one system at a "
+                    "time)")
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "finite True" in done.stdout
