@@ -16,26 +16,33 @@ accepted trials (the size of the rounding of ``ln U`` from a separate uniform), 
 ``t(x) > 1e-3``; divided by ``a`` as any error of ``ln U``. (A separate uniform cost 28% more time; the algebraically
 equal ``ln t = 3 d (log1p(c x) - c x + (c x)^2 / 2 - (c x)^3 / 3)`` halves the rounding but cost 5-15% more.)
 
-**Random words.** Trial ``t`` of entry ``j`` takes both words of Threefry-2x32 of the counter ``(t, j)`` under the key
-``fold_in(key, 2^31 - 1)`` (:mod:`jaxmdp.threefry`, fused with the arithmetic; the passes over rejected entries use
-keys hashed from it, one per pass): ``x = sqrt(2) erfinv(2 u - 1)`` by inversion at the midpoint of the uniform's
-grid cell (:func:`_erfinv_midpoint`), ``w = 1 - u'``. ``float64`` takes two counters per trial.
+**Random numbers.** Only ``jax.random``, on keys folded from ``fold_in(key, 2^31 - 1)`` (nothing else drawn from
+``key`` overlaps it): a trial's ``x`` is ``jax.random.normal`` and its ``w = 1 - u`` with ``u`` from
+``jax.random.uniform``, each array of trials drawn at once from its own key. The whole-array round uses tag 0 of the
+sampler's key; pass ``p`` over the rejected entries uses the key ``fold_in(., p + 1)``, its first buffer that key's tag
+0 and its second buffer's rounds tags 1, 2, ...; small arrays run rounds on tags 0, 1, 2, ... . A buffer slot draws
+its own uniforms: which entry sits in a slot was decided by earlier trials only, so the slot's fresh draws are
+independent of it. (On CPU each 32-bit ``jax.random`` word costs one Threefry hash, evaluated in its own loop over
+memory. A hand-written Threefry fused with the arithmetic, both words of each hash used, was 1.5x faster on
+Dirichlet draws (29 against 44 ns per entry, ``[64, 100, 4, 100]``); we do not re-implement ``jax.random``.)
+``jax.random.normal`` inverts a float32 uniform with ``erf_inv``: its deviates stop at about 5.4, which truncates the
+normal's tails at ``P(|x| > 5.4) ~ 7e-8``, as ``jax.random.gamma`` does.
 
 **Rounds.** A large array (``n`` entries) runs one round over every entry, which accepts > 95% of them. The rejected
 entries are compacted (:func:`jaxmdp.compaction.compact`) into a buffer of ``m1 = n // 16 + 64`` slots that runs one
 more trial each; the entries it rejects go to a buffer of ``m2 = m1 // 16 + 64`` slots that runs rounds of four
 trials until every one is accepted; the results are scattered back. At most 4.83% of the entries are rejected per
 trial, so a buffer overflows with probability below ``1e-16`` whatever ``n`` (binomial tails, worst shape); if one
-does, the whole pass (compaction, both buffers) repeats on the entries still rejected, with fresh counters, until
+does, the whole pass (compaction, both buffers) repeats on the entries still rejected, with a fresh key, until
 none is left. The earlier sampler ran whole-array rounds until every entry was accepted: for ``n ~ 10^6`` about five
-rounds of three random words per entry (jax.random's Threefry, one hash per word), where this one runs one round
-(one fused hash per entry) and then trials for the ~5% it rejected.
+rounds of three random words per entry, where this one runs one round (two words per entry) and then trials for the
+~5% it rejected. ``jax.random.gamma`` runs a ``while_loop`` per entry that splits its key at every trial.
 Small arrays (below 1024 entries, e.g. the two Gammas of one Beta) run rounds of ``candidates`` trials over the whole
 array.
 
-Every entry gets the first accepted trial of a sequence of trials on fresh counters, the sequence chosen by
+Every entry gets the first accepted trial of a sequence of trials on fresh random numbers, the sequence chosen by
 rejections alone: exactly rejection sampling, the entries independent. The loops end with probability one (every
-trial is accepted with probability > 0.95); counters would repeat only after ``2^30`` rounds.
+trial is accepted with probability > 0.95).
 
 **Same key, same value; batches.** The values are a function of the key, the shapes and the buffer sizes, and a
 member of a ``vmap``-ed batch gets bit for bit the value it would get alone, as does an eager call that of a jitted
@@ -63,44 +70,15 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxmdp.compaction import compact
-from jaxmdp.threefry import key_words, threefry2x32, unit_float
 
 __all__ = ["sample_log_gamma", "sample_beta", "buffer_sizes", "DEFAULT_CANDIDATES"]
 
 #: Trials per round for arrays too small to compact: with acceptance > 0.95 a round fails with probability < 7e-6.
 DEFAULT_CANDIDATES = 4
 
-_U32 = jnp.uint32
 _STREAM = 2**31 - 1  # fold_in tag of the sampler's key
-_PASS_KEY = 0xFFFFFFFF  # counter ``lo`` word that derives a pass key: never an entry index
 _FINE_CANDIDATES = 4  # trials per slot and round in the second buffer
 _COMPACT_MIN = 1024  # arrays with fewer entries run whole-array rounds (buffer_sizes)
-
-
-# Giles (2010), "Approximating the erfinv function" (GPU Computing Gems): single-precision coefficients of
-# erfinv(x) / x as polynomials in w - 2.5 where w = -ln(1 - x^2) < 5, and in sqrt(w) - 3 beyond (highest degree first).
-_ERFINV_CENTRAL = (2.81022636e-08, 3.43273939e-07, -3.5233877e-06, -4.39150654e-06, 0.00021858087, -0.00125372503,
-                   -0.00417768164, 0.246640727, 1.50140941)
-_ERFINV_TAIL = (-0.000200214257, 0.000100950558, 0.00134934322, -0.00367342844, 0.00573950773, -0.0076224613,
-                0.00943887047, 1.00167406, 2.83297682)
-
-
-def _erfinv_midpoint(u: jax.Array) -> jax.Array:
-    """``erfinv(2 u' - 1)`` at the midpoint ``u' = u + eps/2`` of the grid cell of a uniform ``u`` from
-    :func:`jaxmdp.threefry.unit_float` (so ``sqrt(2)`` times it is a standard normal by inversion, symmetric and
-    finite). float32: Giles' polynomials with ``1 - x^2 = 4 u' (1 - u')`` (exact factors, one rounding), max relative
-    error 2.6e-7 over all 2^23 cells where XLA's ``erf_inv`` has 5.8e-6, and cheaper; float64: ``lax.erf_inv``."""
-    half_cell = 0.5 * jnp.finfo(u.dtype).eps
-    u = u + half_cell  # exact: an odd multiple of half a cell
-    if u.dtype == jnp.float64:
-        return jax.lax.erf_inv(2.0 * u - 1.0)
-    w = -jnp.log(4.0 * (u * (1.0 - u)))
-    central = w < 5.0
-    t = jnp.where(central, w - 2.5, jnp.sqrt(w) - 3.0)
-    p = jnp.where(central, _ERFINV_CENTRAL[0], _ERFINV_TAIL[0])
-    for c_central, c_tail in zip(_ERFINV_CENTRAL[1:], _ERFINV_TAIL[1:]):
-        p = jnp.where(central, c_central, c_tail) + p * t
-    return p * (2.0 * u - 1.0)
 
 
 class _Shape(NamedTuple):
@@ -124,25 +102,22 @@ def _shape_terms(a: jax.Array) -> _Shape:
     return _Shape(d, jnp.log(d), jax.lax.rsqrt(4.5 * d), inv_a)
 
 
-def _trial(seed: tuple[jax.Array, jax.Array], t, j: jax.Array, shape: _Shape) -> jax.Array:
-    """Trial ``t`` of the entries ``j``: ``ln G`` where accepted, NaN where rejected (one array out, so that XLA
-    fuses hash and arithmetic into one loop instead of recomputing the hash for each of two outputs)."""
+def _trial(key: jax.Array, shape: _Shape) -> jax.Array:
+    """One trial for each entry of ``shape`` (a flat array of ``n``), with ``n`` normals and ``n`` uniforms drawn from
+    ``key``: ``ln G`` where accepted, NaN where rejected."""
     dtype = shape.d.dtype
-    t = jnp.broadcast_to(jnp.asarray(t, _U32), j.shape)
-    if dtype == jnp.float64:
-        w0 = threefry2x32(*seed, 2 * t, j)
-        w1 = threefry2x32(*seed, 2 * t + 1, j)
-        u, u_w = unit_float(w0, dtype), unit_float(w1, dtype)
-    else:
-        w0, w1 = threefry2x32(*seed, t, j)
-        u, u_w = unit_float((w0,), dtype), unit_float((w1,), dtype)
-    e = _erfinv_midpoint(u)
+    n = shape.d.shape[0]
+    k_x, k_w = jax.random.split(key)
+    # x = sqrt(2) e is jax.random.normal(k_x) bit for bit (its uniform on (-1, 1), erf_inv, sqrt(2)); e is kept to
+    # form c x as (sqrt(2) c) e: see "batches" in the module docstring.
+    lo = np.nextafter(np.array(-1.0, dtype), np.array(0.0, dtype))
+    e = jax.lax.erf_inv(jax.random.uniform(k_x, (n,), dtype, minval=lo, maxval=1.0))
     x = np.sqrt(2.0).astype(dtype) * e
+    w = 1.0 - jax.random.uniform(k_w, (n,), dtype)  # uniform on (0, 1]
     y = 1.0 + shape.c2 * e  # 1 + c x
     v = y * y * y
     positive = v > 0
     log_v = jnp.log(jnp.where(positive, v, 1.0))
-    w = 1.0 - u_w  # uniform on (0, 1]
     log_w = jnp.log(w)
     log_t = 0.5 * x * x + shape.d * (1.0 - v + log_v)
     accept = positive & ((w < 1.0 - 0.0331 * (x * x) * (x * x)) | (log_w < log_t))
@@ -151,13 +126,11 @@ def _trial(seed: tuple[jax.Array, jax.Array], t, j: jax.Array, shape: _Shape) ->
     return jnp.where(accept, log_g, jnp.nan)
 
 
-def _candidates(count: int, j: jax.Array, shape: _Shape) -> tuple[jax.Array, jax.Array, _Shape]:
-    """Layout of ``count`` trials per entry as one flat array, candidate-major: counter offsets, entry indices and
-    shape terms. A flat ``count * n`` array keeps the innermost dimension long enough for XLA to vectorise under
+def _candidates(count: int, shape: _Shape) -> _Shape:
+    """Shape terms of ``count`` trials per entry as one flat array, candidate-major (trial ``c`` of entry ``i`` at
+    ``c * n + i``). A flat ``count * n`` array keeps the innermost dimension long enough for XLA to vectorise under
     ``vmap`` when ``n`` is small (the two Gammas of a Beta)."""
-    n = j.shape[0]
-    offsets = jnp.repeat(jnp.arange(count, dtype=_U32), n)
-    return offsets, jnp.tile(j, count), _Shape(*(jnp.tile(x, count) for x in shape))
+    return _Shape(*(jnp.tile(x, count) for x in shape))
 
 
 def _first_of(trials: jax.Array, count: int, log_g: jax.Array) -> jax.Array:
@@ -170,37 +143,34 @@ def _first_of(trials: jax.Array, count: int, log_g: jax.Array) -> jax.Array:
     return jnp.where(jnp.isnan(log_g), first, log_g)
 
 
-def _rounds(seed, t0, offsets: jax.Array, j: jax.Array, shape: _Shape, count: int, log_g: jax.Array) -> jax.Array:
-    """Rounds of ``count`` trials per entry (trial numbers ``t0 + count * r + c``) until every entry of ``log_g`` is
-    accepted; entries already accepted keep their value.
+def _rounds(key: jax.Array, tag0: int, shape: _Shape, count: int, log_g: jax.Array) -> jax.Array:
+    """Rounds of ``count`` trials per entry (round ``r`` on the key ``fold_in(key, tag0 + r)``; ``shape`` laid out by
+    :func:`_candidates`) until every entry of ``log_g`` is accepted; entries already accepted keep their value.
 
     The raw trials of a round are loop state, taken into ``log_g`` at the next check: a round's trials are then
     written out in their own (vectorised) loop instead of being fused, index by index, into the selection of each
-    entry's first accepted trial, and the loop's operands (shape terms, counters) are read as plain arrays.
+    entry's first accepted trial.
     """
     def body(carry):
         r, log_g, trials = carry
-        t = (t0 + count * r).astype(_U32) + offsets
-        return r + 1, _first_of(trials, count, log_g), _trial(seed, t, j, shape)
+        return r + 1, _first_of(trials, count, log_g), _trial(jax.random.fold_in(key, tag0 + r), shape)
 
     pending = lambda carry: jnp.any(jnp.isnan(_first_of(carry[2], count, carry[1])))  # noqa: E731
-    init = (jnp.int32(0), log_g, jnp.full(offsets.shape, jnp.nan, log_g.dtype))
+    init = (jnp.int32(0), log_g, jnp.full(shape.d.shape, jnp.nan, log_g.dtype))
     _, log_g, trials = jax.lax.while_loop(pending, body, init)
     return _first_of(trials, count, log_g)
 
 
-def _compacted_pass(seed, p, log_g: jax.Array, a: jax.Array, m1: int, m2: int) -> jax.Array:
-    """Pass ``p`` over the rejected (NaN) entries of ``log_g`` (shapes ``a``): two compacted buffers, trials on the
-    pass's own key. Entries left NaN (a buffer overflowed) wait for the next pass."""
-    n = log_g.shape[0]
-    pass_seed = threefry2x32(*seed, jnp.asarray(p, _U32), _U32(_PASS_KEY))
+def _compacted_pass(key: jax.Array, log_g: jax.Array, a: jax.Array, m1: int, m2: int) -> jax.Array:
+    """A pass over the rejected (NaN) entries of ``log_g`` (shapes ``a``) with the pass's own ``key``: two compacted
+    buffers. Entries left NaN (a buffer overflowed) wait for the next pass."""
     idx1, in1 = compact(jnp.isnan(log_g), m1)
-    j1, shape1 = jnp.minimum(idx1, n - 1).astype(_U32), _shape_terms(jnp.take(a, idx1, mode="clip"))
-    log_g1 = jnp.where(in1, _trial(pass_seed, jnp.zeros_like(j1), j1, shape1), 0.0)  # empty slots: 0, never retried
+    shape1 = _shape_terms(jnp.take(a, idx1, mode="clip"))
+    log_g1 = jnp.where(in1, _trial(jax.random.fold_in(key, 0), shape1), 0.0)  # empty slots: 0, never retried
     idx2, in2 = compact(jnp.isnan(log_g1), m2)
-    offsets, j2, shape2 = _candidates(_FINE_CANDIDATES, jnp.take(j1, idx2, mode="clip"), shape1.take(idx2))
+    shape2 = _candidates(_FINE_CANDIDATES, shape1.take(idx2))
     pending2 = jnp.where(in2, jnp.nan, 0.0).astype(log_g.dtype)  # empty slots: 0, never retried
-    log_g2 = _rounds(pass_seed, 1, offsets, j2, shape2, _FINE_CANDIDATES, pending2)
+    log_g2 = _rounds(key, 1, shape2, _FINE_CANDIDATES, pending2)
     log_g1 = log_g1.at[idx2].set(log_g2, mode="drop", unique_indices=True)
     return log_g.at[idx1].set(log_g1, mode="drop", unique_indices=True)
 
@@ -238,7 +208,7 @@ def sample_log_gamma(
     n = flat.shape[0]
     if n == 0:
         return jnp.zeros(a.shape, out_dtype)
-    if n >= 2**31 - 2**20:
+    if n >= 2**31 - 2**20:  # int32 compaction indices
         raise ValueError(f"sample_log_gamma: a has {n} entries; fewer than 2**31 - 2**20 are supported")
     m1, m2 = buffer_sizes(n) if buffers is None else buffers
     if m1 < 1 or m2 < 1:
@@ -252,23 +222,22 @@ def sample_log_gamma(
 
     proper = (flat > 0) & (flat < jnp.inf)
     flat_ok = jnp.where(proper, flat, 1.0)
-    seed = key_words(key, _STREAM)
-    j = jnp.arange(n, dtype=_U32)
+    stream = jax.random.fold_in(key, _STREAM)
+    shape = _shape_terms(flat_ok)
     if compacted:
         # One round over the whole array, then passes over its rejected entries until none is left.
-        offsets, j_c, shape_c = _candidates(candidates, j, _shape_terms(flat_ok))
-        log_g = _first_of(_trial(seed, offsets, j_c, shape_c), candidates, jnp.full((n,), jnp.nan, work))
+        log_g = _first_of(_trial(jax.random.fold_in(stream, 0), _candidates(candidates, shape)), candidates,
+                          jnp.full((n,), jnp.nan, work))
 
         # (Pass 0 outside the loop saved ~7% of the time under vmap, where a loop body also re-checks and selects
         # every member's state, but cost 40% more compile time.)
         def body(carry):
             p, log_g = carry
-            return p + 1, _compacted_pass(seed, p, log_g, flat_ok, m1, m2)
+            return p + 1, _compacted_pass(jax.random.fold_in(stream, p + 1), log_g, flat_ok, m1, m2)
 
         log_g = jax.lax.while_loop(lambda c: jnp.any(jnp.isnan(c[1])), body, (jnp.int32(0), log_g))[1]
     else:
-        shape = _shape_terms(flat_ok)
-        log_g = _rounds(seed, 0, *_candidates(candidates, j, shape), candidates, jnp.full((n,), jnp.nan, work))
+        log_g = _rounds(stream, 0, _candidates(candidates, shape), candidates, jnp.full((n,), jnp.nan, work))
     improper = jnp.where(flat == 0, -jnp.inf, jnp.where(flat == jnp.inf, jnp.inf, jnp.nan))
     return jnp.where(proper, log_g, improper).astype(out_dtype).reshape(a.shape)
 
