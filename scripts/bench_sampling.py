@@ -1,25 +1,22 @@
-"""Speed of the Gamma/Beta sampler: ``jaxmdp.beta_sampling`` (one round, rejections compacted) against the sampler
-before it (``scripts/baseline_gamma_sampler.py``: whole-array rounds until every entry is accepted).
-
-Old and new run in one process, interleaved, best of ``--reps`` (other processes share the machine: read the
+"""Speed of the Gamma/Beta sampler ``jaxmdp.beta_sampling`` against ``jax.random`` (``dirichlet``, ``beta``,
+``loggamma``), both in one process, interleaved, best of ``--reps`` (other processes share the machine: read the
 ratios). Three measurements:
 
-1. Dirichlet posterior draws, ns per Gamma entry: ``vmap`` over members of ``sample_log_gamma`` on ``[S, A, S]``
-   concentrations ``1/S + counts`` (counts ~ Poisson(0.3): mostly shapes below one, the boosted and slowest case),
-   for ``[32, 256, 3, 256]`` and ``[64, 100, 3, 100]``; the old sampler with one candidate per round, as the
-   posteriors called it.
-2. Beta rewards, ns per draw: ``vmap`` of ``sample_beta`` over 4096 members, shapes uniform on (0.05, 5).
-3. PSRL episodic agent-steps per second on MiniGridEmpty size 5 (S = 100, A = 3, H = 13), 64 seeds, 2000 steps,
-   through ``jaxmdp.runner`` (indicators every 100 steps), with the old sampler patched into ``agents.posteriors``
-   (and ``jaxmdp.env``) against the new one. One host device per core, as ``scripts/bench_agents.py``.
+1. Dirichlet posterior draws, ns per Gamma entry: ``vmap`` over members of ``agents.posteriors.dirichlet_sample``
+   against ``jax.random.dirichlet`` (log-Gammas then a softmax, as ours) on ``[S, A, S]`` concentrations
+   ``1/S + counts`` (counts ~ Poisson(0.3): mostly shapes below one, the boosted and slowest case).
+2. Beta rewards, ns per draw: ``vmap`` of ``sample_beta`` against ``jax.random.beta`` over 4096 members, shapes
+   uniform on (0.05, 5).
+3. PSRL episodic agent-steps per second on MiniGridEmpty size 5 (S = 100, A = 3, H = 13), 64 seeds, through
+   ``jaxmdp.runner`` (indicators every 100 steps), with ``jax.random.loggamma`` / ``jax.random.beta`` patched into
+   ``agents.posteriors`` and ``jaxmdp.env`` against ours. One host device per core, as ``scripts/bench_agents.py``.
 
-Writes ``results/bench_sampling.md``. Usage: ``python scripts/bench_sampling.py [--reps 5] [--quick]``.
+Writes ``results/bench_sampling.md``. Usage: ``python scripts/bench_sampling.py [--reps 3] [--psrl-steps 520]``.
 """
 
 from __future__ import annotations
 
 import os
-import sys
 
 if "xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = (
@@ -41,12 +38,15 @@ import agents.posteriors as posteriors  # noqa: E402
 import jaxmdp.env as env  # noqa: E402
 from jaxmdp import beta_sampling, runner  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import baseline_gamma_sampler as baseline  # noqa: E402
+
+def jax_log_gamma(key, a, *, dtype=jnp.float32, **_):
+    """``jax.random.loggamma`` with the call signature of ``beta_sampling.sample_log_gamma``."""
+    return jax.random.loggamma(key, a, dtype=dtype)
 
 
-def old_log_gamma(key, a, *, dtype=jnp.float32, **_):
-    return baseline.sample_log_gamma(key, a, candidates=1, dtype=dtype)
+def jax_beta(key, a, b, *, dtype=jnp.float32, **_):
+    """``jax.random.beta`` with the call signature of ``beta_sampling.sample_beta``."""
+    return jax.random.beta(key, a, b, dtype=dtype)
 
 
 def interleaved(fns: dict, args: tuple, reps: int) -> dict:
@@ -68,8 +68,8 @@ def dirichlet_draws(members: int, S: int, A: int, reps: int) -> dict:
     counts = jax.random.poisson(jax.random.key(1), 0.3, (members, S, A, S))
     alpha = (1.0 / S + counts).astype(jnp.float32)
     fns = {
-        "old": jax.jit(jax.vmap(old_log_gamma)),
-        "new": jax.jit(jax.vmap(beta_sampling.sample_log_gamma)),
+        "jax": jax.jit(jax.vmap(jax.random.dirichlet)),
+        "new": jax.jit(jax.vmap(posteriors.dirichlet_sample)),
     }
     best = interleaved(fns, (keys, alpha), reps)
     n = alpha.size
@@ -81,7 +81,7 @@ def beta_draws(members: int, reps: int) -> dict:
     keys = jax.random.split(jax.random.key(2), members)
     a = jax.random.uniform(jax.random.key(3), (members,), minval=0.05, maxval=5.0)
     b = jax.random.uniform(jax.random.key(4), (members,), minval=0.05, maxval=5.0)
-    fns = {"old": jax.jit(jax.vmap(baseline.sample_beta)), "new": jax.jit(jax.vmap(beta_sampling.sample_beta))}
+    fns = {"jax": jax.jit(jax.vmap(jax.random.beta)), "new": jax.jit(jax.vmap(beta_sampling.sample_beta))}
     best = interleaved(fns, (keys, a, b), reps * 20)
     return dict(members=members, **{f"{k}_{m}": v[i] / members * 1e9 for k, v in best.items()
                                     for i, m in enumerate(("wall", "cpu"))})
@@ -91,16 +91,16 @@ def psrl_steps(seeds: int, steps: int, reps: int) -> dict:
     mdp = jaxmdp.make("MiniGridEmpty", episodic=True, seed=0, size=5)
     base = agents.get("psrl_episodic")
     # Copies: the runner caches compiled programs per agent object, so each sampler gets its own program.
-    versions = {"old": dataclasses.replace(base), "new": dataclasses.replace(base)}
+    versions = {"jax": dataclasses.replace(base), "new": dataclasses.replace(base)}
     originals = (posteriors.sample_log_gamma, env.sample_beta)
-    patches = {"old": (old_log_gamma, baseline.sample_beta), "new": originals}
+    patches = {"jax": (jax_log_gamma, jax_beta), "new": originals}
     grid = runner.product([mdp], [base.default_hparams], seeds=range(seeds))
     best, compile_s = {k: np.inf for k in versions}, {}
     try:
         for rep in range(reps + 1):  # the first run of each compiles
             for k, agent in versions.items():
                 posteriors.sample_log_gamma, env.sample_beta = patches[k]
-                res = runner.run(agent, grid, steps, log_period=100, n_records=10)
+                res = runner.run(agent, grid, steps, log_period=100, n_records=5)
                 if rep == 0:
                     compile_s[k] = res.compile_s
                 best[k] = min(best[k], res.run_s)
@@ -114,27 +114,23 @@ def psrl_steps(seeds: int, steps: int, reps: int) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--reps", type=int, default=5, help="timed repetitions of each measurement (best is kept)")
-    ap.add_argument("--psrl-reps", type=int, default=2)
-    ap.add_argument("--quick", action="store_true", help="2 repetitions, 1 PSRL repetition")
+    ap.add_argument("--reps", type=int, default=3, help="timed repetitions of each measurement (best is kept)")
+    ap.add_argument("--psrl-reps", type=int, default=1)
+    ap.add_argument("--psrl-steps", type=int, default=520, help="agent steps per seed (H = 13: 40 episodes)")
     ap.add_argument("--out", default="results")
     args = ap.parse_args()
-    if args.quick:
-        args.reps, args.psrl_reps = 2, 1
     load0, t0 = os.getloadavg(), time.perf_counter()
 
-    draws = []
-    for members, S in ((32, 256), (64, 100)):
-        draws.append(dirichlet_draws(members, S, 3, args.reps))
-        d = draws[-1]
-        print(f"{d['shape']}: old {d['old_wall']:.1f} ns, new {d['new_wall']:.1f} ns per entry "
-              f"({d['old_wall'] / d['new_wall']:.1f}x)", flush=True)
+    draws = [dirichlet_draws(64, 100, 4, args.reps)]
+    for d in draws:
+        print(f"Dirichlet {d['shape']}: jax {d['jax_wall']:.1f} ns, new {d['new_wall']:.1f} ns per entry "
+              f"({d['jax_wall'] / d['new_wall']:.1f}x)", flush=True)
     beta = beta_draws(4096, args.reps)
-    print(f"Beta x4096: old {beta['old_wall']:.0f} ns, new {beta['new_wall']:.0f} ns per draw "
-          f"({beta['old_wall'] / beta['new_wall']:.1f}x)", flush=True)
-    psrl = psrl_steps(64, 2000, args.psrl_reps)
-    print(f"PSRL episodic: old {psrl['old_steps_per_s']:,.0f}, new {psrl['new_steps_per_s']:,.0f} agent-steps/s "
-          f"({psrl['new_steps_per_s'] / psrl['old_steps_per_s']:.1f}x)", flush=True)
+    print(f"Beta x4096: jax {beta['jax_wall']:.0f} ns, new {beta['new_wall']:.0f} ns per draw "
+          f"({beta['jax_wall'] / beta['new_wall']:.1f}x)", flush=True)
+    psrl = psrl_steps(64, args.psrl_steps, args.psrl_reps)
+    print(f"PSRL episodic: jax {psrl['jax_steps_per_s']:,.0f}, new {psrl['new_steps_per_s']:,.0f} agent-steps/s "
+          f"({psrl['new_steps_per_s'] / psrl['jax_steps_per_s']:.1f}x)", flush=True)
     write(Path(args.out), draws, beta, psrl, args, load0, time.perf_counter() - t0)
 
 
@@ -145,49 +141,50 @@ def write(out: Path, draws: list[dict], beta: dict, psrl: dict, args, load0, ela
     except (OSError, StopIteration):
         cpu = "unknown CPU"
     lines = [
-        "# Gamma / Beta sampler: compacted rejections against whole-array rounds",
+        "# Gamma / Beta sampler: jaxmdp.beta_sampling against jax.random",
         "",
-        f"{os.cpu_count()} cores ({cpu}), jax {jax.__version__}. Old (`scripts/baseline_gamma_sampler.py`) and new "
-        f"(`jaxmdp.beta_sampling`) timed in one process, interleaved, best of {args.reps} (PSRL: best of "
-        f"{args.psrl_reps}). Load average before/after: {load0[0]:.1f} / {os.getloadavg()[0]:.1f}: other processes "
-        f"share the machine, so read the ratios. Wall ns, then CPU ns summed over threads. Total {elapsed:.0f} s.",
+        f"{os.cpu_count()} cores ({cpu}), jax {jax.__version__}. `jax.random` and ours (`jaxmdp.beta_sampling`) timed "
+        f"in one process, interleaved, best of {args.reps} (PSRL: best of {args.psrl_reps}). Load average "
+        f"before/after: {load0[0]:.1f} / {os.getloadavg()[0]:.1f}: other processes share the machine, so read the "
+        f"ratios. Wall ns, then CPU ns summed over threads. Total {elapsed:.0f} s.",
         "",
         "## Dirichlet posterior draws (ns per Gamma entry)",
         "",
-        "`vmap` over members of `sample_log_gamma` on `1/S + counts`, counts ~ Poisson(0.3).",
+        "`vmap` over members: `agents.posteriors.dirichlet_sample` against `jax.random.dirichlet`, concentrations "
+        "`1/S + counts`, counts ~ Poisson(0.3).",
         "",
-        "| members x [S, A, S] | entries | shapes < 1 | old wall | new wall | speed-up | old CPU | new CPU | speed-up |",
+        "| members x [S, A, S] | entries | shapes < 1 | jax wall | new wall | speed-up | jax CPU | new CPU | speed-up |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for d in draws:
         lines.append(
-            f"| {d['shape']} | {d['entries']:,} | {d['below_one']:.0%} | {d['old_wall']:.1f} | {d['new_wall']:.1f} | "
-            f"{d['old_wall'] / d['new_wall']:.1f}x | {d['old_cpu']:.1f} | {d['new_cpu']:.1f} | "
-            f"{d['old_cpu'] / d['new_cpu']:.1f}x |")
+            f"| {d['shape']} | {d['entries']:,} | {d['below_one']:.0%} | {d['jax_wall']:.1f} | {d['new_wall']:.1f} | "
+            f"{d['jax_wall'] / d['new_wall']:.1f}x | {d['jax_cpu']:.1f} | {d['new_cpu']:.1f} | "
+            f"{d['jax_cpu'] / d['new_cpu']:.1f}x |")
     lines += [
         "",
         "## Beta rewards (ns per draw)",
         "",
-        f"`vmap` of `sample_beta` over {beta['members']} members, shapes uniform on (0.05, 5); best of "
-        f"{args.reps * 20}.",
+        f"`vmap` of `sample_beta` against `jax.random.beta` over {beta['members']} members, shapes uniform on "
+        f"(0.05, 5); best of {args.reps * 20}.",
         "",
-        "| old wall | new wall | speed-up | old CPU | new CPU | speed-up |",
+        "| jax wall | new wall | speed-up | jax CPU | new CPU | speed-up |",
         "|---|---|---|---|---|---|",
-        f"| {beta['old_wall']:.0f} | {beta['new_wall']:.0f} | {beta['old_wall'] / beta['new_wall']:.1f}x | "
-        f"{beta['old_cpu']:.0f} | {beta['new_cpu']:.0f} | {beta['old_cpu'] / beta['new_cpu']:.1f}x |",
+        f"| {beta['jax_wall']:.0f} | {beta['new_wall']:.0f} | {beta['jax_wall'] / beta['new_wall']:.1f}x | "
+        f"{beta['jax_cpu']:.0f} | {beta['new_cpu']:.0f} | {beta['jax_cpu'] / beta['new_cpu']:.1f}x |",
         "",
         "## PSRL episodic in the runner",
         "",
         f"MiniGridEmpty size 5 (S = {psrl['S']}, A = 3, H = 13), {psrl['seeds']} seeds, {psrl['steps']} steps, "
-        "indicators every 100 steps, `jaxmdp.runner.run` (one host device per core). Old: the baseline sampler "
-        "patched into `agents.posteriors` and `jaxmdp.env`.",
+        "indicators every 100 steps, `jaxmdp.runner.run` (one host device per core). jax: `jax.random.loggamma` and "
+        "`jax.random.beta` patched into `agents.posteriors` and `jaxmdp.env`.",
         "",
         "| sampler | agent-steps/s | compile s |",
         "|---|---|---|",
-        f"| old | {psrl['old_steps_per_s']:,.0f} | {psrl['old_compile_s']:.1f} |",
+        f"| jax.random | {psrl['jax_steps_per_s']:,.0f} | {psrl['jax_compile_s']:.1f} |",
         f"| new | {psrl['new_steps_per_s']:,.0f} | {psrl['new_compile_s']:.1f} |",
         "",
-        f"Speed-up: {psrl['new_steps_per_s'] / psrl['old_steps_per_s']:.1f}x.",
+        f"Speed-up: {psrl['new_steps_per_s'] / psrl['jax_steps_per_s']:.1f}x.",
         "",
     ]
     (out / "bench_sampling.md").write_text("\n".join(lines))
