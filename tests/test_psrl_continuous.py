@@ -133,6 +133,12 @@ def _extended_mdp(R, P, n_psi):
     return jnp.asarray(T, jnp.float32), jnp.asarray(np.repeat(R, n_psi, axis=1), jnp.float32)
 
 
+# The key of the posterior draws below. About 3% of the draws from this posterior leave average-reward planning
+# unconverged within plan_max_iter (13 of 400 keys, with the Gamma sampler before and after its compaction rewrite);
+# the tests need a draw that converges, and key 7 stopped being one when the sampler's stream changed.
+PLAN_KEY = 8
+
+
 @pytest.fixture(scope="module")
 def planned():
     rng = np.random.default_rng(0)
@@ -145,13 +151,13 @@ def planned():
                      "tight": HP.replace(max_psi=2)}.items():
         state = _state_with_counts(counts, hp=hp)
         state = state.replace(rewards=state.rewards.replace(mu=mu))
-        out[name] = (state, jax.jit(AGENT.plan)(jax.random.key(7), state))
+        out[name] = (state, jax.jit(AGENT.plan)(jax.random.key(PLAN_KEY), state))
     return out
 
 
 def _redraw(state):
-    # The draws plan makes with key 7 (same split order).
-    k_r, k_p = jax.random.split(jax.random.key(7))
+    # The draws plan makes with PLAN_KEY (same split order).
+    k_r, k_p = jax.random.split(jax.random.key(PLAN_KEY))
     R = jax.jit(normal_gamma_sample)(k_r, state.rewards)
     return np.asarray(R), np.asarray(jax.jit(candidate_kernels)(k_p, state))
 
@@ -188,7 +194,7 @@ def test_a_grid_mixing_both_criteria_plans_each_member_like_alone(planned):
     # vmap over [discounted, average-reward] members: the cond becomes a select, each member keeps its own branch.
     (s_d, new_d), (s_g, new_g) = planned["discounted"], planned["gain"]
     both = jax.tree.map(lambda a, b: jnp.stack([a, b]), s_d, s_g)
-    out = jax.jit(jax.vmap(AGENT.plan))(jnp.stack([jax.random.key(7)] * 2), both)
+    out = jax.jit(jax.vmap(AGENT.plan))(jnp.stack([jax.random.key(PLAN_KEY)] * 2), both)
     np.testing.assert_allclose(out.Q[0], new_d.Q, rtol=1e-5)
     np.testing.assert_allclose(out.Q[1], new_g.Q, rtol=1e-5, atol=1e-5)
 
@@ -196,7 +202,7 @@ def test_a_grid_mixing_both_criteria_plans_each_member_like_alone(planned):
 def test_plan_is_a_no_op_for_a_member_that_did_not_ask(planned):
     state, _ = planned["discounted"]
     idle = state.replace(plan_due=jnp.zeros((), bool))
-    out = jax.jit(AGENT.plan)(jax.random.key(7), idle)
+    out = jax.jit(AGENT.plan)(jax.random.key(PLAN_KEY), idle)
     jax.tree.map(np.testing.assert_array_equal, out.replace(hparams=idle.hparams), idle)  # (hparams become arrays)
 
 

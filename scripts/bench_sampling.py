@@ -1,0 +1,195 @@
+"""Speed of the Gamma/Beta sampler ``jaxmdp.beta_sampling`` against ``jax.random`` (``dirichlet``, ``beta``,
+``loggamma``), both in one process, interleaved, best of ``--reps`` (other processes share the machine: read the
+ratios). Three measurements:
+
+1. Dirichlet posterior draws, ns per Gamma entry: ``vmap`` over members of ``agents.posteriors.dirichlet_sample``
+   against ``jax.random.dirichlet`` (log-Gammas then a softmax, as ours) on ``[S, A, S]`` concentrations
+   ``1/S + counts`` (counts ~ Poisson(0.3): mostly shapes below one, the boosted and slowest case).
+2. Beta rewards, ns per draw: ``vmap`` of ``sample_beta`` against ``jax.random.beta`` over 4096 members, shapes
+   uniform on (0.05, 5).
+3. PSRL episodic agent-steps per second on MiniGridEmpty size 5 (S = 100, A = 3, H = 13), 64 seeds, through
+   ``jaxmdp.runner`` (indicators every 100 steps), with ``jax.random.loggamma`` / ``jax.random.beta`` patched into
+   ``agents.posteriors`` and ``jaxmdp.env`` against ours. One host device per core, as ``scripts/bench_agents.py``.
+
+Writes ``results/bench_sampling.md``. Usage: ``python scripts/bench_sampling.py [--reps 3] [--psrl-steps 520]``.
+"""
+
+from __future__ import annotations
+
+import os
+
+if "xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
+    os.environ["XLA_FLAGS"] = (
+        os.environ.get("XLA_FLAGS", "") + f" --xla_force_host_platform_device_count={os.cpu_count() or 1}"
+    ).strip()
+
+import argparse  # noqa: E402
+import dataclasses  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import jaxmdp  # noqa: E402  (first: it sets XLA flags before JAX creates its backend)
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+
+import agents  # noqa: E402
+import agents.posteriors as posteriors  # noqa: E402
+import jaxmdp.env as env  # noqa: E402
+from jaxmdp import beta_sampling, runner  # noqa: E402
+
+
+def jax_log_gamma(key, a, *, dtype=jnp.float32, **_):
+    """``jax.random.loggamma`` with the call signature of ``beta_sampling.sample_log_gamma``."""
+    return jax.random.loggamma(key, a, dtype=dtype)
+
+
+def jax_beta(key, a, b, *, dtype=jnp.float32, **_):
+    """``jax.random.beta`` with the call signature of ``beta_sampling.sample_beta``."""
+    return jax.random.beta(key, a, b, dtype=dtype)
+
+
+def interleaved(fns: dict, args: tuple, reps: int) -> dict:
+    """Best-of-``reps`` wall and CPU seconds of each function, the functions called in turn."""
+    best = {k: [np.inf, np.inf] for k in fns}
+    for f in fns.values():
+        jax.block_until_ready(f(*args))  # compile
+    for _ in range(reps):
+        for k, f in fns.items():
+            t, c = time.perf_counter(), time.process_time()
+            jax.block_until_ready(f(*args))
+            best[k][0] = min(best[k][0], time.perf_counter() - t)
+            best[k][1] = min(best[k][1], time.process_time() - c)
+    return best
+
+
+def dirichlet_draws(members: int, S: int, A: int, reps: int) -> dict:
+    keys = jax.random.split(jax.random.key(0), members)
+    counts = jax.random.poisson(jax.random.key(1), 0.3, (members, S, A, S))
+    alpha = (1.0 / S + counts).astype(jnp.float32)
+    fns = {
+        "jax": jax.jit(jax.vmap(jax.random.dirichlet)),
+        "new": jax.jit(jax.vmap(posteriors.dirichlet_sample)),
+    }
+    best = interleaved(fns, (keys, alpha), reps)
+    n = alpha.size
+    return dict(shape=f"[{members}, {S}, {A}, {S}]", entries=n, below_one=float(jnp.mean(alpha < 1.0)),
+                **{f"{k}_{m}": v[i] / n * 1e9 for k, v in best.items() for i, m in enumerate(("wall", "cpu"))})
+
+
+def beta_draws(members: int, reps: int) -> dict:
+    keys = jax.random.split(jax.random.key(2), members)
+    a = jax.random.uniform(jax.random.key(3), (members,), minval=0.05, maxval=5.0)
+    b = jax.random.uniform(jax.random.key(4), (members,), minval=0.05, maxval=5.0)
+    fns = {"jax": jax.jit(jax.vmap(jax.random.beta)), "new": jax.jit(jax.vmap(beta_sampling.sample_beta))}
+    best = interleaved(fns, (keys, a, b), reps * 20)
+    return dict(members=members, **{f"{k}_{m}": v[i] / members * 1e9 for k, v in best.items()
+                                    for i, m in enumerate(("wall", "cpu"))})
+
+
+def psrl_steps(seeds: int, steps: int, reps: int) -> dict:
+    mdp = jaxmdp.make("MiniGridEmpty", episodic=True, seed=0, size=5)
+    base = agents.get("psrl_episodic")
+    # Copies: the runner caches compiled programs per agent object, so each sampler gets its own program.
+    versions = {"jax": dataclasses.replace(base), "new": dataclasses.replace(base)}
+    originals = (posteriors.sample_log_gamma, env.sample_beta)
+    patches = {"jax": (jax_log_gamma, jax_beta), "new": originals}
+    grid = runner.product([mdp], [base.default_hparams], seeds=range(seeds))
+    best, compile_s = {k: np.inf for k in versions}, {}
+    try:
+        for rep in range(reps + 1):  # the first run of each compiles
+            for k, agent in versions.items():
+                posteriors.sample_log_gamma, env.sample_beta = patches[k]
+                res = runner.run(agent, grid, steps, log_period=100, n_records=5)
+                if rep == 0:
+                    compile_s[k] = res.compile_s
+                best[k] = min(best[k], res.run_s)
+                print(f"  psrl {k}: {seeds * steps / res.run_s:,.0f} agent-steps/s", flush=True)
+    finally:
+        posteriors.sample_log_gamma, env.sample_beta = originals
+    return dict(S=mdp.n_states, seeds=seeds, steps=steps,
+                **{f"{k}_steps_per_s": seeds * steps / v for k, v in best.items()},
+                **{f"{k}_compile_s": v for k, v in compile_s.items()})
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--reps", type=int, default=3, help="timed repetitions of each measurement (best is kept)")
+    ap.add_argument("--psrl-reps", type=int, default=1)
+    ap.add_argument("--psrl-steps", type=int, default=520, help="agent steps per seed (H = 13: 40 episodes)")
+    ap.add_argument("--out", default="results")
+    args = ap.parse_args()
+    load0, t0 = os.getloadavg(), time.perf_counter()
+
+    draws = [dirichlet_draws(64, 100, 4, args.reps)]
+    for d in draws:
+        print(f"Dirichlet {d['shape']}: jax {d['jax_wall']:.1f} ns, new {d['new_wall']:.1f} ns per entry "
+              f"({d['jax_wall'] / d['new_wall']:.1f}x)", flush=True)
+    beta = beta_draws(4096, args.reps)
+    print(f"Beta x4096: jax {beta['jax_wall']:.0f} ns, new {beta['new_wall']:.0f} ns per draw "
+          f"({beta['jax_wall'] / beta['new_wall']:.1f}x)", flush=True)
+    psrl = psrl_steps(64, args.psrl_steps, args.psrl_reps)
+    print(f"PSRL episodic: jax {psrl['jax_steps_per_s']:,.0f}, new {psrl['new_steps_per_s']:,.0f} agent-steps/s "
+          f"({psrl['new_steps_per_s'] / psrl['jax_steps_per_s']:.1f}x)", flush=True)
+    write(Path(args.out), draws, beta, psrl, args, load0, time.perf_counter() - t0)
+
+
+def write(out: Path, draws: list[dict], beta: dict, psrl: dict, args, load0, elapsed: float) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        cpu = next(line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name"))
+    except (OSError, StopIteration):
+        cpu = "unknown CPU"
+    lines = [
+        "# Gamma / Beta sampler: jaxmdp.beta_sampling against jax.random",
+        "",
+        f"{os.cpu_count()} cores ({cpu}), jax {jax.__version__}. `jax.random` and ours (`jaxmdp.beta_sampling`) timed "
+        f"in one process, interleaved, best of {args.reps} (PSRL: best of {args.psrl_reps}). Load average "
+        f"before/after: {load0[0]:.1f} / {os.getloadavg()[0]:.1f}: other processes share the machine, so read the "
+        f"ratios. Wall ns, then CPU ns summed over threads. Total {elapsed:.0f} s.",
+        "",
+        "## Dirichlet posterior draws (ns per Gamma entry)",
+        "",
+        "`vmap` over members: `agents.posteriors.dirichlet_sample` against `jax.random.dirichlet`, concentrations "
+        "`1/S + counts`, counts ~ Poisson(0.3).",
+        "",
+        "| members x [S, A, S] | entries | shapes < 1 | jax wall | new wall | speed-up | jax CPU | new CPU | speed-up |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for d in draws:
+        lines.append(
+            f"| {d['shape']} | {d['entries']:,} | {d['below_one']:.0%} | {d['jax_wall']:.1f} | {d['new_wall']:.1f} | "
+            f"{d['jax_wall'] / d['new_wall']:.1f}x | {d['jax_cpu']:.1f} | {d['new_cpu']:.1f} | "
+            f"{d['jax_cpu'] / d['new_cpu']:.1f}x |")
+    lines += [
+        "",
+        "## Beta rewards (ns per draw)",
+        "",
+        f"`vmap` of `sample_beta` against `jax.random.beta` over {beta['members']} members, shapes uniform on "
+        f"(0.05, 5); best of {args.reps * 20}.",
+        "",
+        "| jax wall | new wall | speed-up | jax CPU | new CPU | speed-up |",
+        "|---|---|---|---|---|---|",
+        f"| {beta['jax_wall']:.0f} | {beta['new_wall']:.0f} | {beta['jax_wall'] / beta['new_wall']:.1f}x | "
+        f"{beta['jax_cpu']:.0f} | {beta['new_cpu']:.0f} | {beta['jax_cpu'] / beta['new_cpu']:.1f}x |",
+        "",
+        "## PSRL episodic in the runner",
+        "",
+        f"MiniGridEmpty size 5 (S = {psrl['S']}, A = 3, H = 13), {psrl['seeds']} seeds, {psrl['steps']} steps, "
+        "indicators every 100 steps, `jaxmdp.runner.run` (one host device per core). jax: `jax.random.loggamma` and "
+        "`jax.random.beta` patched into `agents.posteriors` and `jaxmdp.env`.",
+        "",
+        "| sampler | agent-steps/s | compile s |",
+        "|---|---|---|",
+        f"| jax.random | {psrl['jax_steps_per_s']:,.0f} | {psrl['jax_compile_s']:.1f} |",
+        f"| new | {psrl['new_steps_per_s']:,.0f} | {psrl['new_compile_s']:.1f} |",
+        "",
+        f"Speed-up: {psrl['new_steps_per_s'] / psrl['jax_steps_per_s']:.1f}x.",
+        "",
+    ]
+    (out / "bench_sampling.md").write_text("\n".join(lines))
+    print(f"wrote {out / 'bench_sampling.md'}")
+
+
+if __name__ == "__main__":
+    main()

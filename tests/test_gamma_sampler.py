@@ -1,0 +1,229 @@
+"""The Gamma sampler's parts and guarantees: compaction against numpy, exactness against scipy (KS, moments) on the
+compacted path, the overflow path (tiny buffers) and whole-array rounds, float32 and float64, batch invariance
+(bitwise), same key / same value, bad input. More Beta draws and scalar shapes: tests/test_reward_sampling.py."""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from scipy import special, stats
+
+import jaxmdp.beta_sampling as bs
+from jaxmdp.beta_sampling import buffer_sizes, sample_beta, sample_log_gamma
+from jaxmdp.compaction import compact
+
+SHAPES = (0.01, 0.32, 1.0, 5.0, 100.0, 1e4)
+PER_SHAPE = 40_000
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Compaction
+# ---------------------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("n, p", [(1, 1.0), (31, 0.5), (32, 0.0), (33, 1.0), (1000, 0.05), (5000, 0.3)])
+def test_compact_matches_nonzero(n, p):
+    flags = np.random.default_rng(n).random(n) < p
+    true = np.flatnonzero(flags)
+    for size in sorted({1, 7, max(len(true), 1), n + 3}):
+        index, valid = jax.jit(compact, static_argnums=1)(jnp.asarray(flags), size)
+        count = min(size, len(true))
+        np.testing.assert_array_equal(valid, np.arange(size) < count)
+        np.testing.assert_array_equal(index[:count], true[:count])
+        np.testing.assert_array_equal(index[count:], n + np.arange(count, size))  # distinct, out of range
+
+
+def test_compact_under_vmap_is_per_member():
+    flags = jnp.asarray(np.random.default_rng(0).random((4, 700)) < np.array([[0.0], [0.01], [0.2], [1.0]]))
+    index, valid = jax.jit(jax.vmap(compact, (0, None)), static_argnums=1)(flags, 50)
+    for i in range(4):
+        single = compact(flags[i], 50)
+        np.testing.assert_array_equal(index[i], single[0])
+        np.testing.assert_array_equal(valid[i], single[1])
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Exactness (scipy)
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def assert_log_gamma(y: np.ndarray, a: float) -> None:
+    """``y`` are i.i.d. ``ln G``, ``G ~ Gamma(a)``: KS against scipy's Gamma CDF in log space (no underflow for tiny
+    shapes), E[ln G] = digamma(a), Var[ln G] = trigamma(a), and for ``a >= 0.3`` E[G] = a. Moment bounds are 6
+    standard errors of the estimate (a false alarm once in 5e8 keys; a bias of a fraction of a standard error, e.g.
+    0.003 in E[ln G] at ``a = 0.01`` with 40,000 draws, fails); the KS p-value bound 1e-3."""
+    k = y.size
+    assert np.all(np.isfinite(y)), a
+    assert stats.kstest(y, lambda t: stats.gamma.cdf(np.exp(t), a)).pvalue > 1e-3, a
+    var = special.polygamma(1, a)
+    assert abs(y.mean() - special.digamma(a)) < 6 * np.sqrt(var / k), a
+    # Var of the sample variance: (mu_4 - sigma^4) / k with mu_4 = psi_3 + 3 psi_1^2 (cumulants of ln G).
+    assert abs(y.var() - var) < 6 * np.sqrt((special.polygamma(3, a) + 2 * var**2) / k), a
+    if a >= 0.3:  # Var[G] = a; below, G's sample mean is dominated by rare large draws and says little
+        assert abs(np.exp(y).mean() - a) < 6 * np.sqrt(a / k), a
+
+
+@functools.lru_cache(maxsize=None)
+def mixed_draws(buffers):
+    """One draw of an array holding every shape of ``SHAPES`` ``PER_SHAPE`` times, interleaved at random."""
+    a = np.repeat(np.array(SHAPES, np.float32), PER_SHAPE)[np.random.default_rng(1).permutation(len(SHAPES) * PER_SHAPE)]
+    y = jax.jit(functools.partial(sample_log_gamma, buffers=buffers))(jax.random.key(11), jnp.asarray(a))
+    return a, np.asarray(y, np.float64)
+
+
+@pytest.mark.parametrize("buffers", [None, (64, 1)], ids=["default", "overflow"])
+def test_log_gamma_exact_on_large_arrays(buffers):
+    a, y = mixed_draws(buffers)
+    m1, m2 = buffer_sizes(a.size) if buffers is None else buffers
+    assert m1 < a.size  # the compacted path
+    # First-round rejections: fewer than m1 by far with the default buffers, far more with the tiny ones (so the
+    # pass loop, with both buffers overflowing, did the work).
+    stream = jax.random.fold_in(jax.random.key(11), bs._STREAM)
+    first = bs._trial(jax.random.fold_in(stream, 0), bs._shape_terms(jnp.asarray(a)))
+    rejected = int(jnp.isnan(first).sum())
+    assert (rejected < m1 // 2) if buffers is None else (rejected > 50 * m1)
+    for shape in SHAPES:
+        ys = y[a == np.float32(shape)]
+        assert_log_gamma(ys, shape)
+        # Entries are independent: neighbours (in array order) uncorrelated.
+        assert abs(np.corrcoef(ys[:-1], ys[1:])[0, 1]) < 5 / np.sqrt(ys.size), shape
+
+
+@pytest.mark.parametrize("candidates", [None, 1])
+def test_log_gamma_exact_on_small_arrays(candidates):
+    # A 5-entry array is below the compaction size: whole-array rounds, vmapped over keys.
+    keys = jax.random.split(jax.random.key(12), 20_000)
+    f = jax.jit(jax.vmap(functools.partial(sample_log_gamma, candidates=candidates), (0, None)))
+    y = np.asarray(f(keys, jnp.array(SHAPES)), np.float64)
+    for i, shape in enumerate(SHAPES):
+        assert_log_gamma(y[:, i], shape)
+
+
+def test_float64_and_bfloat16():
+    shapes = (0.01, 0.32, 5.0, 1e4)
+    with jax.enable_x64(True):
+        a = jnp.repeat(jnp.array(shapes, jnp.float64), 30_000)
+        y = jax.jit(functools.partial(sample_log_gamma, dtype=jnp.float64))(jax.random.key(13), a)
+        assert y.dtype == jnp.float64
+        y = np.asarray(y).reshape(len(shapes), -1)
+        for i, shape in enumerate(shapes):
+            assert_log_gamma(y[i], shape)
+    y = sample_log_gamma(jax.random.key(13), jnp.full((20_000,), 5.0), dtype=jnp.bfloat16)
+    assert y.dtype == jnp.bfloat16
+    assert abs(float(y.astype(jnp.float32).mean()) - special.digamma(5.0)) < 0.01
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_beta_against_scipy(dtype):
+    # Beta(0.01, 0.5) puts 41% of its mass below 1e-38, where float32 rounds to 0: the fraction below 1e-30 is checked
+    # against scipy's CDF (binomial, 6 SE), the rest by KS against scipy's conditional CDF; the mean a / (a + b)
+    # within 6 standard errors.
+    params = ((0.01, 0.5), (0.5, 0.5), (2.0, 50.0), (300.0, 7.0))
+    keys = jax.random.split(jax.random.key(22), 20_000)
+    tiny = 1e-30
+    with jax.enable_x64(dtype == "float64"):
+        f = jax.jit(jax.vmap(functools.partial(sample_beta, dtype=jnp.dtype(dtype)), (0, None, None)))
+        for a, b in params:
+            x = f(keys, a, b)
+            assert x.dtype == jnp.dtype(dtype)
+            x = np.asarray(x, np.float64)
+            assert np.all((x >= 0) & (x <= 1)), (a, b)
+            ref = stats.beta(a, b)
+            p_tiny = ref.cdf(tiny)
+            assert abs(np.mean(x <= tiny) - p_tiny) <= 6 * np.sqrt(p_tiny * (1 - p_tiny) / x.size) + 1e-12, (a, b)
+            conditional = lambda t: (ref.cdf(t) - p_tiny) / (1 - p_tiny)  # noqa: E731
+            assert stats.kstest(x[x > tiny], conditional).pvalue > 1e-3, (a, b)
+            sd = np.sqrt(a * b / ((a + b) ** 2 * (a + b + 1)) / x.size)
+            assert abs(x.mean() - a / (a + b)) < 6 * sd, (a, b)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Determinism and batches
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def posterior_like(S: int, A: int, seed: int) -> jnp.ndarray:
+    """A Dirichlet posterior concentration ``1/S + counts`` (mostly shapes below one)."""
+    counts = np.random.default_rng(seed).poisson(0.3, (S, A, S))
+    return jnp.asarray(1.0 / S + counts, jnp.float32)
+
+
+@pytest.mark.parametrize("in_axes, buffers", [((0, None), None), ((0, 0), (16, 1))],
+                         ids=["shared-shapes-default", "own-shapes-overflow"])
+def test_vmap_member_equals_single_call_bitwise(in_axes, buffers):
+    alpha = posterior_like(20, 3, 0)  # 1200 entries: compacted (m1 = 139)
+    keys = jax.random.split(jax.random.key(14), 3)
+    f = functools.partial(sample_log_gamma, buffers=buffers)
+    arg = alpha if in_axes[1] is None else jnp.stack([alpha] * 3)
+    batched = np.asarray(jax.jit(jax.vmap(f, in_axes))(keys, arg))
+    single = jax.jit(f)
+    for i in range(3):
+        np.testing.assert_array_equal(batched[i], single(keys[i], alpha))
+
+
+def test_eager_call_equals_jitted_bitwise():
+    alpha = posterior_like(20, 3, 2)
+    keys = jax.random.split(jax.random.key(21), 2)
+    batched = jax.jit(jax.vmap(sample_log_gamma, (0, None)))(keys, alpha)
+    np.testing.assert_array_equal(batched[1], sample_log_gamma(keys[1], alpha))
+
+
+def test_small_arrays_and_beta_vmap_equal_single_calls_bitwise():
+    keys = jax.random.split(jax.random.key(15), 64)
+    a = jax.random.uniform(jax.random.key(16), (64,), minval=0.005, maxval=6.0)
+    b = jax.random.uniform(jax.random.key(17), (64,), minval=0.005, maxval=6.0)
+    batched = jax.jit(jax.vmap(sample_beta))(keys, a, b)
+    small = jax.jit(jax.vmap(sample_log_gamma, (0, None)))(keys, jnp.array(SHAPES))
+    for i in range(0, 64, 7):
+        assert float(batched[i]) == float(sample_beta(keys[i], a[i], b[i]))
+        np.testing.assert_array_equal(small[i], sample_log_gamma(keys[i], jnp.array(SHAPES)))
+
+
+def test_same_key_same_value_other_key_other_value():
+    alpha = posterior_like(12, 2, 1)
+    y1 = sample_log_gamma(jax.random.key(18), alpha)
+    np.testing.assert_array_equal(y1, jax.jit(sample_log_gamma)(jax.random.key(18), alpha))
+    y2 = sample_log_gamma(jax.random.key(19), alpha)
+    assert np.mean(np.asarray(y1) != np.asarray(y2)) > 0.999
+    # The sampler's stream is its own: drawing it does not repeat what the key gives jax.random.
+    u = jax.random.uniform(jax.random.key(18), (alpha.size,))
+    assert abs(np.corrcoef(np.asarray(u), np.asarray(y1).ravel())[0, 1]) < 0.1
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Bad input
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def test_improper_shapes_give_limits_or_nan_and_never_hang():
+    a = jnp.array([0.0, -1.0, jnp.nan, jnp.inf, 1e-42, 1e30, 0.5], jnp.float32)
+    y = np.asarray(sample_log_gamma(jax.random.key(20), a))
+    assert y[0] == -np.inf and np.isnan(y[1]) and np.isnan(y[2]) and y[3] == np.inf
+    assert y[4] < -1e30  # subnormal shape: ln G ~ ln(U) / a, -inf in float32 or close to it
+    assert abs(y[5] - np.log(1e30)) < 1e-5 and np.isfinite(y[6])
+    # The same inside a large (compacted) array: the bad entries do not block the loops.
+    big = jnp.tile(a, 300)
+    yb = np.asarray(sample_log_gamma(jax.random.key(20), big)).reshape(300, -1)
+    assert np.all(np.isnan(yb[:, 1:3])) and np.all(yb[:, 0] == -np.inf) and np.all(np.isfinite(yb[:, 5:]))
+
+
+def test_extreme_shapes_in_float64_are_finite():
+    with jax.enable_x64(True):
+        a = jnp.array([1e-300, 1e-30, 1e-5, 1e5, 1e30, 1e300], jnp.float64)
+        y = np.asarray(sample_log_gamma(jax.random.key(23), jnp.tile(a, 200), dtype=jnp.float64)).reshape(200, -1)
+    assert np.all(np.isfinite(y))
+    # ln G ~ ln(U) / a for tiny a: of order -1/a; ln G = ln a + O(1/sqrt(a)) for large a.
+    assert np.all(y[:, 0] < -1e290) and np.all(y[:, 1] < -1e20)
+    np.testing.assert_allclose(y[:, 3:], np.log(np.asarray(a[3:]))[None].repeat(200, 0), atol=5 / np.sqrt(1e5))
+
+
+def test_bad_arguments_raise():
+    with pytest.raises(ValueError, match="candidates"):
+        sample_log_gamma(jax.random.key(0), jnp.ones(3), candidates=0)
+    with pytest.raises(ValueError, match="buffers"):
+        sample_log_gamma(jax.random.key(0), jnp.ones(300), buffers=(0, 1))
+    assert sample_log_gamma(jax.random.key(0), jnp.ones((0, 3))).shape == (0, 3)
