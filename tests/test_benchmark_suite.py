@@ -60,15 +60,19 @@ def test_built_entry_structure(entry):
     assert jaxmdp.communication_class(m).name == entry.communication_class
 
 
-# Cached-value checks run as one stacked, vmapped call per setting (one compilation each); entries above this size
-# are left out to keep the suite fast (the measures themselves are checked on all 41 reference fixtures).
-MAX_STATES_CACHED_CHECK = 150
+# Cached-value checks run as one stacked call per setting (one compilation each), mapped so that each member stops at
+# its own convergence; entries above this size are left out to keep the suite fast (the measures themselves are
+# checked on all 41 reference fixtures).
+# (All 40 continuous entries, up to 948 states, also pass; that run takes ~2 min, too long for the suite.)
+MAX_STATES_CACHED_CHECK = {"episodic": 150, "continuous": 300}
 
 
 @pytest.mark.parametrize("setting", bs.SETTINGS)
 def test_cached_seed0_diameter_and_value_norm(setting):
     chosen = [
-        e for e in bs.entries(setting) if e.family in jaxmdp.families() and e.n_states <= MAX_STATES_CACHED_CHECK
+        e
+        for e in bs.entries(setting)
+        if e.family in jaxmdp.families() and e.n_states <= MAX_STATES_CACHED_CHECK[setting.split()[0]]
     ]
     if not chosen:
         pytest.skip("no registered family in this setting yet")
@@ -82,7 +86,7 @@ def test_cached_seed0_diameter_and_value_norm(setting):
             hardness.value_norm(m, variant="colosseum", continuous_form=cf).value,
         )
 
-    d, vn = jax.jit(jax.vmap(both))(batch, forms)
+    d, vn = jax.jit(lambda b, f: jax.lax.map(lambda x: both(*x), (b, f)))(batch, forms)
     # The cache prints 4 decimals.
     np.testing.assert_allclose(d, [e.cached_diameter for e in chosen], rtol=1e-4, atol=6e-5)
     np.testing.assert_allclose(vn, [e.cached_value_norm for e in chosen], rtol=1e-3, atol=6e-5)
