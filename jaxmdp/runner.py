@@ -241,9 +241,14 @@ def _chunk_program(
             x = jnp.stack([inst.regret, inst.expected_reward, inst.normalized_regret], axis=-1) * k
             return c.replace(last_log=c.t, logged=c.logged.add(x.astype(dtype)))
 
-        def body(_, loop):
+        t_end = carry.t + n
+
+        def segment(loop):
+            # The steps up to the next log point (or the chunk's end) run in a loop of their own: a per-step cond
+            # over the whole carry made XLA copy the [B, H, S, A] policy cache at every step.
             c, steps, values, j = loop
-            c = interact(plan_step(c))
+            next_log = jnp.minimum((c.t // sched.log_period + 1) * sched.log_period, sched.n_steps)
+            c = jax.lax.fori_loop(0, jnp.minimum(next_log, t_end) - c.t, lambda _, c: interact(plan_step(c)), c)
             is_log = (c.t % sched.log_period == 0) | (c.t == sched.n_steps)
             c = jax.lax.cond(is_log, log, lambda c: c, c)
             is_record = (c.t % sched.record_period == 0) | (c.t == sched.n_steps)
@@ -260,7 +265,8 @@ def _chunk_program(
 
         steps0 = jnp.zeros((capacity,), jnp.int32)
         values0 = jnp.zeros((capacity, B, len(AGENT_COLUMNS)), dtype)
-        return jax.lax.fori_loop(0, n, body, (carry, steps0, values0, jnp.zeros((), jnp.int32)))
+        init = (carry, steps0, values0, jnp.zeros((), jnp.int32))
+        return jax.lax.while_loop(lambda loop: loop[0].t < t_end, segment, init)
 
     if n_shards == 1:
         return jax.jit(chunk)
