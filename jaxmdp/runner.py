@@ -3,12 +3,14 @@
 A run drives a flat batch of ``B`` *members* (a :class:`Grid`), each with its own MDP, hyperparameters and key,
 through ``n_steps`` agent/MDP interaction steps (paper §3.3 and App. A.1; measures.md §6.1):
 
-* the time loop is a ``lax.fori_loop`` over steps whose body ``vmap``s ``jaxmdp.step`` and the agent's
-  ``act``/``update`` over the batch;
+* the time loop is a ``lax.fori_loop`` over the steps between two log points, whose body ``vmap``s ``jaxmdp.step``
+  and the agent's ``act``/``update`` over the batch, inside a ``lax.while_loop`` over log points (with the log's
+  ``lax.cond`` inside the per-step body, XLA copied the whole carry, policy cache included, at every step);
 * planning (``agent.plan``) runs under a ``lax.cond`` whose predicate is unbatched, "some member needs to plan", and
   ``jnp.where`` keeps the result only for the members that asked, so planning is paid at boundaries only;
 * indicator logging (:mod:`jaxmdp.indicators`, exact policy evaluation of ``agent.policy``) runs under a
-  ``lax.cond`` on "this is a log step": after every ``log_period`` steps and after the last step. A log made after
+  ``lax.cond`` on "this is a log step" (a chunk may end between two): after every ``log_period`` steps and after
+  the last step. A log made after
   ``c`` steps covers the ``k = c - c_prev`` steps since the previous log (the paper's approximation; ``log_period=1``
   is the exact mode): ``cumulative_regret += k r_c`` and likewise for the normalised regret and the expected reward.
   The cumulative (sampled) reward is summed every step. All sums are compensated (Kahan) so that float32 keeps
