@@ -23,7 +23,6 @@ from collections.abc import Sequence
 from typing import Any
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 import agents as agent_registry
@@ -76,11 +75,6 @@ def _check_int(name: str, value: Any, minimum: int) -> int:
     return int(value)
 
 
-def _keys(seeds: Sequence[int] | np.ndarray) -> jax.Array:
-    """``jax.random.key(s)`` of every seed: the keys :func:`jaxmdp.runner.product` gives members of those seeds."""
-    return jax.vmap(jax.random.key)(jnp.asarray(seeds))
-
-
 def tuned_regret(
     mdps: MDP,
     eval_seeds: Sequence[int],
@@ -126,7 +120,7 @@ def tuned_regret(
         # Member (m, c, j) of the search: MDP m, candidate c, tuning seed j (MDP-major, as runner.product orders).
         m, c, j = np.unravel_index(np.arange(M * n_candidates * n_tuning_seeds), (M, n_candidates, n_tuning_seeds))
         tuning_seeds = TUNING_SEED_OFFSET + j
-        g = runner.grid(mdps, jax.tree.map(lambda x: x[c], cands), _keys(tuning_seeds), mdp_index=m,
+        g = runner.grid(mdps, jax.tree.map(lambda x: x[c], cands), runner.seed_keys(tuning_seeds), mdp_index=m,
                         hparams_index=c, seeds=tuning_seeds)
         search = runner.run(agent, g, n_steps, progress=progress)
         scores = search.column("normalized_cumulative_regret")[-1].reshape(M, n_candidates, n_tuning_seeds)
@@ -139,7 +133,7 @@ def tuned_regret(
         best = np.zeros(M, np.int64)
     best_hparams = jax.tree.map(lambda x: x[best], cands)
 
-    g = runner.grid(mdps, best_hparams, _keys(eval_seeds), mdp_index=np.arange(M), seeds=eval_seeds)
+    g = runner.grid(mdps, best_hparams, runner.seed_keys(eval_seeds), mdp_index=np.arange(M), seeds=eval_seeds)
     final = runner.run(agent, g, n_steps, progress=progress)
     return NearOptimalRegret(
         agent=agent.name,

@@ -19,7 +19,7 @@ import numpy as np
 from jaxmdp.batching import stack
 from jaxmdp.mdp import MDP
 
-__all__ = ["Grid", "grid", "product", "stack_hparams"]
+__all__ = ["Grid", "grid", "product", "seed_keys", "stack_hparams"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -154,6 +154,11 @@ def grid(
     )
 
 
+def seed_keys(seeds: Sequence[int] | np.ndarray) -> jax.Array:
+    """``jax.random.key(s)`` for every seed ``s``: the key :func:`product` gives a member of seed ``s``."""
+    return jax.vmap(jax.random.key)(jnp.asarray(seeds))
+
+
 def product(
     mdps: MDP | Sequence[MDP],
     hparams: Sequence[Any],
@@ -177,7 +182,7 @@ def product(
     hp_all = stack_hparams(hparams)
     member_hparams = jax.tree.map(lambda x: x[idx[:, 1]], hp_all)
     seed_arr = np.asarray(seeds)[idx[:, 2]]
-    key_data = np.asarray(jax.vmap(lambda s: jax.random.key_data(jax.random.key(s)))(jnp.asarray(seed_arr)))
+    key_data = np.asarray(jax.random.key_data(seed_keys(seed_arr)))
     return Grid(
         mdps=stacked,
         mdp_index=idx[:, 0].astype(np.int32),

@@ -46,7 +46,7 @@ from flax import struct
 
 from jaxmdp import env
 from jaxmdp.agent_interface import Agent, Transition, spec_of
-from jaxmdp.grid import Grid, grid, product, stack_hparams
+from jaxmdp.grid import Grid, grid, product, seed_keys, stack_hparams
 from jaxmdp.indicators import (
     AGENT_COLUMNS,
     IndicatorConstants,
@@ -67,7 +67,7 @@ from jaxmdp.run_output import (
     truncate_csv,
 )
 
-__all__ = ["Grid", "grid", "product", "stack_hparams", "RunResult", "run", "record_steps", "MEMBER_COLUMNS"]
+__all__ = ["Grid", "grid", "product", "seed_keys", "stack_hparams", "RunResult", "run", "record_steps", "MEMBER_COLUMNS"]
 
 Variant = Literal["paper", "colosseum"]
 
