@@ -26,11 +26,17 @@ from jaxmdp.batching import size_buckets, stack
 from jaxmdp.episodic import continuous_form, stack_continuous_forms
 from jaxmdp.mdp import MDP
 
-__all__ = ["measures_many"]
+__all__ = ["measures_many", "map_measures"]
 
 
 @functools.partial(jax.jit, static_argnames=("gamma", "variant", "batch_size"))
-def _bucket_measures(batch: MDP, forms: Any, gamma: float, variant: str, batch_size: int) -> HardnessMeasures:
+def map_measures(
+    batch: MDP, forms: Any = None, gamma: float = 0.99, variant: str = "paper", batch_size: int = 1
+) -> HardnessMeasures:
+    """:func:`hardness.measures` of every member of a stacked ``batch`` (``forms``: the stacked continuous forms of
+    an episodic batch under ``variant="colosseum"``, else None), mapped with ``lax.map`` so that each member's
+    solvers stop at its own convergence; ``batch_size`` members per step in lockstep. One compilation per shape."""
+
     def one(args):
         m, cf = args
         return measures(m, gamma, variant=variant, continuous_form=cf)
@@ -79,7 +85,7 @@ def measures_many(
             forms = None
             if variant == "colosseum" and is_episodic:
                 forms = stack_continuous_forms([continuous_form(m) for m in members])
-            out = _bucket_measures(stack(members).strip(), forms, float(gamma), variant, int(batch_size))
+            out = map_measures(stack(members).strip(), forms, float(gamma), variant, int(batch_size))
             parts.append((np.asarray([idx[g] for g in group]), out))
     where = np.concatenate([p[0] for p in parts])
     inverse = np.empty_like(where)

@@ -48,6 +48,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxmdp
+from hardness.batched import map_measures
 from hardness.measures import HardnessMeasures, measures, normalize
 from jaxmdp.episodic import continuous_form, stack_continuous_forms
 from jaxmdp.mdp import MDP
@@ -327,26 +328,17 @@ def prepare(spec: ScenarioSpec, seeds: Sequence[int] | None = None) -> ScenarioG
     return ScenarioGrid(spec=spec, seeds=seeds, batch=batch, forms=forms, n_states=n_states)
 
 
-@functools.partial(jax.jit, static_argnames=("kind", "variant", "gamma"))
-def _transform_grid(bases: MDP, values: jax.Array, kind: str, variant: str, gamma: float) -> HardnessMeasures:
-    transform = jaxmdp.apply_p_rand if kind == "p_rand" else jaxmdp.apply_p_lazy
-
-    def one(base, v):
-        return measures(transform(base, v), gamma, variant=variant)
-
-    return jax.vmap(lambda base: jax.vmap(lambda v: one(base, v))(values))(bases)
-
-
-@functools.partial(jax.jit, static_argnames=("variant", "gamma"))
-def _batch_measures(batch: MDP, forms: Any, variant: str, gamma: float) -> HardnessMeasures:
-    return jax.lax.map(lambda x: measures(x[0], gamma, variant=variant, continuous_form=x[1]), (batch, forms))
-
-
 @functools.partial(jax.jit, static_argnames=("kind",))
 def _transformed(bases: MDP, values: jax.Array, kind: str) -> MDP:
     transform = jaxmdp.apply_p_rand if kind == "p_rand" else jaxmdp.apply_p_lazy
     grid = jax.vmap(lambda base: jax.vmap(lambda v: transform(base, v))(values))(bases)
     return jax.tree.map(lambda x: x.reshape(-1, *x.shape[2:]), grid)
+
+
+@functools.partial(jax.jit, static_argnames=("kind", "variant", "gamma"))
+def _transform_grid(bases: MDP, values: jax.Array, kind: str, variant: str, gamma: float) -> HardnessMeasures:
+    """The measures of :func:`_transformed`'s grid, ``[n_seeds * n_values]`` (equal shapes: vmapped)."""
+    return jax.vmap(lambda m: measures(m, gamma, variant=variant))(_transformed(bases, values, kind))
 
 
 def grid_mdps(grid: ScenarioGrid) -> MDP:
@@ -370,7 +362,7 @@ def compute(grid: ScenarioGrid) -> dict[str, np.ndarray]:
         values = jnp.asarray(spec.values, grid.batch.dtype)
         out = _transform_grid(grid.batch, values, spec.parameter, spec.variant, spec.gamma)
     else:
-        out = _batch_measures(grid.batch, grid.forms, spec.variant, spec.gamma)
+        out = map_measures(grid.batch, grid.forms, spec.gamma, spec.variant)
     result: dict[str, np.ndarray] = {"n_states": grid.n_states.copy()}
     for name in MEASURES:
         m = getattr(out, name)
