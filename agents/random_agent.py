@@ -66,6 +66,7 @@ def _make(episodic: bool) -> Agent:
         act=act,
         update=update,
         policy=policy,
+        observation="any",
     )
 
 

@@ -15,6 +15,17 @@ hyperparameter sets and drives them in lockstep:
 * ``policy(state) -> pi``: the agent's current best policy estimate, ``[S, A]`` (continuous) or ``[H, S, A]``
   (episodic), used only to compute expected regret.
 
+What an agent observes is declared by ``Agent.observation``:
+
+* ``"state"`` (tabular agents): ``obs`` is the state index, an ``int32`` scalar; such an agent rejects a BlockMDP;
+* ``"emission"`` (deep agents, paper §3.1 and App. A.2): ``obs`` is the BlockMDP's observation of the state, the
+  row of its emission table plus emission noise; ``spec.observations`` holds the noiseless table, ``[S, *obs]``
+  (continuous) or ``[H, S, *obs]`` (episodic), on which ``policy`` evaluates the greedy action of every state;
+* ``"any"``: the agent ignores ``obs`` (the random agent).
+
+``Transition.obs`` and ``Transition.next_obs`` are then observations of the same kind; ``next_obs`` is the very
+sample the agent acts on next (unless the episode ended), not a second noise draw.
+
 Hyperparameters are a ``flax.struct`` pytree whose numeric fields are leaves, so a grid can vmap over them; sizes
 are static. Agents must never choose an action outside ``spec.action_mask`` (padded actions of a stacked batch).
 """
@@ -23,7 +34,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Literal
 
 import jax
 import jax.numpy as jnp
@@ -49,6 +60,8 @@ class MDPSpec(struct.PyTreeNode):
     state_mask: jax.Array
     action_mask: jax.Array
     n_steps: jax.Array
+    #: The emission table of a BlockMDP (``[S, *obs]`` or ``[H, S, *obs]``); ``None`` for a plain MDP.
+    observations: jax.Array | None = None
 
     @property
     def episodic(self) -> bool:
@@ -56,7 +69,10 @@ class MDPSpec(struct.PyTreeNode):
 
 
 def spec_of(mdp: MDP, n_steps: int | jax.Array) -> MDPSpec:
-    """The :class:`MDPSpec` of an (unbatched or stacked) MDP for an interaction of ``n_steps`` steps."""
+    """The :class:`MDPSpec` of an (unbatched or stacked) MDP, or of a BlockMDP (any pytree with fields ``mdp`` and
+    ``emissions``), for an interaction of ``n_steps`` steps."""
+    observations = getattr(mdp, "emissions", None)
+    mdp = getattr(mdp, "mdp", mdp)
     return MDPSpec(
         n_states=mdp.n_states,
         n_actions=mdp.n_actions,
@@ -65,6 +81,7 @@ def spec_of(mdp: MDP, n_steps: int | jax.Array) -> MDPSpec:
         state_mask=mdp.state_mask,
         action_mask=mdp.action_mask,
         n_steps=jnp.broadcast_to(jnp.asarray(n_steps, jnp.int32), mdp.horizon.shape),
+        observations=observations,
     )
 
 
@@ -98,3 +115,5 @@ class Agent:
     plan: Callable[[jax.Array, Any], Any] = lambda key, state: state
     #: Validates hyperparameters on the host (raises ``ValueError``); called by the runner before compiling.
     check_hparams: Callable[[Any], None] = lambda hparams: None
+    #: What ``obs`` is: ``"state"`` (a state index), ``"emission"`` (a BlockMDP observation) or ``"any"``.
+    observation: Literal["state", "emission", "any"] = "state"
