@@ -36,9 +36,12 @@ def _select(mask, new, old):
 
 
 def make_runner(agent: Agent, n_steps: int, trace: bool = False, plan_chunk: int | None = None):
-    """``run(keys[B], mdp, hparams) -> RunResult`` (jitted) for ``n_steps`` interaction steps.
+    """``run(keys[B], mdp, hparams, emissions=None) -> RunResult`` (jitted) for ``n_steps`` interaction steps.
 
     ``mdp`` is one MDP for every member, or a stacked batch of ``B`` MDPs (member ``i`` faces MDP ``i``).
+    ``emissions`` (one MDP only): a noiseless emission table, ``[S, *obs]`` (continuous) or ``[H, S, *obs]``
+    (episodic); the agent then observes the table row of the state (and of the in-episode step), not its index, and
+    its spec carries the table (the protocol of ``Agent.observation == "emission"``).
     ``plan_chunk``: if given, planning gathers the members that need it into sub-batches of this size (a
     ``while_loop`` over chunks) instead of planning for the whole batch; results are the same, the cost of a plan
     step then scales with the number of members that plan rather than with ``B``.
@@ -61,13 +64,20 @@ def make_runner(agent: Agent, n_steps: int, trace: bool = False, plan_chunk: int
 
         return jax.lax.while_loop(lambda c: jnp.any(c[1]), chunk, (states, need))[0]
 
-    def run(keys, mdp, hparams):
+    def run(keys, mdp, hparams, emissions=None):
         m = 0 if mdp.T.ndim == 4 else None
-        spec = spec_of(mdp, n_steps)
+        spec = spec_of(mdp, n_steps).replace(observations=emissions)
+
+        def observe(s, h):
+            if emissions is None:
+                return s
+            return emissions[h, s] if mdp.episodic else emissions[s]
+
         k = jax.vmap(lambda key: jax.random.split(key, 4))(keys)
         states = jax.vmap(agent.init, (0, m, None))(k[:, 0], spec, hparams)
         states = jax.vmap(agent.plan)(k[:, 1], states)
         obs, env = jax.vmap(jaxmdp.reset, (0, m))(k[:, 2], mdp)
+        obs = jax.vmap(observe)(obs, env.h)
         loop_keys = k[:, 3]
 
         def body(carry, t):
@@ -75,7 +85,12 @@ def make_runner(agent: Agent, n_steps: int, trace: bool = False, plan_chunk: int
             kt = jax.vmap(lambda key: jax.random.split(jax.random.fold_in(key, t), 3))(loop_keys)
             a = jax.vmap(agent.act)(kt[:, 0], states, obs, env.h)
             obs_next, env_next, r, term, _, info = jax.vmap(jaxmdp.step, (0, 0, 0, m))(kt[:, 1], env, a, mdp)
-            tr = Transition(obs=obs, action=a, reward=r, next_obs=info["final_observation"], h=env.h, terminated=term)
+            # The state reached is observed at the next in-episode step (the last step of an episode: at h = H - 1,
+            # the table's last row, since the episode ends there).
+            h_reached = jnp.where(term, env.h, env_next.h) if emissions is not None and mdp.episodic else env_next.h
+            final_obs = jax.vmap(observe)(info["final_observation"], h_reached)
+            obs_next = jax.vmap(observe)(obs_next, env_next.h)
+            tr = Transition(obs=obs, action=a, reward=r, next_obs=final_obs, h=env.h, terminated=term)
             states = jax.vmap(agent.update)(states, tr)
             need = jax.vmap(agent.needs_plan)(states)
             states = plan_members(states, need, kt[:, 2])
