@@ -1,6 +1,6 @@
 """Tabular agents as pure functions over pytrees (paper §3.3; spec ``agents.md``).
 
-``AGENTS`` maps each agent's name to its :class:`jaxmdp.agent_interface.Agent`; :func:`get` looks one up.
+``AGENTS`` maps each agent's name to its :class:`jaxmdp.experiment.agent_interface.Agent`; :func:`get` looks one up.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from agents.q_learning_continuous import Q_LEARNING_CONTINUOUS
 from agents.q_learning_episodic import Q_LEARNING_EPISODIC
 from agents.random_agent import RANDOM_CONTINUOUS, RANDOM_EPISODIC
 from agents.ucrl2 import UCRL2
-from jaxmdp.agent_interface import Agent
+from jaxmdp.experiment.agent_interface import Agent
 
 AGENTS: dict[str, Agent] = {
     a.name: a

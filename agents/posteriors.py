@@ -18,7 +18,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from jaxmdp.beta_sampling import sample_log_gamma
+from jaxmdp.sampling.beta_sampling import sample_log_gamma
 
 __all__ = [
     "log_gamma_sample",
@@ -46,7 +46,7 @@ def log_gamma_sample(key: jax.Array, alpha: jax.Array) -> jax.Array:
     """``log g`` with ``g ~ Gamma(alpha, 1)`` elementwise, for ``alpha > 0`` (any array shape), in ``alpha``'s dtype.
 
     Marsaglia & Tsang (2000) rejection with boosting for shapes below one, kept in log space so that tiny shapes
-    (``1/S`` priors) do not underflow: :func:`jaxmdp.beta_sampling.sample_log_gamma` (one round over the array, the
+    (``1/S`` priors) do not underflow: :func:`jaxmdp.sampling.beta_sampling.sample_log_gamma` (one round over the array, the
     rare rejections compacted). Exact, with a different stream from ``jax.random.loggamma`` and many times faster.
     """
     alpha = jnp.asarray(alpha)

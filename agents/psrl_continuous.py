@@ -61,9 +61,9 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from agents.acting import greedy_action
+from agents.tabular_common import greedy_action
 from agents.epochs import EpochSchedule, epoch_schedule, record_visit, start_epoch
-from agents.hyperparameters import check_int, check_range
+from jaxmdp._checks import check_int, check_range
 from agents.planning import relative_value_iteration, where_due
 from agents.posteriors import (
     NormalGamma,
@@ -76,7 +76,7 @@ from agents.posteriors import (
     normal_gamma_sample,
 )
 from jaxmdp import dynamic_programming as dp
-from jaxmdp.agent_interface import Agent, MDPSpec, Transition
+from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
 
 __all__ = [
     "PSRLContinuousHParams",

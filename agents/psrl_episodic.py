@@ -30,8 +30,8 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from agents.acting import greedy_action
-from agents.hyperparameters import check_range
+from agents.tabular_common import greedy_action
+from jaxmdp._checks import check_range
 from agents.planning import where_due
 from agents.posteriors import (
     NormalGamma,
@@ -44,7 +44,7 @@ from agents.posteriors import (
     normal_gamma_sample,
 )
 from jaxmdp import dynamic_programming as dp
-from jaxmdp.agent_interface import Agent, MDPSpec, Transition
+from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
 
 __all__ = ["PSRLEpisodicHParams", "PSRLEpisodicState", "PSRL_EPISODIC"]
 

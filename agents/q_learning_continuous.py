@@ -42,9 +42,10 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from agents.tabular import check_interval, greedy_random_ties, valid_counts
+from agents.tabular_common import greedy_action, valid_counts
+from jaxmdp._checks import check_range
 from jaxmdp import dynamic_programming as dp
-from jaxmdp.agent_interface import Agent, MDPSpec, Transition
+from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
 
 __all__ = ["QLearningContinuousHParams", "QLearningContinuousState", "Q_LEARNING_CONTINUOUS", "constants"]
 
@@ -77,10 +78,10 @@ class QLearningContinuousState(struct.PyTreeNode):
 
 def check_hparams(hparams: QLearningContinuousHParams) -> None:
     """Domains: ``h_weight, span_approx_weight > 0``, ``0 <= min_at <= 1``, ``0 < delta < 1``."""
-    check_interval("h_weight", hparams.h_weight, 0.0, low_open=True)
-    check_interval("span_approx_weight", hparams.span_approx_weight, 0.0, low_open=True)
-    check_interval("min_at", hparams.min_at, 0.0, 1.0)
-    check_interval("delta", hparams.delta, 0.0, 1.0, low_open=True, high_open=True)
+    check_range("h_weight", hparams.h_weight, 0.0, low_open=True)
+    check_range("span_approx_weight", hparams.span_approx_weight, 0.0, low_open=True)
+    check_range("min_at", hparams.min_at, 0.0, 1.0)
+    check_range("delta", hparams.delta, 0.0, 1.0, low_open=True, high_open=True)
 
 
 def constants(
@@ -138,7 +139,7 @@ def update(state: QLearningContinuousState, tr: Transition) -> QLearningContinuo
 def act(key: jax.Array, state: QLearningContinuousState, obs: jax.Array, h: jax.Array) -> jax.Array:
     """Greedy in ``Q_hat(obs, .)``, exact ties at random."""
     del h
-    return greedy_random_ties(key, state.Q_hat[obs], state.action_mask)
+    return greedy_action(key, state.Q_hat[obs], state.action_mask)
 
 
 def policy(state: QLearningContinuousState) -> jax.Array:

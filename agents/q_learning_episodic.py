@@ -40,9 +40,10 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from agents.tabular import check_interval, greedy_random_ties, valid_counts
+from agents.tabular_common import greedy_action, valid_counts
+from jaxmdp._checks import check_range
 from jaxmdp import dynamic_programming as dp
-from jaxmdp.agent_interface import Agent, MDPSpec, Transition
+from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
 
 __all__ = ["QLearningEpisodicHParams", "QLearningEpisodicState", "Q_LEARNING_EPISODIC"]
 
@@ -89,10 +90,10 @@ class QLearningEpisodicState(struct.PyTreeNode):
 
 def check_hparams(hparams: QLearningEpisodicHParams) -> None:
     """Domains: ``c_1, c_2 > 0``, ``0 <= min_at <= 1``, ``0 < p < 1``, ``bernstein`` in {0, 1}."""
-    check_interval("c_1", hparams.c_1, 0.0, low_open=True)
-    check_interval("c_2", hparams.c_2, 0.0, low_open=True)
-    check_interval("min_at", hparams.min_at, 0.0, 1.0)
-    check_interval("p", hparams.p, 0.0, 1.0, low_open=True, high_open=True)
+    check_range("c_1", hparams.c_1, 0.0, low_open=True)
+    check_range("c_2", hparams.c_2, 0.0, low_open=True)
+    check_range("min_at", hparams.min_at, 0.0, 1.0)
+    check_range("p", hparams.p, 0.0, 1.0, low_open=True, high_open=True)
     b = np.asarray(hparams.bernstein)
     if not np.all((b == 0) | (b == 1)):
         raise ValueError(f"bernstein must be True (UCB-Bernstein) or False (UCB-Hoeffding); got {hparams.bernstein}")
@@ -160,7 +161,7 @@ def update(state: QLearningEpisodicState, tr: Transition) -> QLearningEpisodicSt
 
 def act(key: jax.Array, state: QLearningEpisodicState, obs: jax.Array, h: jax.Array) -> jax.Array:
     """Greedy in ``Q_h(obs, .)``, exact ties at random."""
-    return greedy_random_ties(key, state.table[h, obs, :, _Q], state.action_mask)
+    return greedy_action(key, state.table[h, obs, :, _Q], state.action_mask)
 
 
 def policy(state: QLearningEpisodicState) -> jax.Array:

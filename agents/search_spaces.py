@@ -3,7 +3,7 @@
 Each space is the reference's (spec ``agents.md``, "Search space" of every agent): independent uniform ranges over
 the named numeric fields of the agent's hyperparameter pytree; every other field keeps its default. Candidates are
 drawn with ``jax.random`` from an explicit key (same key, same candidates) and are returned as one stacked pytree,
-so a whole search runs as one lockstep grid (:func:`jaxmdp.runner.grid`).
+so a whole search runs as one lockstep grid (:func:`jaxmdp.experiment.runner.grid`).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from typing import Any
 import jax
 import numpy as np
 
-from jaxmdp.agent_interface import Agent
+from jaxmdp.experiment.agent_interface import Agent
 
 __all__ = ["SEARCH_SPACES", "search_space", "sample_candidates"]
 

@@ -46,13 +46,13 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from agents.acting import greedy_action
+from agents.tabular_common import greedy_action
 from agents.epochs import EpochSchedule, epoch_schedule, record_visit, start_epoch
 from agents.extended_value_iteration import extended_value_iteration
-from agents.hyperparameters import check_int, check_range
+from jaxmdp._checks import check_int, check_range
 from agents.planning import where_due
 from jaxmdp import dynamic_programming as dp
-from jaxmdp.agent_interface import Agent, MDPSpec, Transition
+from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
 
 __all__ = ["UCRL2HParams", "UCRL2State", "confidence_widths", "UCRL2"]
 

@@ -46,7 +46,7 @@ from hardness.reference_vi import reference_value_iteration, uses_jacobi
 from hardness.result import MeasureResult
 from jaxmdp import dynamic_programming as dp
 from jaxmdp.episodic import ContinuousForm, continuous_form, reachable_pairs
-from jaxmdp.linalg import solve as linear_solve
+from jaxmdp.jaxlib_workarounds.linalg import solve as linear_solve
 from jaxmdp.mdp import MDP
 
 __all__ = ["value_norm", "value_norm_from", "optimal_values", "deterministic_base", "chain_bias"]
@@ -98,7 +98,7 @@ def chain_bias(P: jax.Array, r: jax.Array, n_squarings: int = 48) -> jax.Array:
 
     Pstar = jax.lax.fori_loop(0, n_squarings, square, 0.5 * (eye + P))
     g = Pstar @ r
-    return linear_solve(eye - P + Pstar, r - g)  # one system at a time under vmap (see jaxmdp.linalg)
+    return linear_solve(eye - P + Pstar, r - g)  # one system at a time under vmap (see jaxmdp.jaxlib_workarounds.linalg)
 
 
 def _dense_chain(succ: jax.Array, succ_p: jax.Array, pi: jax.Array) -> jax.Array:

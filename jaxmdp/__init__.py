@@ -4,9 +4,9 @@ Rebuilds the MDP side of "Hardness in Markov Decision Processes: Theory and Prac
 2022) so that many MDPs and many seeds run in lockstep under ``jit`` and ``vmap``.
 """
 
-from jaxmdp import xla_cpu as _xla_cpu
+from jaxmdp.jaxlib_workarounds import xla_cpu as _xla_cpu
 
-# Before anything can create a JAX backend: see jaxmdp/xla_cpu.py (jaxlib 0.10.2 miscompiles some CPU reductions).
+# Before anything can create a JAX backend: see jaxmdp/jaxlib_workarounds/xla_cpu.py (jaxlib 0.10.2 miscompiles some CPU reductions).
 _xla_cpu.disable_ynn_fusion()
 
 from jaxmdp import dynamic_programming  # noqa: E402

@@ -26,7 +26,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from jaxmdp.linalg import solve as linear_solve
+from jaxmdp.jaxlib_workarounds.linalg import solve as linear_solve
 from jaxmdp.mdp import MDP
 
 Model = MDP | jax.Array
@@ -184,7 +184,7 @@ def policy_evaluation(
 ) -> tuple[jax.Array, jax.Array]:
     """Exact discounted evaluation of a stationary policy: ``V = (I - gamma P_pi)^{-1} r_pi`` and its ``Q``.
 
-    The solve is :func:`jaxmdp.linalg.solve` (one system at a time under ``vmap``: jaxlib 0.10.2's batched CPU solve
+    The solve is :func:`jaxmdp.jaxlib_workarounds.linalg.solve` (one system at a time under ``vmap``: jaxlib 0.10.2's batched CPU solve
     can deadlock)."""
     R = _rewards(model, rewards)
     P = policy_matrix(model, pi)

@@ -20,7 +20,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from jaxmdp.beta_sampling import sample_beta
+from jaxmdp.sampling.beta_sampling import sample_beta
 from jaxmdp.mdp import MDP
 
 __all__ = ["EnvState", "reset", "step", "sample_action", "sample_next_state", "sample_reward"]
@@ -65,7 +65,7 @@ def sample_reward(
 ) -> jax.Array:
     """Draw the reward of ``(state, action, next_state)``: Beta(mean*conc, (1-mean)*conc) if ``conc > 0``, else mean.
 
-    Beta draws use :func:`jaxmdp.beta_sampling.sample_beta` (exact; several times faster than ``jax.random.beta``
+    Beta draws use :func:`jaxmdp.sampling.beta_sampling.sample_beta` (exact; several times faster than ``jax.random.beta``
     under ``vmap``, where the reward draw dominated the cost of a step). MDPs whose static ``stochastic_rewards`` is
     False (no Beta reward anywhere, recorded at construction) compile no draw at all: the reward is the mean.
     """

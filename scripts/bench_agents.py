@@ -21,10 +21,9 @@ import argparse
 import os
 import sys
 
-if "xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = (
-        os.environ.get("XLA_FLAGS", "") + f" --xla_force_host_platform_device_count={os.cpu_count() or 1}"
-    ).strip()
+from jaxmdp.experiment.devices import use_every_core
+
+use_every_core()  # one lockstep loop per core: the runner shards the members over the host devices
 
 import csv  # noqa: E402
 import platform  # noqa: E402
@@ -35,7 +34,7 @@ import jax  # noqa: E402
 
 import agents  # noqa: E402
 import jaxmdp  # noqa: E402
-from jaxmdp import runner  # noqa: E402
+from jaxmdp.experiment import runner  # noqa: E402
 
 # The benchmark MDPs of colosseum-timings.md (benchmark.md §3 scopes), keyed by (family, episodic).
 BENCH_MDPS = {

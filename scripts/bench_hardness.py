@@ -30,7 +30,7 @@ import numpy as np
 
 import hardness
 import jaxmdp
-from hardness import benchmark_suite
+from hardness.benchmark import suite as benchmark_suite
 from hardness.batched import map_measures
 from hardness.diameter import _expect_columns
 from jaxmdp import episodic

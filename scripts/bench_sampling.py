@@ -1,4 +1,4 @@
-"""Speed of the Gamma/Beta sampler ``jaxmdp.beta_sampling`` against ``jax.random`` (``dirichlet``, ``beta``,
+"""Speed of the Gamma/Beta sampler ``jaxmdp.sampling.beta_sampling`` against ``jax.random`` (``dirichlet``, ``beta``,
 ``loggamma``), both in one process, interleaved, best of ``--reps`` (other processes share the machine: read the
 ratios). Three measurements:
 
@@ -8,7 +8,7 @@ ratios). Three measurements:
 2. Beta rewards, ns per draw: ``vmap`` of ``sample_beta`` against ``jax.random.beta`` over 4096 members, shapes
    uniform on (0.05, 5).
 3. PSRL episodic agent-steps per second on MiniGridEmpty size 5 (S = 100, A = 3, H = 13), 64 seeds, through
-   ``jaxmdp.runner`` (indicators every 100 steps), with ``jax.random.loggamma`` / ``jax.random.beta`` patched into
+   ``jaxmdp.experiment.runner`` (indicators every 100 steps), with ``jax.random.loggamma`` / ``jax.random.beta`` patched into
    ``agents.posteriors`` and ``jaxmdp.env`` against ours. One host device per core, as ``scripts/bench_agents.py``.
 
 Writes ``results/bench_sampling.md``. Usage: ``python scripts/bench_sampling.py [--reps 3] [--psrl-steps 520]``.
@@ -18,10 +18,9 @@ from __future__ import annotations
 
 import os
 
-if "xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = (
-        os.environ.get("XLA_FLAGS", "") + f" --xla_force_host_platform_device_count={os.cpu_count() or 1}"
-    ).strip()
+from jaxmdp.experiment.devices import use_every_core
+
+use_every_core()  # one lockstep loop per core: the runner shards the members over the host devices
 
 import argparse  # noqa: E402
 import dataclasses  # noqa: E402
@@ -36,7 +35,8 @@ import numpy as np  # noqa: E402
 import agents  # noqa: E402
 import agents.posteriors as posteriors  # noqa: E402
 import jaxmdp.env as env  # noqa: E402
-from jaxmdp import beta_sampling, runner  # noqa: E402
+from jaxmdp.experiment import runner
+from jaxmdp.sampling import beta_sampling  # noqa: E402
 
 
 def jax_log_gamma(key, a, *, dtype=jnp.float32, **_):
@@ -141,9 +141,9 @@ def write(out: Path, draws: list[dict], beta: dict, psrl: dict, args, load0, ela
     except (OSError, StopIteration):
         cpu = "unknown CPU"
     lines = [
-        "# Gamma / Beta sampler: jaxmdp.beta_sampling against jax.random",
+        "# Gamma / Beta sampler: jaxmdp.sampling.beta_sampling against jax.random",
         "",
-        f"{os.cpu_count()} cores ({cpu}), jax {jax.__version__}. `jax.random` and ours (`jaxmdp.beta_sampling`) timed "
+        f"{os.cpu_count()} cores ({cpu}), jax {jax.__version__}. `jax.random` and ours (`jaxmdp.sampling.beta_sampling`) timed "
         f"in one process, interleaved, best of {args.reps} (PSRL: best of {args.psrl_reps}). Load average "
         f"before/after: {load0[0]:.1f} / {os.getloadavg()[0]:.1f}: other processes share the machine, so read the "
         f"ratios. Wall ns, then CPU ns summed over threads. Total {elapsed:.0f} s.",
@@ -176,7 +176,7 @@ def write(out: Path, draws: list[dict], beta: dict, psrl: dict, args, load0, ela
         "## PSRL episodic in the runner",
         "",
         f"MiniGridEmpty size 5 (S = {psrl['S']}, A = 3, H = 13), {psrl['seeds']} seeds, {psrl['steps']} steps, "
-        "indicators every 100 steps, `jaxmdp.runner.run` (one host device per core). jax: `jax.random.loggamma` and "
+        "indicators every 100 steps, `jaxmdp.experiment.runner.run` (one host device per core). jax: `jax.random.loggamma` and "
         "`jax.random.beta` patched into `agents.posteriors` and `jaxmdp.env`.",
         "",
         "| sampler | agent-steps/s | compile s |",

@@ -9,7 +9,7 @@ Writes ``results/sweep_plazy/``. DeepSea has no lazy mechanic and is refused.
 
 import sys
 
-from hardness.sweep_cli import main
+from hardness.analysis.sweep_cli import main
 
 if __name__ == "__main__":
     sys.exit(main(2, description=__doc__, default_out="results/sweep_plazy"))

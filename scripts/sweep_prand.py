@@ -2,7 +2,7 @@
 
 One base MDP per seed; every value of ``p_rand`` is the jittable kernel transform of it (``jaxmdp.apply_p_rand``), so
 each seed's whole grid is one batched call of ``hardness.measures``; beside the measures, the regret of the tuned
-near-optimal agent (``hardness.near_optimal``: PSRL episodic, UCRL2 continuous; ``--agent-steps 0`` leaves it out).
+near-optimal agent (``hardness.analysis.near_optimal``: PSRL episodic, UCRL2 continuous; ``--agent-steps 0`` leaves it out).
 Writes ``results/sweep_prand/`` (CSV of raw and normalised measures and regrets per (seed, p_rand), the settings as
 JSON, a PNG figure).
 
@@ -13,7 +13,7 @@ JSON, a PNG figure).
 
 import sys
 
-from hardness.sweep_cli import main
+from hardness.analysis.sweep_cli import main
 
 if __name__ == "__main__":
     sys.exit(main(1, description=__doc__, default_out="results/sweep_prand"))

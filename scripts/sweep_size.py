@@ -10,7 +10,7 @@ the number of states (mean over seeds where it depends on the seed). Writes ``re
 
 import sys
 
-from hardness.sweep_cli import main
+from hardness.analysis.sweep_cli import main
 
 if __name__ == "__main__":
     sys.exit(main(3, description=__doc__, default_out="results/sweep_size", scenario_choices=(3, 4)))

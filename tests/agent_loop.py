@@ -1,11 +1,11 @@
 """A minimal lockstep agent/MDP interaction loop for the agents' own tests, written independently of
-:mod:`jaxmdp.runner`: it returns per-step traces (actions, rewards, plan flags) that the runner does not keep, so the
+:mod:`jaxmdp.experiment.runner`: it returns per-step traces (actions, rewards, plan flags) that the runner does not keep, so the
 agent tests check each algorithm without going through the runner's chunking, sharding and indicators.
 
 One ``lax.scan`` over time steps drives a batch of agents (leading axis: one key per member) on one MDP shared by
 the batch or on a stacked batch of MDPs (one per member, from ``jaxmdp.stack``). Per step:
 ``act`` -> ``jaxmdp.step`` -> ``update``; then, if *any* member ``needs_plan``, ``plan`` runs for the batch under one
-``lax.cond`` and is kept only for the members that asked (the protocol of ``jaxmdp.agent_interface``). Each
+``lax.cond`` and is kept only for the members that asked (the protocol of ``jaxmdp.experiment.agent_interface``). Each
 member's randomness is ``fold_in(member_key, t)``, so a member's run does not depend on the rest of the batch.
 """
 
@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxmdp
-from jaxmdp.agent_interface import Agent, Transition, spec_of
+from jaxmdp.experiment.agent_interface import Agent, Transition, spec_of
 
 
 class RunResult(NamedTuple):

@@ -14,9 +14,9 @@ import agents
 import jaxmdp
 from agents import q_learning_continuous as qlc
 from agents import q_learning_episodic as qle
-from agents.tabular import greedy_random_ties
-from jaxmdp import runner
-from jaxmdp.agent_interface import Transition, spec_of
+from agents.tabular_common import greedy_action
+from jaxmdp.experiment import runner
+from jaxmdp.experiment.agent_interface import Transition, spec_of
 
 
 def tr(s, a, r, s2, h=0):
@@ -142,10 +142,10 @@ def test_greedy_ties_are_uniform_over_valid_actions():
     keys = jax.random.split(jax.random.key(0), 6000)
     q = jnp.asarray([1.0, 0.5, 1.0, 1.0])
     mask = jnp.asarray([True, True, True, False])
-    a = np.asarray(jax.vmap(greedy_random_ties, in_axes=(0, None, None))(keys, q, mask))
+    a = np.asarray(jax.vmap(greedy_action, in_axes=(0, None, None))(keys, q, mask))
     freq = np.bincount(a, minlength=4) / a.size
     np.testing.assert_allclose(freq, [0.5, 0.0, 0.5, 0.0], atol=0.025)  # ~5 standard errors
-    nan = np.asarray(jax.vmap(greedy_random_ties, in_axes=(0, None, None))(keys[:500], q * jnp.nan, mask))
+    nan = np.asarray(jax.vmap(greedy_action, in_axes=(0, None, None))(keys[:500], q * jnp.nan, mask))
     assert set(nan.tolist()) <= {0, 1, 2}
 
 

@@ -9,7 +9,7 @@ import pytest
 
 import hardness
 import jaxmdp
-from hardness import benchmark_suite as bs
+from hardness.benchmark import suite as bs
 from jaxmdp import episodic
 
 # Paper Table 1 / benchmark.md §3: MDPs per setting and family.

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from scipy import special, stats
 
-import jaxmdp.beta_sampling as bs
-from jaxmdp.beta_sampling import buffer_sizes, sample_beta, sample_log_gamma
-from jaxmdp.compaction import compact
+import jaxmdp.sampling.beta_sampling as bs
+from jaxmdp.sampling.beta_sampling import buffer_sizes, sample_beta, sample_log_gamma
+from jaxmdp.sampling.compaction import compact
 
 SHAPES = (0.01, 0.32, 1.0, 5.0, 100.0, 1e4)
 PER_SHAPE = 40_000

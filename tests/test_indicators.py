@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import jaxmdp
-from jaxmdp import indicators
+from jaxmdp.experiment import indicators
 from conftest import random_mdp
 from numpy_reference import finite_horizon_eval as np_finite_horizon_eval
 from numpy_reference import gain_ergodic as np_gain

@@ -1,4 +1,4 @@
-"""The tuned near-optimal agent (hardness.near_optimal) and the search spaces it samples (agents.search_spaces).
+"""The tuned near-optimal agent (hardness.analysis.near_optimal) and the search spaces it samples (agents.search_spaces).
 
 The search logic (objective = mean over tuning seeds, argmin per MDP, evaluation of the winner with the evaluation
 seeds) runs against a fake runner whose regrets are a known function of the member, so every selection can be
@@ -17,8 +17,8 @@ import pytest
 import agents
 import jaxmdp
 from agents.search_spaces import SEARCH_SPACES, sample_candidates, search_space
-from hardness import near_optimal
-from jaxmdp import runner
+from hardness.analysis import near_optimal
+from jaxmdp.experiment import runner
 
 
 def test_candidates_lie_in_the_reference_ranges_and_start_with_the_defaults():

@@ -1,4 +1,4 @@
-"""hardness.plotting: the percentile bootstrap over seeds against a brute-force numpy bootstrap drawing the same
+"""hardness.analysis.plotting: the percentile bootstrap over seeds against a brute-force numpy bootstrap drawing the same
 resamples, NaN handling, and what plot_scenario draws (read back from the figure and the PNG)."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import pytest
 matplotlib.use("Agg", force=True)
 import matplotlib.pyplot as plt  # noqa: E402
 
-from hardness import plotting  # noqa: E402
+from hardness.analysis import plotting  # noqa: E402
 
 
 def brute_force_means(samples: np.ndarray, n_resamples: int, seed: int) -> np.ndarray:

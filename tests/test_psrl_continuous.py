@@ -20,7 +20,7 @@ from agents.psrl_continuous import (
     psi,
 )
 from jaxmdp import dynamic_programming as dp
-from jaxmdp.agent_interface import Transition, spec_of
+from jaxmdp.experiment.agent_interface import Transition, spec_of
 
 AGENT = PSRL_CONTINUOUS
 HP = PSRLContinuousHParams(max_psi=3)  # psi = 2 on the probes: one unused candidate slot

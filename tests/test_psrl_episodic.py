@@ -13,7 +13,7 @@ from agents import AGENTS
 from agents.posteriors import dirichlet_concentration, dirichlet_sample, normal_gamma_sample
 from agents.psrl_episodic import PSRL_EPISODIC, PSRLEpisodicHParams, check_hparams
 from jaxmdp import dynamic_programming as dp
-from jaxmdp.agent_interface import Transition, spec_of
+from jaxmdp.experiment.agent_interface import Transition, spec_of
 
 AGENT = PSRL_EPISODIC
 N_STEPS = 2000

@@ -1,22 +1,15 @@
-"""scripts/regret_table.py: the table's numbers are the runner's columns (mean and Student-t CI over seeds), the CSVs
-agree with them, and a second invocation reuses the finished agents."""
+"""hardness.analysis.regret_table (run by scripts/regret_table.py): the table's numbers are the runner's columns (mean
+and Student-t CI over seeds), the CSVs agree with them, and a second invocation reuses the finished agents."""
 
 from __future__ import annotations
 
 import csv
-import importlib.util
 import math
-import sys
 
 import numpy as np
 import pytest
 
-from conftest import REPO
-
-_spec = importlib.util.spec_from_file_location("regret_table", REPO / "scripts" / "regret_table.py")
-regret_table = importlib.util.module_from_spec(_spec)
-sys.modules["regret_table"] = regret_table  # dataclasses look their module up while the class is created
-_spec.loader.exec_module(regret_table)
+from hardness.analysis import regret_table
 
 STEPS, SEEDS = 300, 3
 ARGS = ["--steps", str(STEPS), "--seeds", str(SEEDS), "--families", "RiverSwim", "DeepSea", "--sizes", "3",

@@ -12,7 +12,7 @@ import pytest
 from scipy import special, stats
 
 import jaxmdp
-from jaxmdp.beta_sampling import sample_beta, sample_log_gamma
+from jaxmdp.sampling.beta_sampling import sample_beta, sample_log_gamma
 
 N = 100_000
 KEYS = jax.random.split(jax.random.key(2024), N)

@@ -17,9 +17,9 @@ from flax import struct
 
 import agents
 import jaxmdp
-from jaxmdp import runner
-from jaxmdp.agent_interface import Agent
-from jaxmdp.indicators import AGENT_COLUMNS, CSV_COLUMNS
+from jaxmdp.experiment import runner
+from jaxmdp.experiment.agent_interface import Agent
+from jaxmdp.experiment.indicators import AGENT_COLUMNS, CSV_COLUMNS
 from numpy_reference import finite_horizon_eval, finite_horizon_optimal, one_hot
 
 # ---------------------------------------------------------------------------------------------------------------

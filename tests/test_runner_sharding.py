@@ -20,7 +20,7 @@ SCRIPT = textwrap.dedent(
     import json
     import jax, numpy as np
     import agents, jaxmdp
-    from jaxmdp import runner
+    from jaxmdp.experiment import runner
     from test_runner import SCRIPTED, ScriptedHParams
 
     assert jax.local_device_count() == 2

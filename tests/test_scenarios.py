@@ -1,4 +1,4 @@
-"""hardness.scenarios (paper §3.2, App. D, App. E) against independent computations.
+"""hardness.analysis.scenarios (paper §3.2, App. D, App. E) against independent computations.
 
 * Scenarios 1-2 (``variant="paper"``: one base MDP per seed, vmapped kernel transform) equal building every noisy MDP
   from scratch with ``jaxmdp.make`` and calling ``hardness.measures`` on it alone, one at a time: scenario 1 on
@@ -25,8 +25,8 @@ import pytest
 
 import hardness
 import jaxmdp
-from hardness import scenarios
-from hardness.scenarios import MEASURES
+from hardness.analysis import scenarios
+from hardness.analysis.scenarios import MEASURES
 from jaxmdp.episodic import continuous_form
 
 from hardness_helpers import normalize_by_hand

@@ -1,4 +1,4 @@
-"""hardness.sweep_cli, the command line of scripts/sweep_prand.py, sweep_plazy.py and sweep_size.py.
+"""hardness.analysis.sweep_cli, the command line of scripts/sweep_prand.py, sweep_plazy.py and sweep_size.py.
 
 End to end on a tiny grid (scenario 1, FrozenLake 3x3 episodic, p_rand 0 and 0.2, seeds 0, 1, 3 of 8, 9 and 7
 states; the grid of tests/test_scenarios.py, so the two files share compiled programs): the table's raw measures
@@ -24,8 +24,8 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from hardness import scenarios, sweep_cli
-from hardness.scenarios import MEASURES
+from hardness.analysis import scenarios, sweep_cli
+from hardness.analysis.scenarios import MEASURES
 
 from hardness_helpers import normalize_by_hand
 

@@ -13,7 +13,7 @@ from agents import AGENTS
 from agents.extended_value_iteration import extended_value_iteration
 from agents.ucrl2 import UCRL2, UCRL2HParams, check_hparams, confidence_widths
 from jaxmdp import dynamic_programming as dp
-from jaxmdp.agent_interface import Transition, spec_of
+from jaxmdp.experiment.agent_interface import Transition, spec_of
 
 N_STEPS = 3000
 

@@ -1,4 +1,4 @@
-"""The jaxlib 0.10.2 CPU miscompilation guard (jaxmdp/xla_cpu.py): the pattern that broke is computed correctly."""
+"""The jaxlib 0.10.2 CPU miscompilation guard (jaxmdp/jaxlib_workarounds/xla_cpu.py): the pattern that broke is computed correctly."""
 
 import os
 
@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxmdp
-from jaxmdp import xla_cpu
+from jaxmdp.jaxlib_workarounds import xla_cpu
 
 
 def test_flag_is_set_for_affected_jaxlib():

@@ -35,13 +35,28 @@ from typing import Any
 
 import numpy as np
 
+from jaxmdp._checks import check_int
 from jaxmdp.mdp_families.distributions import Distribution, PointMass
 from jaxmdp.mdp import MDP, MDPInfo, custom_mdp
 from jaxmdp.transforms import MAX_NOISE_PROBABILITY
 
-__all__ = ["Family", "CommonParams", "COMMON_PARAMETERS", "build_mdp", "family_builder", "check_noise_probability"]
+__all__ = [
+    "Family",
+    "CommonParams",
+    "COMMON_PARAMETERS",
+    "build_mdp",
+    "family_builder",
+    "check_noise_probability",
+    "integer_parameter",
+]
 
 Node = Hashable
+
+
+def integer_parameter(name: str, value: Any, minimum: int, family: str, maximum: int | None = None) -> int:
+    """``value`` as an ``int`` after checking ``minimum <= value (<= maximum)``; the ``ValueError`` names ``name``,
+    ``family`` and the allowed range (:func:`jaxmdp._checks.check_int`)."""
+    return check_int(name, value, minimum, maximum, context=f" for {family}")
 
 
 def check_noise_probability(name: str, value: float | None) -> float:

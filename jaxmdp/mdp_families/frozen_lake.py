@@ -14,7 +14,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.mdp_families.construction import Family, family_builder
+from jaxmdp.mdp_families.construction import Family, family_builder, integer_parameter
 from jaxmdp.mdp_families.distributions import (
     Beta,
     Distribution,
@@ -22,7 +22,6 @@ from jaxmdp.mdp_families.distributions import (
     check_default_reward_parameter,
     resolve_distributions,
 )
-from jaxmdp.mdp_families.parameters import integer_parameter
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 

@@ -51,7 +51,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.mdp_families.construction import family_builder
+from jaxmdp.mdp_families.construction import family_builder, integer_parameter
 from jaxmdp.mdp_families.minigrid import (
     MOVE_FORWARD,
     TURN_LEFT,
@@ -62,7 +62,6 @@ from jaxmdp.mdp_families.minigrid import (
     render_minigrid,
     turned,
 )
-from jaxmdp.mdp_families.parameters import integer_parameter
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 

@@ -23,7 +23,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxmdp.mdp_families.construction import family_builder
+from jaxmdp.mdp_families.construction import family_builder, integer_parameter
 from jaxmdp.mdp_families.minigrid import (
     MOVE_FORWARD,
     MiniGridFamily,
@@ -32,7 +32,6 @@ from jaxmdp.mdp_families.minigrid import (
     render_minigrid,
     turned,
 )
-from jaxmdp.mdp_families.parameters import integer_parameter
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 

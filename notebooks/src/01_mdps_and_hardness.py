@@ -29,7 +29,7 @@ import numpy as np
 
 import hardness  # importing jaxmdp (hardness does) before any JAX computation lets it set an XLA flag it needs
 import jaxmdp
-from hardness import plotting, scenarios
+from hardness.analysis import plotting, scenarios
 
 np.set_printoptions(precision=4, suppress=True)
 
@@ -218,9 +218,9 @@ for name in names:
 # %% [markdown]
 # ## 8. A hardness scenario
 #
-# `hardness.scenarios.run_scenario(scenario, family, ...)` runs one of the paper's four scenarios (1: `p_rand`,
+# `hardness.analysis.scenarios.run_scenario(scenario, family, ...)` runs one of the paper's four scenarios (1: `p_rand`,
 # 2: `p_lazy`, 3: size, 4: size with `p_rand = 0.1`) over seeds and values in one batched call and normalises every
-# measure to [0, 1] across the sweep (paper App. E). `hardness.plotting.plot_scenario` draws the mean over seeds with
+# measure to [0, 1] across the sweep (paper App. E). `hardness.analysis.plotting.plot_scenario` draws the mean over seeds with
 # a 95% bootstrap band and writes a PNG (the figure is shown below by loading that file). FrozenLake maps depend on
 # the seed, so the bands are not empty.
 

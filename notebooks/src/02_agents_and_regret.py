@@ -8,7 +8,7 @@
 #
 # 1. the agent interface (`init`, `act`, `update`, `needs_plan`/`plan`, `policy`) driven by hand in a `lax.scan`;
 # 2. the exact expected regret of a policy;
-# 3. a grid of agents × MDPs × seeds with `jaxmdp.runner` (`runner.product`, `runner.run`, `result.column`);
+# 3. a grid of agents × MDPs × seeds with `jaxmdp.experiment.runner` (`runner.product`, `runner.run`, `result.column`);
 # 4. a check that the logged regrets are exact;
 # 5. an agent against the random agent on a small RiverSwim, with seed bands;
 # 6. resuming an interrupted run from its checkpoint;
@@ -28,9 +28,9 @@ import numpy as np
 import agents  # importing jaxmdp (agents does) before any JAX computation lets it set an XLA flag it needs
 import jaxmdp
 from agents import search_spaces
-from hardness.plotting import bootstrap_ci
-from jaxmdp import indicators, runner
-from jaxmdp.agent_interface import Transition, spec_of
+from hardness.analysis.plotting import bootstrap_ci
+from jaxmdp.experiment import indicators, runner
+from jaxmdp.experiment.agent_interface import Transition, spec_of
 
 np.set_printoptions(precision=3, suppress=True)
 
@@ -57,7 +57,7 @@ print(river, "| spec:", spec.n_states, "states,", spec.n_actions, "actions, epis
 # %% [markdown]
 # The interaction loop, written by hand: `act`, `jaxmdp.step` (gymnax-style, with auto-reset), `update`, then
 # `plan` when the agent asks for it. `jax.vmap` over keys runs several seeds. (Under `vmap` a `lax.cond` turns into
-# a select that computes both branches every step; `jaxmdp.runner` avoids that by planning under one unbatched
+# a select that computes both branches every step; `jaxmdp.experiment.runner` avoids that by planning under one unbatched
 # `cond`, "some member needs to plan", which is what you want for planning agents.)
 
 # %%
@@ -164,7 +164,7 @@ print(f"member 0: sampled cumulative reward {r.column('cumulative_reward')[-1, 0
 # ## 5. An agent against the random agent
 #
 # Normalised cumulative regret on the 8-state RiverSwim: the mean over the 6 seeds with a 95% bootstrap band
-# (`hardness.plotting.bootstrap_ci`, seeds as the resampling unit). The random agent's band is empty: its exact
+# (`hardness.analysis.plotting.bootstrap_ci`, seeds as the resampling unit). The random agent's band is empty: its exact
 # regret does not depend on the seed.
 
 # %%

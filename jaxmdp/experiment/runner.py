@@ -8,7 +8,7 @@ through ``n_steps`` agent/MDP interaction steps (paper §3.3 and App. A.1; measu
   ``lax.cond`` inside the per-step body, XLA copied the whole carry, policy cache included, at every step);
 * planning (``agent.plan``) runs under a ``lax.cond`` whose predicate is unbatched, "some member needs to plan", and
   ``jnp.where`` keeps the result only for the members that asked, so planning is paid at boundaries only;
-* indicator logging (:mod:`jaxmdp.indicators`, exact policy evaluation of ``agent.policy``) runs under a
+* indicator logging (:mod:`jaxmdp.experiment.indicators`, exact policy evaluation of ``agent.policy``) runs under a
   ``lax.cond`` on "this is a log step" (a chunk may end between two): after every ``log_period`` steps and after
   the last step. A log made after
   ``c`` steps covers the ``k = c - c_prev`` steps since the previous log (the paper's approximation; ``log_period=1``
@@ -32,6 +32,7 @@ of a log evaluates the policy estimate after the ``c``-th update.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import sys
 import time
@@ -45,9 +46,9 @@ import numpy as np
 from flax import struct
 
 from jaxmdp import env
-from jaxmdp.agent_interface import Agent, Transition, spec_of
-from jaxmdp.grid import Grid, grid, product, seed_keys, stack_hparams
-from jaxmdp.indicators import (
+from jaxmdp.experiment.agent_interface import Agent, Transition, spec_of
+from jaxmdp.experiment.members import Grid, grid, product, seed_keys, stack_hparams
+from jaxmdp.experiment.indicators import (
     AGENT_COLUMNS,
     IndicatorConstants,
     indicator_constants,
@@ -55,17 +56,8 @@ from jaxmdp.indicators import (
     policy_values,
 )
 from jaxmdp.mdp import MDP
-from jaxmdp.run_output import (
-    MEMBER_COLUMNS,
-    RunResult,
-    append_rows,
-    csv_rows,
-    fingerprint,
-    load_checkpoint,
-    record_steps,
-    save_checkpoint,
-    truncate_csv,
-)
+from jaxmdp.experiment.checkpoints import fingerprint, load_checkpoint, save_checkpoint
+from jaxmdp.experiment.records import MEMBER_COLUMNS, RunResult, append_rows, csv_rows, record_steps, truncate_csv
 
 __all__ = ["Grid", "grid", "product", "seed_keys", "stack_hparams", "RunResult", "run", "record_steps", "MEMBER_COLUMNS"]
 
@@ -304,7 +296,7 @@ def _program(kind: str, agent: Agent | None, *static) -> Callable:
 
 
 # ---------------------------------------------------------------------------------------------------------------
-# Host driver
+# Host driver: validation, compilation, start or resume, the chunk loop
 # ---------------------------------------------------------------------------------------------------------------
 
 
@@ -327,9 +319,9 @@ def _check_positive_int(name: str, value: Any) -> int:
 
 def _validate(agent: Agent, g: Grid, variant: str) -> None:
     if not isinstance(agent, Agent):
-        raise ValueError(f"agent must be a jaxmdp.agent_interface.Agent; got {type(agent).__name__}")
+        raise ValueError(f"agent must be a jaxmdp.experiment.agent_interface.Agent; got {type(agent).__name__}")
     if not isinstance(g, Grid):
-        raise ValueError("grid must be a jaxmdp.runner.Grid (see runner.grid and runner.product)")
+        raise ValueError("grid must be a jaxmdp.experiment.runner.Grid (see runner.grid and runner.product)")
     if variant not in ("paper", "colosseum"):
         raise ValueError(f"variant must be 'paper' or 'colosseum'; got {variant!r}")
     if agent.episodic != g.episodic:
@@ -369,6 +361,175 @@ def _progress(done: int, total: int, elapsed: float, members: int) -> None:
           file=sys.stderr, flush=True)
 
 
+@dataclasses.dataclass(frozen=True)
+class _Settings:
+    """A run's validated settings (host side)."""
+
+    n_steps: int
+    log_period: int
+    record_period: int
+    chunk_steps: int
+    capacity: int
+    n_shards: int
+    variant: Variant
+
+
+@dataclasses.dataclass
+class _Program:
+    """A run's compiled programs and their (device) inputs."""
+
+    init: Callable
+    chunk: Callable
+    carry_shape: Any
+    mdps: MDP
+    mdp_index: jax.Array
+    hparams: Any
+    key_data: jax.Array
+    consts: IndicatorConstants
+    sched: Schedule
+    compile_s: float
+
+
+@dataclasses.dataclass
+class _Progress:
+    """Where a run stands: the loop's carry, the records so far and the run seconds of earlier sessions."""
+
+    carry: Carry
+    steps: np.ndarray
+    values: np.ndarray
+    elapsed_before: float
+
+
+def _validated_settings(
+    agent: Agent,
+    grid: Grid,
+    n_steps: int,
+    log_period: int,
+    n_records: int,
+    variant: str,
+    chunk_steps: int | None,
+    shards: int | None,
+) -> _Settings:
+    """Check every argument on the host, before anything compiles, and derive the chunking (see :func:`run`)."""
+    n_steps = _check_positive_int("n_steps", n_steps)
+    log_period = _check_positive_int("log_period", log_period)
+    n_records = _check_positive_int("n_records", n_records)
+    if chunk_steps is not None:
+        chunk_steps = _check_positive_int("chunk_steps", chunk_steps)
+    if n_steps >= 2**31 - 1:
+        raise ValueError(f"n_steps must be below 2**31 - 1; got {n_steps}")
+    _validate(agent, grid, variant)
+    n_shards = _n_shards(grid.n_members, shards)
+    _check_shapes(agent, grid, n_steps)
+    record_period, _ = record_steps(n_steps, log_period, n_records)
+    if chunk_steps is None:
+        chunk_steps = max(record_period, -(-n_steps // 20))
+    chunk_steps = min(chunk_steps, n_steps)
+    return _Settings(
+        n_steps=n_steps,
+        log_period=log_period,
+        record_period=record_period,
+        chunk_steps=chunk_steps,
+        capacity=chunk_steps // record_period + 2,
+        n_shards=n_shards,
+        variant=variant,
+    )
+
+
+def _compile(agent: Agent, grid: Grid, settings: _Settings) -> _Program:
+    """Compute the indicator constants and compile the initialisation and chunk programs (timed together)."""
+    mdps = grid.mdps
+    mdp_index = jnp.asarray(grid.mdp_index)
+    hparams = jax.tree.map(jnp.asarray, grid.hparams)
+    key_data = jnp.asarray(grid.key_data)
+    sched = Schedule(
+        n_steps=jnp.asarray(settings.n_steps, jnp.int32),
+        log_period=jnp.asarray(settings.log_period, jnp.int32),
+        record_period=jnp.asarray(settings.record_period, jnp.int32),
+    )
+    t0 = time.perf_counter()
+    unique_consts = _program("constants", None, settings.variant)(mdps)
+    consts = jax.tree.map(lambda x: x[mdp_index], unique_consts)
+    init_jit = _program("init", agent)
+    init_fn = init_jit.lower(mdps, mdp_index, hparams, key_data, sched.n_steps).compile()
+    carry_shape = jax.eval_shape(init_jit, mdps, mdp_index, hparams, key_data, sched.n_steps)
+    leaves, treedef = jax.tree.flatten(carry_shape)
+    carry_layout = (treedef, tuple(x.ndim for x in leaves))
+    chunk_fn = _program("chunk", agent, settings.variant, settings.capacity, settings.n_shards, carry_layout)
+    chunk_exe = chunk_fn.lower(carry_shape, mdps, mdp_index, consts, sched, jnp.int32(0)).compile()
+    jax.block_until_ready(consts)
+    return _Program(
+        init=init_fn, chunk=chunk_exe, carry_shape=carry_shape, mdps=mdps, mdp_index=mdp_index, hparams=hparams,
+        key_data=key_data, consts=consts, sched=sched, compile_s=time.perf_counter() - t0,
+    )
+
+
+def _start_or_resume(
+    program: _Program, n_members: int, run_id: str, ckpt: Path | None, csv_file: Path | None, resume: bool
+) -> _Progress:
+    """Continue this run's checkpoint if there is one (and ``resume``), dropping CSV rows written after it;
+    otherwise initialise every member and start a fresh CSV."""
+    if ckpt is not None and resume and ckpt.exists():
+        carry, steps_done, values_done, meta = load_checkpoint(ckpt, program.carry_shape, run_id)
+        if csv_file is not None:
+            truncate_csv(csv_file, int(carry.t))
+        return _Progress(carry, steps_done, values_done, float(meta["run_s"]))
+    carry = program.init(program.mdps, program.mdp_index, program.hparams, program.key_data, program.sched.n_steps)
+    jax.block_until_ready(carry)
+    if csv_file is not None:
+        csv_file.parent.mkdir(parents=True, exist_ok=True)
+        truncate_csv(csv_file, -1)
+    steps_done = np.zeros((0,), np.int64)
+    values_done = np.zeros((0, n_members, len(AGENT_COLUMNS)), np.dtype(program.mdps.dtype))
+    return _Progress(carry, steps_done, values_done, 0.0)
+
+
+def _run_chunks(
+    agent: Agent,
+    grid: Grid,
+    program: _Program,
+    start: _Progress,
+    settings: _Settings,
+    run_id: str,
+    ckpt: Path | None,
+    csv_file: Path | None,
+    progress: bool,
+    stop_after_chunks: int | None,
+) -> tuple[_Progress, float]:
+    """Run the chunk program until ``n_steps`` (or ``stop_after_chunks``), appending each chunk's records to the CSV
+    and checkpointing after each; returns where the run stands and its run seconds over every session."""
+    n_steps = settings.n_steps
+    carry, steps_done, values_done = start.carry, start.steps, start.values
+    consts_np = jax.tree.map(np.asarray, program.consts)
+    t_start = time.perf_counter()
+    chunks = 0
+    while int(carry.t) < n_steps:
+        n = min(settings.chunk_steps, n_steps - int(carry.t))
+        carry, steps, values, j = program.chunk(
+            carry, program.mdps, program.mdp_index, program.consts, program.sched, jnp.int32(n)
+        )
+        j = int(j)
+        steps, values = np.asarray(steps[:j]), np.asarray(values[:j])
+        elapsed = start.elapsed_before + time.perf_counter() - t_start
+        steps_done = np.concatenate([steps_done, steps])
+        values_done = np.concatenate([values_done, values])
+        if csv_file is not None and j:
+            per_second = np.full((j,), int(carry.t) / elapsed)
+            append_rows(csv_file, csv_rows(grid, steps, values, consts_np, per_second))
+        if ckpt is not None:
+            meta = {"fingerprint": run_id, "run_s": elapsed, "t": int(carry.t), "agent": agent.name}
+            save_checkpoint(ckpt, carry, steps_done, values_done, meta)
+        if progress:
+            _progress(int(carry.t), n_steps, elapsed, grid.n_members)
+        chunks += 1
+        if stop_after_chunks is not None and chunks >= stop_after_chunks and int(carry.t) < n_steps:
+            break
+    if progress:
+        print(file=sys.stderr)
+    run_s = start.elapsed_before + time.perf_counter() - t_start
+    return _Progress(carry, steps_done, values_done, start.elapsed_before), run_s
+
+
 def run(
     agent: Agent,
     grid: Grid,
@@ -388,14 +549,14 @@ def run(
     """Run ``agent`` on every member of ``grid`` for ``n_steps`` steps in lockstep (see the module docstring).
 
     Args:
-      agent: the agent (see :mod:`jaxmdp.agent_interface`).
+      agent: the agent (see :mod:`jaxmdp.experiment.agent_interface`).
       grid: the members (:func:`grid` or :func:`product`).
       n_steps: interaction steps per member (the optimisation horizon ``T`` given to the agent).
       log_period: steps between indicator logs (the reference's ``log_performance_indicators_every``, 100);
         ``1`` is the exact mode.
       n_records: at most this many snapshots per member (:func:`record_steps`); memory does not grow with
         ``n_steps``.
-      variant: ``"paper"`` (default) or ``"colosseum"`` indicators (:mod:`jaxmdp.indicators`).
+      variant: ``"paper"`` (default) or ``"colosseum"`` indicators (:mod:`jaxmdp.experiment.indicators`).
       chunk_steps: steps per host-side chunk (default: about 20 chunks, at least one record period each).
       csv_path: append each chunk's records to this CSV (``member, mdp, hparams, seed`` + the reference's columns).
       checkpoint_path: save the loop's state after each chunk (``.npz``); with ``resume=True`` an existing
@@ -413,104 +574,24 @@ def run(
         ``n_records``, hyperparameters outside their domain (``agent.check_hparams``) or a checkpoint of another
         run.
     """
-    n_steps = _check_positive_int("n_steps", n_steps)
-    log_period = _check_positive_int("log_period", log_period)
-    n_records = _check_positive_int("n_records", n_records)
-    if chunk_steps is not None:
-        chunk_steps = _check_positive_int("chunk_steps", chunk_steps)
-    if n_steps >= 2**31 - 1:
-        raise ValueError(f"n_steps must be below 2**31 - 1; got {n_steps}")
-    _validate(agent, grid, variant)
-    n_shards = _n_shards(grid.n_members, shards)
-    _check_shapes(agent, grid, n_steps)
-
-    record_period, _ = record_steps(n_steps, log_period, n_records)
-    if chunk_steps is None:
-        chunk_steps = max(record_period, -(-n_steps // 20))
-    chunk_steps = min(chunk_steps, n_steps)
-    capacity = chunk_steps // record_period + 2
-    B = grid.n_members
-
-    mdps = grid.mdps
-    mdp_index = jnp.asarray(grid.mdp_index)
-    hparams = jax.tree.map(jnp.asarray, grid.hparams)
-    key_data = jnp.asarray(grid.key_data)
-    sched = Schedule(
-        n_steps=jnp.asarray(n_steps, jnp.int32),
-        log_period=jnp.asarray(log_period, jnp.int32),
-        record_period=jnp.asarray(record_period, jnp.int32),
-    )
-
-    compile_s = 0.0
-    t0 = time.perf_counter()
-    unique_consts = _program("constants", None, variant)(mdps)
-    consts = jax.tree.map(lambda x: x[mdp_index], unique_consts)
-    init_jit = _program("init", agent)
-    init_fn = init_jit.lower(mdps, mdp_index, hparams, key_data, sched.n_steps).compile()
-    carry_shape = jax.eval_shape(init_jit, mdps, mdp_index, hparams, key_data, sched.n_steps)
-    leaves, treedef = jax.tree.flatten(carry_shape)
-    chunk_fn = _program("chunk", agent, variant, capacity, n_shards, (treedef, tuple(x.ndim for x in leaves)))
-    chunk_exe = chunk_fn.lower(carry_shape, mdps, mdp_index, consts, sched, jnp.int32(0)).compile()
-    jax.block_until_ready(consts)
-    compile_s += time.perf_counter() - t0
-
-    run_id = fingerprint(agent.name, grid, n_steps, log_period, record_period, variant)
+    settings = _validated_settings(agent, grid, n_steps, log_period, n_records, variant, chunk_steps, shards)
+    program = _compile(agent, grid, settings)
+    run_id = fingerprint(agent.name, grid, settings.n_steps, settings.log_period, settings.record_period, variant)
     ckpt = Path(checkpoint_path) if checkpoint_path is not None else None
     csv_file = Path(csv_path) if csv_path is not None else None
-    steps_done = np.zeros((0,), np.int64)
-    values_done = np.zeros((0, B, len(AGENT_COLUMNS)), np.dtype(mdps.dtype))
-    elapsed_before = 0.0
-    consts_np = jax.tree.map(np.asarray, consts)
-
-    if ckpt is not None and resume and ckpt.exists():
-        carry, steps_done, values_done, meta = load_checkpoint(ckpt, carry_shape, run_id)
-        elapsed_before = float(meta["run_s"])
-        if csv_file is not None:
-            truncate_csv(csv_file, int(carry.t))
-    else:
-        carry = init_fn(mdps, mdp_index, hparams, key_data, sched.n_steps)
-        jax.block_until_ready(carry)
-        if csv_file is not None:
-            csv_file.parent.mkdir(parents=True, exist_ok=True)
-            truncate_csv(csv_file, -1)
-
-    t_start = time.perf_counter()
-    chunks = 0
-    while int(carry.t) < n_steps:
-        n = min(chunk_steps, n_steps - int(carry.t))
-        carry, steps, values, j = chunk_exe(carry, mdps, mdp_index, consts, sched, jnp.int32(n))
-        j = int(j)
-        steps, values = np.asarray(steps[:j]), np.asarray(values[:j])
-        elapsed = elapsed_before + time.perf_counter() - t_start
-        steps_done = np.concatenate([steps_done, steps])
-        values_done = np.concatenate([values_done, values])
-        if csv_file is not None and j:
-            per_second = np.full((j,), int(carry.t) / elapsed)
-            append_rows(csv_file, csv_rows(grid, steps, values, consts_np, per_second))
-        if ckpt is not None:
-            meta = {"fingerprint": run_id, "run_s": elapsed, "t": int(carry.t), "agent": agent.name}
-            save_checkpoint(ckpt, carry, steps_done, values_done, meta)
-        if progress:
-            _progress(int(carry.t), n_steps, elapsed, B)
-        chunks += 1
-        if stop_after_chunks is not None and chunks >= stop_after_chunks and int(carry.t) < n_steps:
-            break
-    if progress:
-        print(file=sys.stderr)
-    run_s = elapsed_before + time.perf_counter() - t_start
+    start = _start_or_resume(program, grid.n_members, run_id, ckpt, csv_file, resume)
+    done, run_s = _run_chunks(agent, grid, program, start, settings, run_id, ckpt, csv_file, progress, stop_after_chunks)
     return RunResult(
-        steps=steps_done,
-        values=values_done,
-        constants=consts_np,
+        steps=done.steps,
+        values=done.values,
+        constants=jax.tree.map(np.asarray, program.consts),
         grid=grid,
         agent=agent.name,
-        compile_s=compile_s,
+        compile_s=program.compile_s,
         run_s=run_s,
-        n_steps=n_steps,
-        log_period=log_period,
-        record_period=record_period,
+        n_steps=settings.n_steps,
+        log_period=settings.log_period,
+        record_period=settings.record_period,
         variant=variant,
-        agent_state=jax.tree.map(np.asarray, carry.agent_state),
+        agent_state=jax.tree.map(np.asarray, done.carry.agent_state),
     )
-
-

@@ -4,7 +4,7 @@ Every episodic agent (``random_episodic``, ``q_learning_episodic``, ``psrl_episo
 and every continuous agent (``random_continuous``, ``q_learning_continuous``, ``psrl_continuous``, ``ucrl2``) on the
 continuous versions of the chosen instances, for ``--steps`` steps and ``--seeds`` seeds (0, 1, ...), with the
 agents' default (benchmark-tuned) hyperparameters. An agent's whole grid, MDPs x seeds, is one
-:func:`jaxmdp.runner.run` call (one lockstep program, the MDPs padded to common shapes).
+:func:`jaxmdp.experiment.runner.run` call (one lockstep program, the MDPs padded to common shapes).
 
 The score is the paper's (Table 2, App. E; benchmark.md §2): the ``normalized_cumulative_regret`` of the last record
 divided by the number of steps, i.e. the per-step normalised regret ``(rho* - rho^pi_t) / (rho* - rho^-)`` averaged
@@ -38,34 +38,27 @@ agents can be run one at a time); an invocation reuses everything finished. Prog
 
 from __future__ import annotations
 
+import argparse
+import csv
+import dataclasses
+import hashlib
+import json
+import math
 import os
+import platform
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
 
-if __name__ == "__main__" and "xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
-    # One lockstep loop per core: the runner shards the members over the host devices (set before JAX starts).
-    os.environ["XLA_FLAGS"] = (
-        os.environ.get("XLA_FLAGS", "") + f" --xla_force_host_platform_device_count={os.cpu_count() or 1}"
-    ).strip()
+import jax
+import numpy as np
+from scipy import stats  # the Student-t quantile (jax and numpy have none)
 
-import argparse  # noqa: E402
-import csv  # noqa: E402
-import dataclasses  # noqa: E402
-import hashlib  # noqa: E402
-import json  # noqa: E402
-import math  # noqa: E402
-import platform  # noqa: E402
-import sys  # noqa: E402
-from collections.abc import Sequence  # noqa: E402
-from pathlib import Path  # noqa: E402
-from typing import Any  # noqa: E402
-
-import jax  # noqa: E402
-import numpy as np  # noqa: E402
-from scipy import stats  # noqa: E402  (the Student-t quantile; jax/numpy have none)
-
-import agents  # noqa: E402
-import jaxmdp  # noqa: E402
-from agents import psrl_continuous  # noqa: E402
-from jaxmdp import run_output, runner  # noqa: E402
+import agents
+import jaxmdp
+from agents import psrl_continuous
+from jaxmdp.experiment import records, runner
 
 EPISODIC_AGENTS = ("random_episodic", "q_learning_episodic", "psrl_episodic")
 CONTINUOUS_AGENTS = ("random_continuous", "q_learning_continuous", "psrl_continuous", "ucrl2")
@@ -437,11 +430,11 @@ def markdown(rows: Sequence[dict], runs: Sequence[AgentRun], settings: dict) -> 
 
 
 def _write_csv(path: Path, header: Sequence[str], rows: Sequence[list]) -> None:
-    """A CSV in the runner's number format (:func:`jaxmdp.run_output.format_row`: floats to 9 significant digits)."""
+    """A CSV in the runner's number format (:func:`jaxmdp.experiment.records.format_row`: floats to 9 significant digits)."""
     with path.open("w", newline="") as f:
         w = csv.writer(f)
         w.writerow(header)
-        w.writerows(run_output.format_row(r) for r in rows)
+        w.writerows(records.format_row(r) for r in rows)
 
 
 def write_outputs(out: Path, runs: Sequence[AgentRun], settings: dict) -> list[dict]:
@@ -520,7 +513,3 @@ def main(argv: Sequence[str] | None = None) -> dict:
         print(f"wrote {out / 'regret_table.md'} and {out / 'regret_table.csv'}", file=sys.stderr)
     return {"rows": rows, "runs": runs, "results": results}
 
-
-if __name__ == "__main__":
-    main()
-    sys.exit(0)

@@ -1,6 +1,6 @@
 """The command line shared by ``scripts/sweep_prand.py``, ``sweep_plazy.py`` and ``sweep_size.py`` (paper §3.2, App. D).
 
-A run computes one scenario of :mod:`hardness.scenarios` for one family and setting, seed by seed (``--seeds-per-call``
+A run computes one scenario of :mod:`hardness.analysis.scenarios` for one family and setting, seed by seed (``--seeds-per-call``
 seeds per batched call), and after every call rewrites, atomically, ``<out>/<stem>.csv``: one row per finished
 ``(seed, value)`` with the raw measures, their ``converged`` flags and their App. E normalisation over the rows written
 so far (so the final file holds the normalisation over all seeds and values). ``<stem>.json`` records the settings;
@@ -26,10 +26,10 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxmdp
-from hardness import scenarios
+from hardness.analysis import scenarios
 from hardness.measures import normalize
-from hardness.near_optimal import NEAR_OPTIMAL_AGENTS, tuned_regret
-from hardness.plotting import plot_scenario
+from hardness.analysis.near_optimal import NEAR_OPTIMAL_AGENTS, tuned_regret
+from hardness.analysis.plotting import plot_scenario
 
 MEASURES = scenarios.MEASURES
 #: Columns of the tuned near-optimal agent (empty when ``--agent-steps 0``): its expected cumulative regret, the
@@ -42,14 +42,14 @@ COLUMNS = (
     + [f"{m}_normalized" for m in MEASURES]
     + list(AGENT_COLUMNS)
 )
-#: Name of the agent curve in the figure (:data:`hardness.plotting.LABELS`).
+#: Name of the agent curve in the figure (:data:`hardness.analysis.plotting.LABELS`).
 AGENT_CURVE = "agent_regret"
 
 DEFAULT_FAMILY = "MiniGridEmpty"
 DEFAULT_SETTING = "episodic"
 DEFAULT_SEEDS = (0, 1, 2)
 # Tuned near-optimal agent: small defaults so that the main job runs in minutes on 2 cores (the paper: 200 000 steps,
-# 120 candidates, 3 seeds; hardness.near_optimal).
+# 120 candidates, 3 seeds; hardness.analysis.near_optimal).
 DEFAULT_AGENT_STEPS = 10_000
 DEFAULT_AGENT_CANDIDATES = 4
 DEFAULT_AGENT_TUNING_SEEDS = 1
@@ -94,7 +94,7 @@ def build_parser(description: str, default_out: str, scenario_choices: Sequence[
     parser.add_argument("--setting", default=DEFAULT_SETTING, choices=["episodic", "continuous"],
                         help="default %(default)s")
     parser.add_argument("--values", type=number, nargs="+", default=None,
-                        help="grid of the swept parameter (default: hardness.scenarios defaults for the family)")
+                        help="grid of the swept parameter (default: hardness.analysis.scenarios defaults for the family)")
     parser.add_argument("--seeds", type=int, nargs="+", default=list(DEFAULT_SEEDS), help="default %(default)s")
     parser.add_argument("--param", type=parse_param, action="append", default=[], metavar="KEY=VALUE",
                         help="family parameter, repeatable; replaces the family default of that key")
@@ -347,7 +347,7 @@ def run(args: argparse.Namespace, scenario: int, parser: argparse.ArgumentParser
 
 
 def agent_regret(grid: scenarios.ScenarioGrid, agent: dict[str, Any]) -> dict[str, Any]:
-    """The tuned near-optimal agent's regret on every MDP of ``grid`` (:func:`hardness.near_optimal.tuned_regret`);
+    """The tuned near-optimal agent's regret on every MDP of ``grid`` (:func:`hardness.analysis.near_optimal.tuned_regret`);
     MDP ``(seed, value)`` is evaluated with that seed. Arrays ``[n_seeds, n_values]``."""
     n, V = len(grid.seeds), len(grid.spec.values)
     result = tuned_regret(

@@ -185,7 +185,7 @@ def scenario_spec(
 
     Args:
       scenario: 1 (``p_rand``), 2 (``p_lazy``), 3 (size) or 4 (size with ``p_rand = 0.1``).
-      family: a registered family (:func:`jaxmdp.families`).
+      family: a registered family (:func:`jaxmdp.mdp_families`).
       episodic: the setting.
       seeds: distinct non-negative seeds.
       values: the grid of the swept parameter (distinct); default :data:`NOISE_VALUES` or the family's sizes.
@@ -209,7 +209,7 @@ def scenario_spec(
     defaults = FAMILY_DEFAULTS.get(family)
     if defaults is None and (params is None or (scenario in (3, 4) and values is None)):
         raise ValueError(
-            f"family {family!r} has no defaults in hardness.scenarios.FAMILY_DEFAULTS: give params (and values for "
+            f"family {family!r} has no defaults in hardness.analysis.scenarios.FAMILY_DEFAULTS: give params (and values for "
             "scenarios 3-4)"
         )
 

@@ -1,37 +1,31 @@
-"""What a lockstep run produces: records of the running sums, the reference's CSV columns, and checkpoints.
+"""What a lockstep run produces: records of the running sums and the reference's CSV columns.
 
 A record holds, for every member, the four running sums the runner accumulates
-(:data:`jaxmdp.indicators.AGENT_COLUMNS`); every other column of the reference's CSV (benchmark.md §2) follows from
-them, the step count and the member's :class:`~jaxmdp.indicators.IndicatorConstants`.
+(:data:`jaxmdp.experiment.indicators.AGENT_COLUMNS`); every other column of the reference's CSV (benchmark.md §2) follows from
+them, the step count and the member's :class:`~jaxmdp.experiment.indicators.IndicatorConstants`.
 """
 
 from __future__ import annotations
 
 import csv
 import dataclasses
-import hashlib
-import json
 import os
 from pathlib import Path
 from typing import Any
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
-from jaxmdp.grid import Grid
-from jaxmdp.indicators import AGENT_COLUMNS, CSV_COLUMNS, baseline_columns, normalized_reward
+from jaxmdp.experiment.members import Grid
+from jaxmdp.experiment.indicators import AGENT_COLUMNS, CSV_COLUMNS, baseline_columns, normalized_reward
 
 __all__ = [
+    "format_row",
     "RunResult",
     "record_steps",
     "MEMBER_COLUMNS",
     "csv_rows",
     "append_rows",
     "truncate_csv",
-    "fingerprint",
-    "save_checkpoint",
-    "load_checkpoint",
 ]
 
 #: Columns that identify a member in the CSV, before the reference's columns.
@@ -58,8 +52,8 @@ class RunResult:
 
     Attributes:
       steps: ``[R]`` step counts of the records.
-      values: ``[R, B, 4]`` running sums (:data:`jaxmdp.indicators.AGENT_COLUMNS`) at each record.
-      constants: the members' :class:`~jaxmdp.indicators.IndicatorConstants` (numpy, leading axis ``B``).
+      values: ``[R, B, 4]`` running sums (:data:`jaxmdp.experiment.indicators.AGENT_COLUMNS`) at each record.
+      constants: the members' :class:`~jaxmdp.experiment.indicators.IndicatorConstants` (numpy, leading axis ``B``).
       grid: the members.
       agent: the agent's name.
       compile_s: seconds spent compiling (initialisation and loop programs) and computing the indicator constants.
@@ -149,49 +143,6 @@ def append_rows(path: Path, rows: list[list[Any]]) -> None:
     """Append rows to a CSV file."""
     with open(path, "a", newline="") as f:
         csv.writer(f).writerows(format_row(r) for r in rows)
-
-
-def fingerprint(agent_name: str, g: Grid, n_steps: int, log_period: int, record_period: int, variant: str) -> str:
-    """A hash of everything that defines a run's results (MDPs, hyperparameters, keys and settings): a checkpoint
-    resumes only the run that made it."""
-    h = hashlib.sha256()
-    for x in jax.tree.leaves(g.mdps) + jax.tree.leaves(g.hparams) + [g.mdp_index, g.key_data]:
-        a = np.ascontiguousarray(np.asarray(x))
-        h.update(str((a.shape, a.dtype)).encode())
-        h.update(a.tobytes())
-    h.update(repr((agent_name, n_steps, log_period, record_period, variant)).encode())
-    return h.hexdigest()
-
-
-def save_checkpoint(path: Path, carry: Any, steps: np.ndarray, values: np.ndarray, meta: dict) -> None:
-    """Save the loop's carry, the records so far and ``meta`` to ``path`` (``.npz``), atomically (write + rename)."""
-    leaves = jax.tree.leaves(carry)
-    arrays = {f"leaf{i}": np.asarray(x) for i, x in enumerate(leaves)}
-    arrays["record_steps"] = steps
-    arrays["record_values"] = values
-    arrays["meta"] = np.asarray(json.dumps(meta))
-    tmp = path.with_name(path.name + ".tmp.npz")
-    np.savez(tmp, **arrays)
-    os.replace(tmp, path)
-
-
-def load_checkpoint(path: Path, like: Any, expected: str) -> tuple[Any, np.ndarray, np.ndarray, dict]:
-    """``(carry, record steps, record values, meta)`` from ``path``; ``ValueError`` unless the checkpoint's
-    fingerprint is ``expected`` and its arrays match the structure of ``like``."""
-    with np.load(path) as z:
-        meta = json.loads(str(z["meta"]))
-        if meta.get("fingerprint") != expected:
-            raise ValueError(
-                f"checkpoint {path} belongs to a different run (agent, grid, n_steps, periods or variant differ)"
-            )
-        leaves, treedef = jax.tree.flatten(like)
-        new = []
-        for i, ref in enumerate(leaves):
-            a = z[f"leaf{i}"]
-            if a.shape != ref.shape or a.dtype != ref.dtype:
-                raise ValueError(f"checkpoint {path} does not match this run's state (leaf {i}: {a.shape} {a.dtype})")
-            new.append(jnp.asarray(a))
-        return jax.tree.unflatten(treedef, new), z["record_steps"], z["record_values"], meta
 
 
 def truncate_csv(path: Path, t: int) -> None:

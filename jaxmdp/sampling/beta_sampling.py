@@ -29,7 +29,7 @@ Dirichlet draws (29 against 44 ns per entry, ``[64, 100, 4, 100]``); we do not r
 normal's tails at ``P(|x| > 5.4) ~ 7e-8``, as ``jax.random.gamma`` does.
 
 **Rounds.** A large array (``n`` entries) runs one round over every entry, which accepts > 95% of them. The rejected
-entries are compacted (:func:`jaxmdp.compaction.compact`) into a buffer of ``m1 = n // 16 + 64`` slots that runs one
+entries are compacted (:func:`jaxmdp.sampling.compaction.compact`) into a buffer of ``m1 = n // 16 + 64`` slots that runs one
 more trial each; the entries it rejects go to a buffer of ``m2 = m1 // 16 + 64`` slots that runs rounds of four
 trials until every one is accepted; the results are scattered back. At most 4.83% of the entries are rejected per
 trial, so a buffer overflows with probability below ``1e-16`` whatever ``n`` (binomial tails, worst shape); if one
@@ -69,7 +69,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxmdp.compaction import compact
+from jaxmdp.sampling.compaction import compact
 
 __all__ = ["sample_log_gamma", "sample_beta", "buffer_sizes", "DEFAULT_CANDIDATES"]
 

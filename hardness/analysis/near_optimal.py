@@ -3,7 +3,7 @@
 For every MDP of a grid, the near-optimal agent of the setting (PSRL episodic, UCRL2 continuous; App. D) is tuned
 by random search over its hyperparameter space (:mod:`agents.search_spaces`) and the best candidate is then run
 once more with fresh seeds; its expected cumulative regret is the measure. Both phases are one lockstep runner call
-each (:mod:`jaxmdp.runner`): the search is ``MDPs x candidates x tuning seeds`` members, the evaluation one member per
+each (:mod:`jaxmdp.experiment.runner`): the search is ``MDPs x candidates x tuning seeds`` members, the evaluation one member per
 ``(MDP, evaluation seed)``.
 
 The objective of the search is the mean over tuning seeds of the per-step normalised cumulative regret after
@@ -27,7 +27,7 @@ import numpy as np
 
 import agents as agent_registry
 from agents.search_spaces import sample_candidates
-from jaxmdp import runner
+from jaxmdp.experiment import runner
 from jaxmdp.mdp import MDP
 
 __all__ = ["NEAR_OPTIMAL_AGENTS", "TUNING_SEED_OFFSET", "NearOptimalRegret", "near_optimal_agent", "tuned_regret"]

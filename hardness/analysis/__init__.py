@@ -1,0 +1,11 @@
+"""Analyses built on the hardness measures and the agents (paper §3.2, App. D; §4 and Table 1-2):
+
+* :mod:`~hardness.analysis.scenarios`: the four hardness scenarios, measures over a sweep of MDPs;
+* :mod:`~hardness.analysis.near_optimal`: the regret of a tuned near-optimal agent (random search over PSRL/UCRL2);
+* :mod:`~hardness.analysis.plotting`: the scenario figures (mean over seeds with a bootstrap band);
+* :mod:`~hardness.analysis.sweep_cli`: the command line of the sweep scripts (CSV/JSON/PNG, resumable);
+* :mod:`~hardness.analysis.regret_table`: every tabular agent against the random agent on small instances.
+
+This sub-package and :mod:`hardness.benchmark` are the only places that import :mod:`agents`; :mod:`hardness`
+itself (the measures) imports :mod:`jaxmdp` only, and does not import this sub-package.
+"""

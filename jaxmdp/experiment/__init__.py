@@ -1,0 +1,10 @@
+"""The experiment layer: agents run in lockstep on grids of MDPs, with exact regret indicators (paper §3.3, App. A.1).
+
+* :mod:`~jaxmdp.experiment.agent_interface`: what an agent is (pure functions on pytrees) and what it may know;
+* :mod:`~jaxmdp.experiment.members`: the members of a run, (MDP, hyperparameters, key) triples (``product``, ``grid``);
+* :mod:`~jaxmdp.experiment.runner`: the compiled lockstep loop and its host driver (``run``);
+* :mod:`~jaxmdp.experiment.indicators`: the exact expected regret of a policy and the reference's CSV columns;
+* :mod:`~jaxmdp.experiment.records` and :mod:`~jaxmdp.experiment.checkpoints`: what a run writes.
+
+It imports the MDP model of :mod:`jaxmdp` and nothing else of this project; agents import it.
+"""
