@@ -1,0 +1,15 @@
+"""``jaxmdp.runner``: a short name for :mod:`jaxmdp.experiment.runner` (``from jaxmdp import runner``;
+``runner.product(...)``, ``runner.run(...)``). Everything is defined there."""
+
+from jaxmdp.experiment.runner import (  # noqa: F401
+    MEMBER_COLUMNS,
+    Grid,
+    RunResult,
+    grid,
+    product,
+    record_steps,
+    run,
+    seed_keys,
+    stack_hparams,
+)
+from jaxmdp.experiment.runner import __all__  # noqa: F401
