@@ -1,4 +1,4 @@
-"""Tabular agents as pure functions over pytrees (paper §3.3; spec ``agents.md``).
+"""Tabular agents as pure functions over pytrees (paper §3.3; docs/agents.md).
 
 ``AGENTS`` maps each agent's name to its :class:`jaxmdp.experiment.agent_interface.Agent`; :func:`get` looks one up.
 """

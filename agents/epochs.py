@@ -3,7 +3,7 @@
 An epoch ends as soon as the pair just played has been visited in the epoch as often as before it:
 ``nu(s, a) >= max(1, N_k(s, a))``, where ``nu`` counts visits in the current epoch and ``N_k = N - nu`` those
 before it (``N`` the total, current step included). Equivalently ``N(s, a) >= 2 N_k(s, a)`` once the pair has been
-seen; in particular the first visit of a pair ends its epoch. This is the rule of the reference (agents.md §3, §4),
+seen; in particular the first visit of a pair ends its epoch. This is the rule of the reference (docs/agents.md §3, §4),
 checked after each step on the pair just played. Jaksch et al. check it *before* acting instead (the epoch ends when
 the policy asks for a pair whose count has doubled). Jaksch et al.'s bound on the number of epochs,
 ``S A log2(8 T / (S A))`` (their Prop. 18), holds for both: every epoch but the last ends with a pair whose visits in the

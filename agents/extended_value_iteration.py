@@ -10,7 +10,7 @@ is a linear programme whose optimum is greedy: start from ``lo`` and hand the mi
 next states in decreasing order of ``u``, each up to its ``hi`` (an exchange argument: moving mass from a lower- to
 a higher-valued state never decreases the objective). One ordering of the states serves every pair of a sweep.
 
-Extended value iteration runs :func:`agents.planning.relative_value_iteration` with this backup and the span
+Extended value iteration runs :func:`jaxmdp.dynamic_programming.relative_value_iteration` with this backup and the span
 stopping rule, which yields an optimistic gain within ``tol`` of the best gain over all plausible MDPs and a policy
 that attains it in the optimistic kernel.
 """
@@ -20,7 +20,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from agents.planning import PlanResult, relative_value_iteration
+from jaxmdp.dynamic_programming import PlanResult, relative_value_iteration
 
 __all__ = ["confidence_box", "optimistic_expectation", "optimistic_kernel", "extended_value_iteration"]
 
@@ -81,10 +81,10 @@ def extended_value_iteration(
       width: ``[S, A, S]`` (or broadcastable) half-widths of the per-next-state confidence intervals.
       rewards: ``[S, A]`` optimistic rewards ``r~``.
       u0: warm start (default 0); the stopping rule, not the start, certifies the result.
-      active: False skips the iterations (see :func:`~agents.planning.relative_value_iteration`).
+      active: False skips the iterations (see :func:`~jaxmdp.dynamic_programming.relative_value_iteration`).
 
-    Returns a :class:`~agents.planning.PlanResult` whose ``Q(s, a) = r~(s, a) + max_p p . u`` is the optimistic
-    action value (relative to ``u``) and whose gain bounds bracket the optimistic gain.
+    Returns a :class:`~jaxmdp.dynamic_programming.PlanResult` whose ``Q(s, a) = r~(s, a) + max_p p . u`` is the
+    optimistic action value (relative to ``u``) and whose gain bounds bracket the optimistic gain.
     """
     lo, hi = confidence_box(p_hat, width, state_mask)
     u0 = jnp.zeros(rewards.shape[:1], rewards.dtype) if u0 is None else u0

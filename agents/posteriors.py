@@ -1,4 +1,4 @@
-"""Conjugate posteriors of tabular model-based agents (agents.md §1): Dirichlet transitions, Normal-Gamma rewards.
+"""Conjugate posteriors of tabular model-based agents (docs/agents.md §1): Dirichlet transitions, Normal-Gamma rewards.
 
 Every ``(s, a)`` has its own independent posterior; arrays carry the ``[S, A]`` (or ``[S, A, S]``) layout and all
 functions are pure, so a batch of agents is a ``vmap`` away.
@@ -14,6 +14,8 @@ functions are pure, so a batch of agents is a ``vmap`` away.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import jax
 import jax.numpy as jnp
 from flax import struct
@@ -21,6 +23,7 @@ from flax import struct
 from jaxmdp.sampling.beta_sampling import sample_log_gamma
 
 __all__ = [
+    "LogGammaSampler",
     "log_gamma_sample",
     "dirichlet_concentration",
     "dirichlet_mean",
@@ -42,12 +45,16 @@ _MAX_LOG_STD = 30.0
 # ---------------------------------------------------------------------------------------------------------------
 
 
+#: ``log_gamma(key, alpha) -> log g`` with ``g ~ Gamma(alpha, 1)`` elementwise, in ``alpha``'s dtype.
+LogGammaSampler = Callable[[jax.Array, jax.Array], jax.Array]
+
+
 def log_gamma_sample(key: jax.Array, alpha: jax.Array) -> jax.Array:
     """``log g`` with ``g ~ Gamma(alpha, 1)`` elementwise, for ``alpha > 0`` (any array shape), in ``alpha``'s dtype.
 
     Marsaglia & Tsang (2000) rejection with boosting for shapes below one, kept in log space so that tiny shapes
-    (``1/S`` priors) do not underflow: :func:`jaxmdp.sampling.beta_sampling.sample_log_gamma` (one round over the array, the
-    rare rejections compacted). Exact, with a different stream from ``jax.random.loggamma`` and many times faster.
+    (``1/S`` priors) do not underflow: :func:`jaxmdp.sampling.beta_sampling.sample_log_gamma` (one round over the array,
+    the rare rejections compacted). Exact, with a different stream from ``jax.random.loggamma`` and many times faster.
     """
     alpha = jnp.asarray(alpha)
     return sample_log_gamma(key, alpha, dtype=alpha.dtype)
@@ -69,15 +76,16 @@ def dirichlet_mean(alpha: jax.Array) -> jax.Array:
     return alpha / jnp.sum(alpha, axis=-1, keepdims=True)
 
 
-def dirichlet_sample(key: jax.Array, alpha: jax.Array) -> jax.Array:
+def dirichlet_sample(key: jax.Array, alpha: jax.Array, log_gamma: LogGammaSampler = log_gamma_sample) -> jax.Array:
     """One draw ``p ~ Dirichlet(alpha)`` per row of ``alpha[..., S]``; entries with ``alpha == 0`` get probability 0.
 
     Draws ``log g_i`` with ``g_i ~ Gamma(alpha_i, 1)`` and returns ``softmax(log g)``: normalising in log space keeps
     small concentrations (the default prior is ``1/S``) exact where ``g_i`` itself would underflow to zero, and every
-    row sums to one exactly (the reference divides by ``sum + 1e-5``).
+    row sums to one exactly (the reference divides by ``sum + 1e-5``). ``log_gamma`` draws the ``log g_i``
+    (default :func:`log_gamma_sample`; ``scripts/bench_sampling.py`` passes ``jax.random.loggamma`` to compare).
     """
     positive = alpha > 0
-    log_g = log_gamma_sample(key, jnp.where(positive, alpha, 1.0))
+    log_g = log_gamma(key, jnp.where(positive, alpha, 1.0))
     return jax.nn.softmax(jnp.where(positive, log_g, -jnp.inf), axis=-1)
 
 
@@ -114,7 +122,7 @@ def normal_gamma_observe(post: NormalGamma, index: tuple, x: jax.Array) -> Norma
 
     ``lam' = lam + 1``, ``mu' = (lam mu + x) / lam'``, ``alpha' = alpha + 1/2``,
     ``beta' = beta + lam (x - mu)^2 / (2 lam')``; applied one reward at a time this equals the batch update
-    (agents.md §1).
+    (docs/agents.md §1).
     """
     mu, lam = post.mu[index], post.lam[index]
     lam_new = lam + 1
@@ -132,12 +140,15 @@ def normal_gamma_mean(post: NormalGamma) -> jax.Array:
     return post.mu
 
 
-def normal_gamma_sample(key: jax.Array, post: NormalGamma) -> jax.Array:
+def normal_gamma_sample(
+    key: jax.Array, post: NormalGamma, log_gamma: LogGammaSampler = log_gamma_sample
+) -> jax.Array:
     """One draw of the mean reward: ``tau ~ Gamma(alpha, rate beta)``, ``m ~ N(mu, 1/(lam tau))`` (not clipped).
 
-    The precision is drawn in log space and the standard deviation capped at ``e^30`` so a sample is always finite.
+    The precision is drawn in log space (``log_gamma``, as in :func:`dirichlet_sample`) and the standard deviation
+    capped at ``e^30`` so a sample is always finite.
     """
     k_tau, k_m = jax.random.split(key)
-    log_tau = log_gamma_sample(k_tau, post.alpha) - jnp.log(post.beta)
+    log_tau = log_gamma(k_tau, post.alpha) - jnp.log(post.beta)
     log_std = jnp.minimum(-0.5 * (jnp.log(post.lam) + log_tau), _MAX_LOG_STD)
     return post.mu + jnp.exp(log_std) * jax.random.normal(k_m, post.mu.shape, post.mu.dtype)

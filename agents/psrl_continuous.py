@@ -1,4 +1,5 @@
-"""Optimistic posterior sampling for continuous (average-reward) MDPs (Agrawal & Jia 2017; paper §3.3; agents.md §4).
+"""Optimistic posterior sampling for continuous (average-reward) MDPs (Agrawal & Jia 2017; paper §3.3; docs/agents.md
+§4).
 
 The agent keeps the posteriors of :mod:`agents.posteriors` (Dirichlet transitions with prior ``1/S`` per real next
 state, Normal-Gamma rewards with prior ``[rewards_prior_mean, 1, 1, 1]``) and works in epochs (doubling trick,
@@ -40,8 +41,8 @@ with ``max_psi`` (``[max_psi, S, A, S]`` candidates per member), so set ``max_ps
 hand (e.g. 2 for RiverSwim 25 at the defaults) when running many seeds or large MDPs; results do not change as long
 as ``max_psi >= psi``.
 
-Policy estimate (for regret), as the spec: posterior means (Dirichlet mean, ``mu``), ``policy_discount``-discounted
-optimal values (0.99, solved exactly), greedy ``[S, A]``.
+Policy estimate (for regret), as the reference (docs/agents.md §4): posterior means (Dirichlet mean, ``mu``),
+``policy_discount``-discounted optimal values (0.99, solved exactly), greedy ``[S, A]``.
 
 Differences from the reference (Colosseum), each deliberate:
 
@@ -61,10 +62,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from agents.tabular_common import greedy_action
 from agents.epochs import EpochSchedule, epoch_schedule, record_visit, start_epoch
-from jaxmdp._checks import check_int, check_range
-from agents.planning import relative_value_iteration, where_due
 from agents.posteriors import (
     NormalGamma,
     dirichlet_concentration,
@@ -75,8 +73,10 @@ from agents.posteriors import (
     normal_gamma_prior,
     normal_gamma_sample,
 )
+from agents.tabular_common import greedy_action
 from jaxmdp import dynamic_programming as dp
-from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
+from jaxmdp._checks import check_int, check_range
+from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
 
 __all__ = [
     "PSRLContinuousHParams",
@@ -96,7 +96,7 @@ _PSI_CAP = 60
 
 
 class PSRLContinuousHParams(struct.PyTreeNode):
-    """Hyperparameters; the five weights default to the benchmark's tuned values (agents.md §4, cached).
+    """Hyperparameters; the five weights default to the benchmark's tuned values (docs/agents.md §4, cached).
 
     Attributes:
       rewards_prior_mean: ``mu0`` of the Normal-Gamma reward prior ``[mu0, reward_prior_count,
@@ -158,7 +158,7 @@ class PSRLContinuousState(struct.PyTreeNode):
 
 
 def check_hparams(hparams: PSRLContinuousHParams) -> None:
-    """Validate on the host; agents.md §4's search space lies inside these domains."""
+    """Validate on the host; docs/agents.md §4's search space lies inside these domains."""
     check_range("rewards_prior_mean", hparams.rewards_prior_mean)
     check_range("psi_weight", hparams.psi_weight, 0.0, low_open=True)
     check_range("omega_weight", hparams.omega_weight, 0.0, low_open=True)
@@ -331,7 +331,7 @@ def plan(key: jax.Array, state: PSRLContinuousState) -> PSRLContinuousState:
         return res.Q, res.V, res.iterations, res.converged
 
     def average(_):
-        res = relative_value_iteration(
+        res = dp.relative_value_iteration(
             lambda u: R + jnp.einsum("sjt,t->sj", T, u),
             state.u,
             state.state_mask,

@@ -1,4 +1,4 @@
-"""PSRL for episodic MDPs (Osband, Russo & Van Roy 2013; paper §3.3; agents.md §1).
+"""PSRL for episodic MDPs (Osband, Russo & Van Roy 2013; paper §3.3; docs/agents.md §1).
 
 At the start of every episode the agent draws one MDP ``(P~, R~)`` from its posterior, solves it exactly by
 backward induction, ``Q~_h = R~ + P~ V~_{h+1}``, ``V~_h = max_a Q~_h`` (``V~_H = 0``), and follows
@@ -21,7 +21,7 @@ Differences from the reference (Colosseum), each deliberate:
 * Dirichlet draws are normalised exactly (the reference divides by ``sum + 1e-5``) and computed in log space, and a
   reward draw's standard deviation is capped at ``e^30`` so it is always finite.
 * Exact ties in ``Q~`` are broken with the agent's key; the policy estimate breaks ties towards the lowest action
-  index (the reference re-seeds 42, measures.md §1.4).
+  index (the reference re-seeds 42, docs/measures.md §1.4).
 """
 
 from __future__ import annotations
@@ -30,27 +30,28 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from agents.tabular_common import greedy_action
-from jaxmdp._checks import check_range
-from agents.planning import where_due
 from agents.posteriors import (
+    LogGammaSampler,
     NormalGamma,
     dirichlet_concentration,
     dirichlet_mean,
     dirichlet_sample,
+    log_gamma_sample,
     normal_gamma_mean,
     normal_gamma_observe,
     normal_gamma_prior,
     normal_gamma_sample,
 )
+from agents.tabular_common import greedy_action
 from jaxmdp import dynamic_programming as dp
-from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
+from jaxmdp._checks import check_range
+from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
 
 __all__ = ["PSRLEpisodicHParams", "PSRLEpisodicState", "PSRL_EPISODIC"]
 
 
 class PSRLEpisodicHParams(struct.PyTreeNode):
-    """Hyperparameters; defaults are the benchmark's tuned values (agents.md §1, cached).
+    """Hyperparameters; defaults are the benchmark's tuned values (docs/agents.md §1, cached).
 
     Attributes:
       prior_mean, reward_prior_count, reward_prior_precision, reward_prior_precision_count: the Normal-Gamma reward
@@ -81,7 +82,7 @@ class PSRLEpisodicState(struct.PyTreeNode):
 
 
 def check_hparams(hparams: PSRLEpisodicHParams) -> None:
-    """Validate on the host; the search space of agents.md §1 lies inside these domains."""
+    """Validate on the host; the search space of docs/agents.md §1 lies inside these domains."""
     check_range("prior_mean", hparams.prior_mean)
     check_range("transition_prior", hparams.transition_prior, 0.0, low_open=True)
     check_range("reward_prior_count", hparams.reward_prior_count, 0.0, low_open=True)
@@ -144,14 +145,15 @@ def _alpha(state: PSRLEpisodicState) -> jax.Array:
     return dirichlet_concentration(state.hparams.transition_prior, state.counts, state.state_mask)
 
 
-def plan(key: jax.Array, state: PSRLEpisodicState) -> PSRLEpisodicState:
-    """Draw ``(P~, R~)`` from the posterior and solve it by backward induction (agents.md §1, "Schedule").
+def plan(key: jax.Array, state: PSRLEpisodicState, log_gamma: LogGammaSampler = log_gamma_sample) -> PSRLEpisodicState:
+    """Draw ``(P~, R~)`` from the posterior and solve it by backward induction (docs/agents.md §1, "Schedule").
 
-    A no-op unless :func:`needs_plan` (the runner keeps the result only for members that asked).
+    A no-op unless :func:`needs_plan` (the runner keeps the result only for members that asked). ``log_gamma`` is
+    the posteriors' Gamma sampler (:func:`agents.posteriors.dirichlet_sample`).
     """
     k_p, k_r = jax.random.split(key)
-    P = _copy_action_zero(dirichlet_sample(k_p, _alpha(state)), state.action_mask)
-    R = _copy_action_zero(normal_gamma_sample(k_r, state.rewards), state.action_mask)
+    P = _copy_action_zero(dirichlet_sample(k_p, _alpha(state), log_gamma), state.action_mask)
+    R = _copy_action_zero(normal_gamma_sample(k_r, state.rewards, log_gamma), state.action_mask)
     Q, _ = dp.finite_horizon_value_iteration(P, rewards=R, H=state.Q.shape[0], horizon=state.horizon)
     return where_due(state.plan_due, state.replace(Q=Q, plan_due=jnp.zeros((), bool)), state)
 

@@ -1,14 +1,14 @@
 """Optimistic Q-learning for average-reward MDPs (Wei, Jafarnia-Jahromi, Luo, Sharma & Jain 2020, "Model-free
-reinforcement learning in infinite-horizon average-reward MDPs", Algorithm 1; paper §3.3; agents.md §5).
+reinforcement learning in infinite-horizon average-reward MDPs", Algorithm 1; paper §3.3; docs/agents.md §5).
 
-The average-reward problem is approached through a discounted one with ``gamma = 1 - 1/H``. With the spec's
+The average-reward problem is approached through a discounted one with ``gamma = 1 - 1/H``. With the reference's
 constants (``sp = span_approx_weight``, the span of the optimal bias being unknown; ``T`` the total number of steps;
 ``S``, ``A`` the real numbers of states and actions; ``delta`` the failure probability):
 
 * ``H = h_weight min(sqrt(sp T / (S A)), (T / (S A ln(4 T / delta)))^(1/3))``, floored at 1 so that
   ``gamma >= 0``;
 * ``alpha_tau = max(min_at', (H + 1) / (H + tau))`` with ``min_at' = min_at`` if ``min_at > 0.009`` else 0 (the
-  spec's learning-rate floor; ``min_at = 0`` is the published schedule);
+  reference's learning-rate floor; ``min_at = 0`` is the published schedule);
 * bonus ``b_tau = 4 sp sqrt(H / tau ln(2 T / delta))``.
 
 Tables start at ``Q = Q_hat = V = H`` and ``n = 0``. After ``(s, a, r, s')``: ``tau = n(s, a) <- n(s, a) + 1``,
@@ -18,11 +18,11 @@ Tables start at ``Q = Q_hat = V = H`` and ``n = 0``. After ``(s, a, r, s')``: ``
 * ``V(s) <- max_a Q_hat(s, a)``.
 
 Actions are greedy in ``Q_hat(s, .)`` with exact ties at random; the policy estimate (for regret) is greedy in
-``Q_hat`` with ties to the lowest index, ``[S, A]``. (agents.md names the running estimate ``Q_hat`` and the monotone
-one ``Q``; the names here are the paper's.)
+``Q_hat`` with ties to the lowest index, ``[S, A]``. (docs/agents.md names the running estimate ``Q_hat`` and the
+monotone one ``Q``; the names here are the paper's.)
 
 Defaults: the benchmark's tuned ``h_weight = 0.942``, ``span_approx_weight = 0.014``, ``min_at = 0.073``
-(agents.md §5) and ``delta = 0.05``, the failure probability of the reference's "confidence 0.95".
+(docs/agents.md §5) and ``delta = 0.05``, the failure probability of the reference's "confidence 0.95".
 
 Differences from the reference (Colosseum), each a return to the published algorithm:
 
@@ -33,7 +33,7 @@ Differences from the reference (Colosseum), each a return to the published algor
   probability belongs [quirk] (``delta = 0.95`` reproduces its constants);
 * the exponent is exactly ``1/3`` (the reference uses 0.333); ``H`` is floored at 1 (the reference would let
   ``gamma`` go negative for tiny ``h_weight``);
-* the policy estimate breaks ties towards the lowest index (the reference re-seeds 42, measures.md §1.4).
+* the policy estimate breaks ties towards the lowest index (the reference re-seeds 42, docs/measures.md §1.4).
 """
 
 from __future__ import annotations
@@ -43,18 +43,18 @@ import jax.numpy as jnp
 from flax import struct
 
 from agents.tabular_common import greedy_action, valid_counts
-from jaxmdp._checks import check_range
 from jaxmdp import dynamic_programming as dp
+from jaxmdp._checks import check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
 
 __all__ = ["QLearningContinuousHParams", "QLearningContinuousState", "Q_LEARNING_CONTINUOUS", "constants"]
 
-# Below this value the spec's learning-rate floor is switched off (agents.md §5).
+# Below this value the reference's learning-rate floor is switched off (docs/agents.md §5).
 _MIN_AT_CUTOFF = 0.009
 
 
 class QLearningContinuousHParams(struct.PyTreeNode):
-    """Hyperparameters (numeric leaves); defaults: agents.md §5 cached values and ``delta = 0.05``."""
+    """Hyperparameters (numeric leaves); defaults: docs/agents.md §5 cached values and ``delta = 0.05``."""
 
     h_weight: float | jax.Array = 0.942
     span_approx_weight: float | jax.Array = 0.014

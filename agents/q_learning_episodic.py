@@ -1,5 +1,5 @@
 """Q-learning with UCB-Hoeffding or UCB-Bernstein bonuses, episodic (Jin, Allen-Zhu, Bubeck & Jordan 2018, "Is
-Q-learning provably efficient?", Algorithms 1 and 2; paper §3.3; agents.md §2).
+Q-learning provably efficient?", Algorithms 1 and 2; paper §3.3; docs/agents.md §2).
 
 Tables ``Q_h(s, a)``, ``V_h(s)`` and counts ``N_h(s, a)`` for ``h = 0 .. H-1`` (``V_H = 0``), initialised
 optimistically to ``Q = V = H`` and ``N = 0``; ``iota = ln(S A T / p)`` with ``T`` the total number of steps. After
@@ -19,8 +19,8 @@ the policy estimate (for regret) is greedy in ``Q`` with ties to the lowest acti
 ``A`` count the real (unpadded) states and actions; ``H`` is the member's own horizon.
 
 Hyperparameters: ``c_1``, ``c_2``, ``min_at``, ``p`` and ``bernstein`` (1: Bernstein, 0: Hoeffding); the defaults are
-the benchmark's tuned values (agents.md §2). ``min_at`` floors the learning rate as in the reference; ``min_at = 0``
-gives Jin et al.'s schedule exactly.
+the benchmark's tuned values (docs/agents.md §2). ``min_at`` floors the learning rate as in the reference; ``min_at =
+0`` gives Jin et al.'s schedule exactly.
 
 Differences from the reference (Colosseum), each a return to the published algorithm:
 
@@ -30,7 +30,7 @@ Differences from the reference (Colosseum), each a return to the published algor
 * the Bernstein variance term is ``H / t (W_t + H)`` with ``W_t`` the empirical variance (the reference uses
   ``H (sum V^2 - sum V)^2 / t^2 + H``, [quirk]);
 * ``V`` starts at ``H`` (optimistic, as ``max_a Q`` of the initial table), not 0;
-* the policy estimate breaks ties towards the lowest index (the reference re-seeds 42, measures.md §1.4).
+* the policy estimate breaks ties towards the lowest index (the reference re-seeds 42, docs/measures.md §1.4).
 """
 
 from __future__ import annotations
@@ -41,15 +41,15 @@ import numpy as np
 from flax import struct
 
 from agents.tabular_common import greedy_action, valid_counts
-from jaxmdp._checks import check_range
 from jaxmdp import dynamic_programming as dp
+from jaxmdp._checks import check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
 
 __all__ = ["QLearningEpisodicHParams", "QLearningEpisodicState", "Q_LEARNING_EPISODIC"]
 
 
 class QLearningEpisodicHParams(struct.PyTreeNode):
-    """Hyperparameters (numeric leaves, so a grid can vmap over them); defaults: agents.md §2, cached values."""
+    """Hyperparameters (numeric leaves, so a grid can vmap over them); defaults: docs/agents.md §2, cached values."""
 
     c_1: float | jax.Array = 0.9415278732894797
     c_2: float | jax.Array = 0.013873778519317169

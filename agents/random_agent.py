@@ -1,7 +1,7 @@
-"""The uniformly random agent, episodic and continuous (agents.md §6).
+"""The uniformly random agent, episodic and continuous (docs/agents.md §6).
 
 It acts uniformly over the valid actions and its policy estimate is the uniform policy (``[S, A]`` continuous,
-``[H, S, A]`` episodic), so its expected regret is exactly the "random" baseline of measures.md §6.3 (episodic: the
+``[H, S, A]`` episodic), so its expected regret is exactly the "random" baseline of docs/measures.md §6.3 (episodic: the
 paper's ``P0``-averaged indicator; continuous: when the uniform policy's chain has one recurrent class).
 
 Difference from the reference: the reference's class is abstract (its per-step update is missing, [quirk]) and

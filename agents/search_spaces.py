@@ -1,6 +1,6 @@
 """Hyperparameter search spaces of the tabular agents and random-search candidates (paper App. D, App. F).
 
-Each space is the reference's (spec ``agents.md``, "Search space" of every agent): independent uniform ranges over
+Each space is the reference's (docs/agents.md, "Search space" of every agent): independent uniform ranges over
 the named numeric fields of the agent's hyperparameter pytree; every other field keeps its default. Candidates are
 drawn with ``jax.random`` from an explicit key (same key, same candidates) and are returned as one stacked pytree,
 so a whole search runs as one lockstep grid (:func:`jaxmdp.experiment.runner.grid`).
@@ -15,11 +15,12 @@ from typing import Any
 import jax
 import numpy as np
 
+from jaxmdp._checks import check_int
 from jaxmdp.experiment.agent_interface import Agent
 
 __all__ = ["SEARCH_SPACES", "search_space", "sample_candidates"]
 
-#: Agent name -> ``{field: (low, high)}``, uniform ranges of agents.md.
+#: Agent name -> ``{field: (low, high)}``, uniform ranges of docs/agents.md.
 SEARCH_SPACES: Mapping[str, Mapping[str, tuple[float, float]]] = MappingProxyType(
     {
         "psrl_episodic": MappingProxyType({"prior_mean": (0.001, 2.0), "transition_prior": (0.001, 2.0)}),
@@ -58,8 +59,7 @@ def sample_candidates(agent: Agent, key: jax.Array, n: int, *, include_default: 
     fields outside the search space keep their defaults. With ``include_default`` candidate 0 is the agent's
     default set (the benchmark's tuned values), so a search never does worse than the defaults on its objective.
     """
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise ValueError(f"n must be an integer >= 1; got {n!r}")
+    n = check_int("n", n)
     space = search_space(agent)
     default = agent.default_hparams
     updates = {}

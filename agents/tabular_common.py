@@ -15,7 +15,7 @@ __all__ = ["greedy_action", "valid_counts"]
 def greedy_action(key: jax.Array, q: jax.Array, action_mask: jax.Array) -> jax.Array:
     """``argmax_a q[a]`` over the valid actions, exact ties broken uniformly at random with ``key``.
 
-    Like the reference's Q-values actor (docs/agents.md §1), exact ties (e.g. unvisited pairs with identical
+    Like the reference's Q-values actor (docs/agents.md §0), exact ties (e.g. unvisited pairs with identical
     optimistic values) are resolved at random rather than towards the lowest index. A padded action is never
     returned: if no valid action compares as a maximiser (``q`` holds NaN), the choice is uniform over the valid
     actions.

@@ -1,4 +1,4 @@
-"""UCRL2 for continuous (average-reward) MDPs (Jaksch, Ortner & Auer 2010; paper §3.3; agents.md §3).
+"""UCRL2 for continuous (average-reward) MDPs (Jaksch, Ortner & Auer 2010; paper §3.3; docs/agents.md §3).
 
 Optimism in the face of uncertainty, in epochs. At the start of every epoch (doubling trick,
 :mod:`agents.epochs`) the agent builds the set of plausible MDPs around its estimates and plans with extended value
@@ -18,10 +18,10 @@ With ``N(s, a)`` visits, ``N' = max(1, N)``, ``N'' = max(1, N - 1)``, ``t`` the 
 Per step the agent only counts (``O(1)``); planning costs ``O(S^2 A)`` per EVI sweep. The EVI sweep count is
 reported in the state (``evi_iterations``, ``evi_converged``).
 
-Policy estimate (for regret), as the spec: the greedy policy of the ``policy_discount``-discounted optimal values
-(0.99) of the estimated MDP ``(p_hat, r_hat)``; unvisited pairs are estimated as the reference initialises them
-(uniform next state, reward ``r_max``). It is solved exactly (value iteration + policy iteration) rather than to
-``1e-3``.
+Policy estimate (for regret), as the reference (docs/agents.md §3): the greedy policy of the
+``policy_discount``-discounted optimal values (0.99) of the estimated MDP ``(p_hat, r_hat)``; unvisited pairs are
+estimated as the reference initialises them (uniform next state, reward ``r_max``). It is solved exactly (value
+iteration + policy iteration) rather than to ``1e-3``.
 
 Differences from the reference (Colosseum), each deliberate (the algorithm as published):
 
@@ -46,19 +46,18 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from agents.tabular_common import greedy_action
 from agents.epochs import EpochSchedule, epoch_schedule, record_visit, start_epoch
 from agents.extended_value_iteration import extended_value_iteration
-from jaxmdp._checks import check_int, check_range
-from agents.planning import where_due
+from agents.tabular_common import greedy_action
 from jaxmdp import dynamic_programming as dp
-from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
+from jaxmdp._checks import check_int, check_range
+from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
 
 __all__ = ["UCRL2HParams", "UCRL2State", "confidence_widths", "UCRL2"]
 
 
 class UCRL2HParams(struct.PyTreeNode):
-    """Hyperparameters; ``alpha_r``/``alpha_p`` default to the benchmark's tuned values (agents.md §3, cached).
+    """Hyperparameters; ``alpha_r``/``alpha_p`` default to the benchmark's tuned values (docs/agents.md §3, cached).
 
     Attributes:
       alpha_r, alpha_p: scales of the reward and transition confidence widths (searched in ``U(0.1, 3)``).
@@ -94,7 +93,7 @@ class UCRL2State(struct.PyTreeNode):
 
 
 def check_hparams(hparams: UCRL2HParams) -> None:
-    """Validate on the host (agents.md §3 searches ``alpha_r, alpha_p ~ U(0.1, 3)``)."""
+    """Validate on the host (docs/agents.md §3 searches ``alpha_r, alpha_p ~ U(0.1, 3)``)."""
     check_range("alpha_r", hparams.alpha_r, 0.0)
     check_range("alpha_p", hparams.alpha_p, 0.0)
     check_range("r_max", hparams.r_max, 0.0, low_open=True)

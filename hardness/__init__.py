@@ -4,7 +4,7 @@ Every measure takes one :class:`jaxmdp.MDP` and returns a :class:`MeasureResult`
 ``finite``); ``jax.vmap`` runs it over a stacked batch (:func:`jaxmdp.stack`), and padding changes nothing;
 :func:`measures_many` computes all three for a collection of MDPs of different sizes (size buckets).
 ``variant="paper"`` (default) computes the paper's definitions exactly; ``variant="colosseum"`` reproduces the
-reference package's procedures and numbers (measures.md). :func:`normalize` is the min-max scaling of App. E.
+reference package's procedures and numbers (docs/measures.md). :func:`normalize` is the min-max scaling of App. E.
 """
 
 from hardness.batched import measures_many
@@ -12,7 +12,7 @@ from hardness.diameter import diameter, strongly_connected
 from hardness.gaps import suboptimality_gaps, sum_reciprocal_gaps
 from hardness.measures import HardnessMeasures, measures, normalize
 from hardness.result import MeasureResult
-from hardness.value_norm import chain_bias, deterministic_base, value_norm
+from hardness.value_norm import deterministic_base, value_norm
 
 __all__ = [
     "MeasureResult",
@@ -26,5 +26,4 @@ __all__ = [
     "suboptimality_gaps",
     "strongly_connected",
     "deterministic_base",
-    "chain_bias",
 ]

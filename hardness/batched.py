@@ -15,13 +15,14 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Sequence
-from typing import Any, Literal
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from hardness.measures import HardnessMeasures, measures
+from jaxmdp._checks import Variant, check_int, check_range, check_variant
 from jaxmdp.batching import size_buckets, stack
 from jaxmdp.episodic import continuous_form, stack_continuous_forms
 from jaxmdp.mdp import MDP
@@ -48,7 +49,7 @@ def measures_many(
     mdps: Sequence[MDP],
     gamma: float = 0.99,
     *,
-    variant: Literal["paper", "colosseum"] = "paper",
+    variant: Variant = "paper",
     n_buckets: int = 8,
     batch_size: int = 1,
 ) -> HardnessMeasures:
@@ -69,12 +70,9 @@ def measures_many(
         raise ValueError("mdps must hold at least one MDP")
     if any(m.T.ndim != 3 for m in mdps):
         raise ValueError("mdps must be single MDPs, not stacked batches")
-    if variant not in ("paper", "colosseum"):
-        raise ValueError(f"variant must be 'paper' or 'colosseum'; got {variant!r}")
-    if not (0.0 < float(gamma) < 1.0):
-        raise ValueError(f"gamma must lie in (0, 1); got {gamma}")
-    if int(batch_size) != batch_size or batch_size < 1:
-        raise ValueError(f"batch_size must be a positive integer; got {batch_size}")
+    check_variant(variant)
+    check_range("gamma", gamma, 0.0, 1.0, low_open=True, high_open=True)
+    batch_size = check_int("batch_size", batch_size)
     parts: list[tuple[np.ndarray, HardnessMeasures]] = []
     for is_episodic in (False, True):
         idx = [i for i, m in enumerate(mdps) if m.episodic == is_episodic]

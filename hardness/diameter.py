@@ -1,4 +1,4 @@
-"""The diameter (paper §2.2, App. B; measures.md §3): the worst-case expected time to travel between two states.
+"""The diameter (paper §2.2, App. B; docs/measures.md §3): the worst-case expected time to travel between two states.
 
 ``D = max_{s1 != s2} min_pi E[T^pi(s1 -> s2)]``. For a target ``e`` the optimal hitting times solve the Bellman
 equation of App. B, ``T*(s -> e) = min_a [1 + sum_{s' != e} P(s'|s,a) T*(s' -> e)]`` (``T*(e -> e) = 0``), and
@@ -28,7 +28,7 @@ probability with a negative slope, so the optimal policy maximises the probabili
 target time, so the whole diameter costs two scans of ``H`` backups, ``O(H S A K S + H^2 S^2)``, with no iteration
 and no ``(S H) x (S H)`` matrix.
 
-``variant="colosseum"``: the reference's procedures, for parity with its numbers (measures.md §3.1-3.2, both
+``variant="colosseum"``: the reference's procedures, for parity with its numbers (docs/measures.md §3.1-3.2, both
 [paper≠code] where they differ): continuous, per target value iteration with ``gamma = 1``, ``eps = 1e-3`` from 0
 (Gauss-Seidel in index order, or Jacobi when the reference's size/sparsity rule applies), ``D = max(0, max_e d_e)``;
 above 1000 states its sparse solver with the early exit on the running maximum (targets in index order). Episodic,
@@ -44,19 +44,18 @@ the episodic one is a different quantity from the paper's.
 from __future__ import annotations
 
 import functools
-from typing import Literal
 
 import jax
 import jax.numpy as jnp
 
 from hardness.reference_vi import uses_jacobi
 from hardness.result import MeasureResult
+from jaxmdp._checks import Variant, check_int, check_range, check_variant
 from jaxmdp.episodic import reachable_pairs
 from jaxmdp.mdp import MDP
 
 __all__ = ["diameter", "strongly_connected"]
 
-Variant = Literal["paper", "colosseum"]
 
 #: Above this many states the reference uses its sparse, early-exit hitting-time solver (single core).
 SPARSE_DIAMETER_STATES = 1000
@@ -245,7 +244,7 @@ def _continuous_colosseum(mdp: MDP, max_iter: int) -> MeasureResult:
     eps = 1e-3
     dtype = mdp.dtype
 
-    # Per-target value iteration with gamma = 1 on V = -ET; each target stops on its own (measures.md §3.1).
+    # Per-target value iteration with gamma = 1 on V = -ET; each target stops on its own (docs/measures.md §3.1).
     def gs_sweep(V, done):
         # A static trip count keeps the loop index unbatched under vmap (in-place row updates); padded rows and
         # Jacobi members keep their values.
@@ -302,7 +301,7 @@ def _two_snapshot_scan(cur_a: jax.Array, cur_b: jax.Array, order: jax.Array, val
 
 
 def _continuous_colosseum_sparse(mdp: MDP, connected: jax.Array, max_iter: int) -> MeasureResult:
-    """The reference's solver above 1000 states (measures.md §3.1): Jacobi on the hitting times per target in index
+    """The reference's solver above 1000 states (docs/measures.md §3.1): Jacobi on the hitting times per target in index
     order, stopping at a change ``< 1e-3``, or ``< 0.05`` when ``max ET - 1`` is below the running maximum."""
     S = mdp.n_states
     valid = mdp.state_mask
@@ -339,7 +338,7 @@ def _continuous_colosseum_sparse(mdp: MDP, connected: jax.Array, max_iter: int) 
 
 
 def _episodic_colosseum(mdp: MDP, max_iter: int) -> MeasureResult:
-    """measures.md §3.2, all target states at once in a column layout ``ET[H][S, E]``, then the sequential early
+    """docs/measures.md §3.2, all target states at once in a column layout ``ET[H][S, E]``, then the sequential early
     exit replayed with :func:`_two_snapshot_scan` over the targets ``S-1 .. 0``."""
     H, S = mdp.H, mdp.n_states
     reach = reachable_pairs(mdp)
@@ -429,10 +428,8 @@ def diameter(
       max_iter: sweep budget of the iterative variants; exhausting it returns ``inf`` with ``converged=False``.
       n_candidates: continuous paper variant: how many targets the second phase keeps.
     """
-    if variant not in ("paper", "colosseum"):
-        raise ValueError(f"variant must be 'paper' or 'colosseum'; got {variant!r}")
-    if not (0.0 < rtol < 1.0):
-        raise ValueError(f"rtol must lie in (0, 1); got {rtol}")
-    if max_iter < 1 or n_candidates < 1:
-        raise ValueError("max_iter and n_candidates must be positive integers")
+    check_variant(variant)
+    check_range("rtol", rtol, 0.0, 1.0, low_open=True, high_open=True)
+    max_iter = check_int("max_iter", max_iter)
+    n_candidates = check_int("n_candidates", n_candidates)
     return _diameter(mdp.strip(), variant, float(rtol), int(max_iter), int(n_candidates))

@@ -1,4 +1,4 @@
-"""Sum of the reciprocals of the sub-optimality gaps (paper §2.2, Simchowitz & Jamieson 2019; measures.md §5).
+"""Sum of the reciprocals of the sub-optimality gaps (paper §2.2, Simchowitz & Jamieson 2019; docs/measures.md §5).
 
 Gaps: ``Delta(s, a) = V*(s) - Q*(s, a)`` (continuous, discounted with ``gamma``) and
 ``Delta_h(s, a) = V*_h(s) - Q*_h(s, a)`` (episodic, exact finite-horizon values).
@@ -31,12 +31,12 @@ import jax.numpy as jnp
 from hardness.result import MeasureResult
 from hardness.value_norm import optimal_values
 from jaxmdp import dynamic_programming as dp
+from jaxmdp._checks import Variant, check_range, check_variant
 from jaxmdp.episodic import reachable_pairs
 from jaxmdp.mdp import MDP
 
 __all__ = ["sum_reciprocal_gaps", "sum_reciprocal_gaps_from", "suboptimality_gaps"]
 
-Variant = Literal["paper", "colosseum"]
 Form = Literal["regularized", "raw"]
 
 
@@ -100,12 +100,10 @@ def sum_reciprocal_gaps(
       zero_tol: raw form: gaps up to ``zero_tol * max(1, max |V*|)`` count as zero.
       max_iter: sweep budget of the reference's value iteration.
     """
-    if variant not in ("paper", "colosseum"):
-        raise ValueError(f"variant must be 'paper' or 'colosseum'; got {variant!r}")
+    check_variant(variant)
     if form not in ("regularized", "raw"):
         raise ValueError(f"form must be 'regularized' or 'raw'; got {form!r}")
-    if not (0.0 < float(gamma) < 1.0):
-        raise ValueError(f"gamma must lie in (0, 1); got {gamma}")
+    check_range("gamma", gamma, 0.0, 1.0, low_open=True, high_open=True)
     if not float(regularizer) > 0.0:
         raise ValueError(f"regularizer must be > 0; got {regularizer}")
     if not float(zero_tol) >= 0.0:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import functools
-from typing import Literal
 
 import jax
 import jax.numpy as jnp
@@ -13,12 +12,13 @@ from hardness.diameter import diameter
 from hardness.gaps import sum_reciprocal_gaps_from
 from hardness.result import MeasureResult
 from hardness.value_norm import _host_continuous_form, optimal_values, value_norm_from
+from jaxmdp._checks import Variant, check_range, check_variant
 from jaxmdp.episodic import ContinuousForm
 from jaxmdp.mdp import MDP
 
 __all__ = ["HardnessMeasures", "measures", "normalize"]
 
-#: A compared set whose range is below this is mapped to 0.5 (measures.md §6.5).
+#: A compared set whose range is below this is mapped to 0.5 (docs/measures.md §6.5).
 NORMALIZE_MIN_RANGE = 1e-4
 
 
@@ -34,16 +34,14 @@ def measures(
     mdp: MDP,
     gamma: float = 0.99,
     *,
-    variant: Literal["paper", "colosseum"] = "paper",
+    variant: Variant = "paper",
     continuous_form: ContinuousForm | None = None,
 ) -> HardnessMeasures:
     """Diameter, (discounted) environmental value norm and regularised sum of reciprocal gaps of ``mdp``, each with
     its defaults; ``continuous_form`` as in :func:`hardness.value_norm` (colosseum variant of episodic MDPs). The
     optimal values of a continuous MDP are computed once and shared by the value norm and the gap sum."""
-    if variant not in ("paper", "colosseum"):
-        raise ValueError(f"variant must be 'paper' or 'colosseum'; got {variant!r}")
-    if not (0.0 < float(gamma) < 1.0):
-        raise ValueError(f"gamma must lie in (0, 1); got {gamma}")
+    check_variant(variant)
+    check_range("gamma", gamma, 0.0, 1.0, low_open=True, high_open=True)
     cf = None
     if variant == "colosseum" and mdp.episodic:
         cf = continuous_form if continuous_form is not None else _host_continuous_form(mdp)
@@ -67,7 +65,7 @@ def _shared(mdp, cf, gamma, variant):
 
 def normalize(values: jax.Array, axis: int | tuple[int, ...] | None = None) -> jax.Array:
     """Min-max scaling to ``[0, 1]`` across the compared set (paper App. E): ``(x - min) / (max - min)`` along
-    ``axis`` (all axes by default). A set whose range is below ``1e-4`` maps to 0.5 (measures.md §6.5). Non-finite
+    ``axis`` (all axes by default). A set whose range is below ``1e-4`` maps to 0.5 (docs/measures.md §6.5). Non-finite
     entries (an infinite diameter) are left out of the minimum and maximum and map to NaN."""
     x = jnp.asarray(values)
     finite = jnp.isfinite(x)

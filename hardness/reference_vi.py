@@ -1,4 +1,5 @@
-"""The reference's discounted value iteration, reproduced for the ``variant="colosseum"`` measures (measures.md §1.1).
+"""The reference's discounted value iteration, reproduced for the ``variant="colosseum"`` measures (docs/measures.md
+§1.1).
 
 Start from ``V = 0``; a sweep is either *Gauss-Seidel* (states in index order, each using the values already updated
 in the same sweep) or *Jacobi* (synchronous); stop after the first sweep with ``max_s |V_before - V| < eps`` and

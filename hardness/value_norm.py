@@ -1,4 +1,4 @@
-"""The environmental value norm (paper §2.2, Maillard et al. 2014; measures.md §4).
+"""The environmental value norm (paper §2.2, Maillard et al. 2014; docs/measures.md §4).
 
 ``C = max_{(s, a)} sqrt( Var_{s' ~ P(.|s,a)} V(s') )`` with ``V`` the optimal value: the largest one-step standard
 deviation of the optimal value function.
@@ -17,7 +17,7 @@ deviation of the optimal value function.
   Episodic: on the time-augmented MDP every policy's bias is ``W_h(s) - (H - h) g`` with ``W`` the undiscounted
   finite-horizon values, so it is the episodic formula above with ``gamma = 1``.
 
-``variant="colosseum"`` reproduces the reference (measures.md §4.1-4.3, [quirk] [paper≠code]):
+``variant="colosseum"`` reproduces the reference (docs/measures.md §4.1-4.3, [quirk] [paper≠code]):
 
 * ``C_code = max_{s,a} sqrt( sum_s' P(s'|s,a) (V(s') - E[s', a])^2 )`` with ``E[s, a] = sum_s' P(s'|s,a) V(s')``:
   the centring is the expected next value *of the next state under the same action*, so this is not a variance;
@@ -29,15 +29,13 @@ deviation of the optimal value function.
 * ``discounted=False``: ``V`` replaced by the bias of the greedy policy of the discounted values. The reference
   approximates it with ``P^1000`` and a 60 s wall-clock cut; here it is exact.
 
-Exact bias of a chain ``P`` with rewards ``r``: ``P* = lim (I + P)^n / 2^n`` (the Cesàro limit; the lazy chain is
-aperiodic with the same limit, taken by 48 squarings, i.e. ``2^48`` steps), gain ``g = P* r`` and bias
-``h = (I - P + P*)^{-1} (r - g)`` (Puterman Thm. A.7). Dense ``O(S^3)``.
+The exact bias of a policy's chain is :func:`jaxmdp.dynamic_programming.chain_bias` (Puterman Thm. A.7, dense
+``O(S^3)``).
 """
 
 from __future__ import annotations
 
 import functools
-from typing import Literal
 
 import jax
 import jax.numpy as jnp
@@ -45,13 +43,12 @@ import jax.numpy as jnp
 from hardness.reference_vi import reference_value_iteration, uses_jacobi
 from hardness.result import MeasureResult
 from jaxmdp import dynamic_programming as dp
+from jaxmdp._checks import Variant, check_range, check_variant
 from jaxmdp.episodic import ContinuousForm, continuous_form, reachable_pairs
-from jaxmdp.jaxlib_workarounds.linalg import solve as linear_solve
 from jaxmdp.mdp import MDP
 
-__all__ = ["value_norm", "value_norm_from", "optimal_values", "deterministic_base", "chain_bias"]
+__all__ = ["value_norm", "value_norm_from", "optimal_values", "deterministic_base"]
 
-Variant = Literal["paper", "colosseum"]
 
 #: Tolerance for "probability one" when deciding that a transition is deterministic.
 _DETERMINISTIC_ATOL = 1e-6
@@ -87,27 +84,6 @@ def _masked_sqrt_max(var: jax.Array, mask: jax.Array) -> jax.Array:
     return jnp.sqrt(jnp.maximum(jnp.max(jnp.where(mask, var, -jnp.inf)), 0.0))
 
 
-def chain_bias(P: jax.Array, r: jax.Array, n_squarings: int = 48) -> jax.Array:
-    """Exact bias ``h = (I - P + P*)^{-1} (r - P* r)`` of a Markov chain (module docstring); ``P* h = 0``."""
-    S = P.shape[0]
-    eye = jnp.eye(S, dtype=P.dtype)
-
-    def square(_, M):
-        M = M @ M
-        return M / jnp.sum(M, axis=1, keepdims=True)
-
-    Pstar = jax.lax.fori_loop(0, n_squarings, square, 0.5 * (eye + P))
-    g = Pstar @ r
-    return linear_solve(eye - P + Pstar, r - g)  # one system at a time under vmap (see jaxmdp.jaxlib_workarounds.linalg)
-
-
-def _dense_chain(succ: jax.Array, succ_p: jax.Array, pi: jax.Array) -> jax.Array:
-    """``P_pi[s, s'] = sum_a pi(a|s) sum_k p[s,a,k] [succ = s']`` from successor lists."""
-    S = succ.shape[0]
-    w = (pi[:, :, None] * succ_p).reshape(S, -1)
-    return jnp.zeros((S, S), succ_p.dtype).at[jnp.arange(S)[:, None], succ.reshape(S, -1)].add(w)
-
-
 # ---------------------------------------------------------------------------------------------------------------
 # Paper
 # ---------------------------------------------------------------------------------------------------------------
@@ -120,7 +96,7 @@ def _paper_continuous(mdp: MDP, gamma: float, discounted: bool, values=None) -> 
     else:
         opt = dp.optimal_gain(mdp)
         pi = opt.policy
-        V = chain_bias(dp.policy_matrix(mdp, pi), dp.policy_rewards(mdp, pi))
+        V = dp.chain_bias(dp.policy_matrix(mdp, pi), dp.policy_rewards(mdp, pi))
         converged = opt.converged
     return MeasureResult.make(_masked_sqrt_max(_textbook(mdp.succ, mdp.succ_p, V), mask), converged)
 
@@ -150,7 +126,7 @@ def _colosseum_on(succ, succ_p, R, row_mask, action_mask, gamma, discounted, max
     Q, V, converged = values
     if not discounted:
         pi = dp.greedy(Q, action_mask)
-        V = chain_bias(_dense_chain(succ, succ_p, pi), jnp.sum(pi * R, axis=-1))
+        V = dp.chain_bias(dp.successor_policy_matrix(succ, succ_p, pi), jnp.sum(pi * R, axis=-1))
     mask = row_mask[:, None] & action_mask[None, :]
     return MeasureResult.make(_masked_sqrt_max(_code_form(succ, succ_p, V), mask), converged)
 
@@ -215,10 +191,8 @@ def value_norm(
         host-side depth-first search.
       max_iter: sweep budget of the reference's value iteration (colosseum variant).
     """
-    if variant not in ("paper", "colosseum"):
-        raise ValueError(f"variant must be 'paper' or 'colosseum'; got {variant!r}")
-    if not (0.0 < float(gamma) < 1.0):
-        raise ValueError(f"gamma must lie in (0, 1); got {gamma}")
+    check_variant(variant)
+    check_range("gamma", gamma, 0.0, 1.0, low_open=True, high_open=True)
     cf = None
     if variant == "colosseum" and mdp.episodic:
         cf = continuous_form if continuous_form is not None else _host_continuous_form(mdp)

@@ -6,15 +6,16 @@ Rebuilds the MDP side of "Hardness in Markov Decision Processes: Theory and Prac
 
 from jaxmdp.jaxlib_workarounds import xla_cpu as _xla_cpu
 
-# Before anything can create a JAX backend: see jaxmdp/jaxlib_workarounds/xla_cpu.py (jaxlib 0.10.2 miscompiles some CPU reductions).
+# Before anything can create a JAX backend: see jaxmdp/jaxlib_workarounds/xla_cpu.py (jaxlib 0.10.2 miscompiles some CPU
+# reductions).
 _xla_cpu.disable_ynn_fusion()
 
 from jaxmdp import dynamic_programming  # noqa: E402
-from jaxmdp.communication import CommunicationClass, communication_class
 from jaxmdp.batching import pad, permute_states, size_buckets, stack, state_permutation, unstack
+from jaxmdp.communication import CommunicationClass, communication_class
 from jaxmdp.env import EnvState, reset, sample_action, step
-from jaxmdp.mdp_families import Beta, PointMass
 from jaxmdp.mdp import MDP, MDPInfo, custom_mdp
+from jaxmdp.mdp_families import Beta, PointMass
 from jaxmdp.registry import families, make, register
 from jaxmdp.render import render
 from jaxmdp.transforms import apply_noise, apply_p_lazy, apply_p_rand

@@ -23,6 +23,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxmdp._checks import check_int
 from jaxmdp.mdp import MDP, MDPInfo
 
 __all__ = ["stack", "unstack", "pad", "size_buckets", "permute_states", "state_permutation"]
@@ -118,8 +119,7 @@ def size_buckets(mdps: Sequence[MDP], n_buckets: int) -> list[list[int]]:
     members' indices per group, smallest group first; every index appears once.
     """
     mdps = list(mdps)
-    if int(n_buckets) != n_buckets or n_buckets < 1:
-        raise ValueError(f"n_buckets must be a positive integer; got {n_buckets}")
+    n_buckets = check_int("n_buckets", n_buckets)
     if not mdps:
         return []
     if len({m.episodic for m in mdps}) > 1:

@@ -1,4 +1,4 @@
-"""Communication classes of MDPs (paper §2.1), by the reference's operational algorithm (families.md §1.9).
+"""Communication classes of MDPs (paper §2.1), by the reference's operational algorithm (docs/families.md §1.9).
 
 1. *Ergodic test.* Start from the strongly connected components (SCCs) of the graph with an edge ``s -> s'``
    (``s != s'``) when **every** action has ``T[s, a, s'] > 0``. Repeatedly link group ``g -> g'`` when some state of

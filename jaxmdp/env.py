@@ -1,6 +1,6 @@
 """Functional environment API in the style of gymnax 1.0: ``reset`` and ``step`` with the MDP as the params pytree.
 
-Observations are state indices (tabular). Episodes (families.md §1.8): ``reset`` draws ``s0 ~ P0`` and sets the
+Observations are state indices (tabular). Episodes (docs/families.md §1.8): ``reset`` draws ``s0 ~ P0`` and sets the
 in-episode step ``h = 0``; every ``step`` takes one action, so an episode has exactly ``horizon`` actions taken at
 ``h = 0 .. horizon - 1``, each earning a reward. The step whose action is the last one of the episode reports
 ``terminated = True``; the environment then resets itself: the returned observation and state are those of a fresh
@@ -20,8 +20,8 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from jaxmdp.sampling.beta_sampling import sample_beta
 from jaxmdp.mdp import MDP
+from jaxmdp.sampling.beta_sampling import sample_beta
 
 __all__ = ["EnvState", "reset", "step", "sample_action", "sample_next_state", "sample_reward"]
 
@@ -65,9 +65,10 @@ def sample_reward(
 ) -> jax.Array:
     """Draw the reward of ``(state, action, next_state)``: Beta(mean*conc, (1-mean)*conc) if ``conc > 0``, else mean.
 
-    Beta draws use :func:`jaxmdp.sampling.beta_sampling.sample_beta` (exact; several times faster than ``jax.random.beta``
-    under ``vmap``, where the reward draw dominated the cost of a step). MDPs whose static ``stochastic_rewards`` is
-    False (no Beta reward anywhere, recorded at construction) compile no draw at all: the reward is the mean.
+    Beta draws use :func:`jaxmdp.sampling.beta_sampling.sample_beta` (exact; several times faster than
+    ``jax.random.beta`` under ``vmap``, where the reward draw dominated the cost of a step). MDPs whose static
+    ``stochastic_rewards`` is False (no Beta reward anywhere, recorded at construction) compile no draw at all: the
+    reward is the mean.
     """
     mean = mdp.reward_mean[state, action, next_state]
     if not mdp.stochastic_rewards:  # static: no Beta anywhere, no draw compiled

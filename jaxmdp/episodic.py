@@ -5,14 +5,14 @@ the action at ``h = H-1``. Seen as a continuous MDP on *pairs* ``(h, s)`` (the p
 ``(h, s) -a-> (h+1, s') ~ P(.|s, a)`` for ``h < H-1`` and ``(H-1, s) -a-> (0, s0) ~ P0``, with reward ``R(s, a)`` at
 every pair.
 
-* :func:`reachable_pairs` (jittable): ``Reach_0 = supp P0``, ``Reach_{h+1} = successors(Reach_h)`` (families.md §1.8);
-  only these pairs are states of the time-augmented MDP.
+* :func:`reachable_pairs` (jittable): ``Reach_0 = supp P0``, ``Reach_{h+1} = successors(Reach_h)`` (docs/families.md
+  §1.8); only these pairs are states of the time-augmented MDP.
 * :func:`time_augmented_kernel` (jittable, dense ``[H, S, A, S]``): the reference's ``T_epi``, used by its episodic
   diameter: rows of reachable pairs copy ``T`` for ``h < H-1``, unreachable rows are zero (not stochastic), and row
   ``H-1`` of *every* state jumps to ``P0``.
 * :func:`episodic_graph_order` / :func:`continuous_form` (host side): the reference's episodic graph, its depth-first
   node order and its continuous form ``T_cf`` / ``R_cf`` in successor-list layout, including the reset-column quirk
-  (families.md §1.8: the reset mass towards start ``s0`` lands on the pair whose *graph index* equals the original
+  (docs/families.md §1.8: the reset mass towards start ``s0`` lands on the pair whose *graph index* equals the original
   index of ``s0``). Only the reference's episodic value norm needs them.
 
 Stacked batches: the static ``H`` is the longest horizon and each member's traced ``horizon`` is its own; rows with
@@ -21,8 +21,7 @@ Stacked batches: the static ``H`` is the longest horizon and each member's trace
 
 from __future__ import annotations
 
-import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 import jax
 import jax.numpy as jnp
@@ -50,7 +49,7 @@ def _require_episodic(mdp: MDP) -> int:
 
 
 def reachable_pairs(mdp: MDP) -> jax.Array:
-    """Boolean ``[H, S]`` mask of the pairs ``(h, s)`` reachable within an episode (families.md §1.8).
+    """Boolean ``[H, S]`` mask of the pairs ``(h, s)`` reachable within an episode (docs/families.md §1.8).
 
     ``Reach_0 = supp(P0)`` (valid states only) and ``Reach_{h+1} = {s' : P(s'|s,a) > 0, s in Reach_h, a valid}`` for
     ``h + 1 < horizon``; rows ``h >= horizon`` are False. Jittable; vmaps over a stacked batch.
@@ -71,7 +70,7 @@ def reachable_pairs(mdp: MDP) -> jax.Array:
 
 
 def time_augmented_kernel(mdp: MDP) -> jax.Array:
-    """The reference's ``T_epi[H, S, A, S]`` (families.md §1.8), dense.
+    """The reference's ``T_epi[H, S, A, S]`` (docs/families.md §1.8), dense.
 
     ``T_epi[h, s] = T[s]`` if ``(h, s)`` is reachable and ``h < horizon - 1``, zero otherwise;
     ``T_epi[horizon - 1, s, a] = P0`` for every state and action. Memory ``H S^2 A``: meant for small MDPs and tests;
@@ -94,7 +93,7 @@ def graph_successors(mdp: MDP) -> list[list[int]]:
     """Graph successors of every valid state, in the order the reference created their edges (host side).
 
     The reference iterates a node's successors in edge-creation order: the effective outcome lists of base actions
-    ``0, 1, ...`` in list order (families.md §1.6). When the family recorded that order in
+    ``0, 1, ...`` in list order (docs/families.md §1.6). When the family recorded that order in
     ``mdp.info.layout["successor_order"]`` it is used; otherwise the order is rebuilt from the successor lists
     (action by action, increasing state index), which coincides with the reference for RiverSwim and DeepSea but may
     differ for other families. The order only matters for :func:`episodic_graph_order`.
@@ -152,25 +151,27 @@ def episodic_graph_order(
     order: list[tuple[int, int]] = []
     seen: set[tuple[int, int]] = set()
 
-    def visit(h: int, s: int) -> None:
-        children = [(h + 1, t) for t in succ[s]] if h < H - 1 else [(0, s0) for s0 in starts]
-        for c in children:
-            if c not in seen:
-                seen.add(c)
-                order.append(c)
-                if h < H - 1:
-                    visit(*c)
+    def children(h: int, s: int) -> Iterator[tuple[int, int]]:
+        return iter([(h + 1, t) for t in succ[s]] if h < H - 1 else [(0, s0) for s0 in starts])
 
-    limit = sys.getrecursionlimit()
-    sys.setrecursionlimit(max(limit, 4 * H + 100))
-    try:
-        for s0 in starts:
-            if (0, s0) not in seen:
-                seen.add((0, s0))
-                order.append((0, s0))
-            visit(0, s0)
-    finally:
-        sys.setrecursionlimit(limit)
+    for s0 in starts:
+        if (0, s0) not in seen:
+            seen.add((0, s0))
+            order.append((0, s0))
+        # Depth-first with an explicit stack of (pair, its remaining children): a path is up to H pairs long, too
+        # deep for Python's recursion limit on long horizons.
+        stack = [((0, s0), children(0, s0))]
+        while stack:
+            (h, _), pending = stack[-1]
+            for c in pending:
+                if c not in seen:
+                    seen.add(c)
+                    order.append(c)
+                    if h < H - 1:  # expand the new child before the parent's next one
+                        stack.append((c, children(*c)))
+                        break
+            else:
+                stack.pop()
     return np.asarray(order, dtype=np.int32).reshape(-1, 2)
 
 
@@ -196,7 +197,7 @@ class ContinuousForm(struct.PyTreeNode):
 
 
 def continuous_form(mdp: MDP, order: np.ndarray | None = None, *, reset_quirk: bool = True) -> ContinuousForm:
-    """The reference's continuous form ``T_cf`` / ``R_cf`` of an episodic MDP (families.md §1.8), host side.
+    """The reference's continuous form ``T_cf`` / ``R_cf`` of an episodic MDP (docs/families.md §1.8), host side.
 
     Rows follow ``order`` (default :func:`episodic_graph_order`). For ``h < H-1`` row ``(h, s)`` moves to the rows of
     ``(h+1, s')`` with ``T[s, a, s']``; row ``(H-1, s)`` resets with ``P0``. With ``reset_quirk=True`` (the

@@ -6,7 +6,7 @@ An MDP ``M = (S, A, P, P0, R)`` (paper §2.1) is held as dense arrays:
 * ``R[s, a] = sum_s' T[s, a, s'] * reward_mean[s, a, s']`` mean rewards,
 * ``reward_mean[s, a, s']`` and ``reward_conc[s, a, s']``: the reward distribution of each transition, a
   Beta(``mean * conc``, ``(1 - mean) * conc``) when ``conc > 0`` and a point mass at ``mean`` when ``conc == 0``
-  (Colosseum's families use exactly these two kinds, families.md §1.5),
+  (Colosseum's families use exactly these two kinds, docs/families.md §1.5),
 * ``P0[s]`` the starting distribution,
 * ``succ[s, a, k]`` / ``succ_p[s, a, k]``: the same kernel as successor lists (``K`` entries per row, padded with
   zero-probability entries). They are derived from ``T`` by every constructor and let samplers and hitting-time
@@ -32,6 +32,8 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
+
+from jaxmdp._checks import check_int
 from flax import struct
 
 __all__ = ["MDP", "MDPInfo", "custom_mdp", "successor_lists"]
@@ -280,8 +282,7 @@ def custom_mdp(
     P0 = P0 / P0.sum()
 
     if H is not None:
-        if isinstance(H, bool) or not isinstance(H, (int, np.integer)) or H < 1:
-            raise ValueError(f"H must be a positive integer (or None for a continuous MDP); got {H!r}")
+        check_int("H", H, context=" (or None for a continuous MDP)")
         H = int(H)
 
     if info is None:

@@ -1,4 +1,4 @@
-"""Text rendering of states (families.md §1.10; paper App. C textual representations).
+"""Text rendering of states (docs/families.md §1.10; paper App. C textual representations).
 
 Each family registers a function ``(info, node) -> list[list[str]]`` returning a character grid for the node (a tuple
 of the family's node fields) using the family's symbols; :func:`render` adds the episodic header: a first row

@@ -1,6 +1,6 @@
 """Jittable kernel transforms: random actions (``p_rand``) and lazy steps (``p_lazy``), paper App. C.
 
-With ``r = p_rand``, ``l = p_lazy`` and ``A`` (valid) actions, Colosseum's families use (families.md §1.3)
+With ``r = p_rand``, ``l = p_lazy`` and ``A`` (valid) actions, Colosseum's families use (docs/families.md §1.3)
 
     P'(. | s, b) = l * delta_s + (1 - l) * [ (1 - r) P(. | s, b) + (r / A) sum_c P(. | s, c) ],
 
@@ -85,5 +85,5 @@ def apply_p_lazy(mdp: MDP, p_lazy: float | jax.Array) -> MDP:
 
 
 def apply_noise(mdp: MDP, p_rand: float | jax.Array = 0.0, p_lazy: float | jax.Array = 0.0) -> MDP:
-    """Random actions then laziness: ``apply_p_lazy(apply_p_rand(mdp, p_rand), p_lazy)`` (families.md §1.3)."""
+    """Random actions then laziness: ``apply_p_lazy(apply_p_rand(mdp, p_rand), p_lazy)`` (docs/families.md §1.3)."""
     return apply_p_lazy(apply_p_rand(mdp, p_rand), p_lazy)

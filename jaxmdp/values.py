@@ -1,6 +1,6 @@
 """Values of the reference policies (optimal, worst, uniformly random) that regrets are measured against.
 
-Episodic MDPs (measures.md §2.2): exact backward induction. ``value`` is the expected ``H``-step return from the
+Episodic MDPs (docs/measures.md §2.2): exact backward induction. ``value`` is the expected ``H``-step return from the
 start distribution, ``sum_s P0(s) V_0(s)``; ``state_values`` are the ``V_0(s)`` of every state. The worst policy is
 optimal for ``-R``. Both variants agree.
 
@@ -10,7 +10,7 @@ state.
 * ``variant="paper"`` (default): the optimal and worst policies are gain-optimal for ``R`` and ``-R``
   (:func:`~jaxmdp.dynamic_programming.optimal_gain`): ``rho* = max_pi rho^pi`` and ``rho^- = min_pi rho^pi`` as in the
   paper's regret normalisation (App. E).
-* ``variant="colosseum"``: the reference's choice (measures.md §2.1, [paper≠code]): the greedy policies of the
+* ``variant="colosseum"``: the reference's choice (docs/measures.md §2.1, [paper≠code]): the greedy policies of the
   ``gamma = 0.99`` discounted optimal values of ``R`` and ``-R``, evaluated for their gain. They coincide with the
   paper's whenever the rewarding cycle is short compared with ``1 / (1 - gamma)`` steps.
 
@@ -19,17 +19,16 @@ Everything is jittable (``variant`` is static) and vmaps over a stacked batch.
 
 from __future__ import annotations
 
-from typing import Literal
 
 import jax
 from flax import struct
 
 from jaxmdp import dynamic_programming as dp
+from jaxmdp._checks import Variant, check_variant
 from jaxmdp.mdp import MDP
 
 __all__ = ["ReferenceValues", "reference_values", "optimal_value", "worst_value", "random_value"]
 
-Variant = Literal["paper", "colosseum"]
 
 
 class ReferenceValues(struct.PyTreeNode):
@@ -50,8 +49,7 @@ class ReferenceValues(struct.PyTreeNode):
 
 
 def _check_variant(variant: str) -> None:
-    if variant not in ("paper", "colosseum"):
-        raise ValueError(f"variant must be 'paper' or 'colosseum'; got {variant!r}")
+    check_variant(variant)
 
 
 def _episodic(mdp: MDP) -> ReferenceValues:
@@ -102,7 +100,7 @@ def _continuous(mdp: MDP, variant: Variant, gamma: float) -> ReferenceValues:
 def reference_values(mdp: MDP, variant: Variant = "paper", gamma: float = 0.99) -> ReferenceValues:
     """Values of the optimal, worst and random policies (see the module docstring; ``gamma`` is used only by the
     ``colosseum`` variant of continuous MDPs)."""
-    _check_variant(variant)
+    check_variant(variant)
     return _episodic(mdp) if mdp.episodic else _continuous(mdp, variant, gamma)
 
 

@@ -1,7 +1,7 @@
 """Throughput of every registered agent in the lockstep runner: agent-steps per second at 1, 64 and 1024 seeds.
 
 Each measurement runs ``runner.run`` (environment + agent + exact indicators every 100 steps, as the reference's
-benchmark) for ``--steps`` steps per seed on the benchmark MDPs of ``colosseum-timings.md``: RiverSwim (continuous
+benchmark) for ``--steps`` steps per seed on the benchmark MDPs of ``docs/benchmark.md §10``: RiverSwim (continuous
 communicating ``prms_0``, episodic communicating ``prms_0``), and Taxi / MiniGridEmpty when those families are
 registered. Compilation is timed separately. The reference's single-run throughput is printed beside ours.
 
@@ -17,16 +17,15 @@ Usage: ``python scripts/bench_agents.py [--quick] [--steps N] [--seeds 1,64,1024
 
 from __future__ import annotations
 
-import argparse
-import os
-import sys
-
 from jaxmdp.experiment.devices import use_every_core
 
-use_every_core()  # one lockstep loop per core: the runner shards the members over the host devices
+use_every_core()  # before any JAX computation: one lockstep loop per core (the runner shards over host devices)
 
+import argparse  # noqa: E402
 import csv  # noqa: E402
+import os  # noqa: E402
 import platform  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -36,7 +35,7 @@ import agents  # noqa: E402
 import jaxmdp  # noqa: E402
 from jaxmdp.experiment import runner  # noqa: E402
 
-# The benchmark MDPs of colosseum-timings.md (benchmark.md §3 scopes), keyed by (family, episodic).
+# The benchmark MDPs of docs/benchmark.md §10 (docs/benchmark.md §3 scopes), keyed by (family, episodic).
 BENCH_MDPS = {
     ("RiverSwim", False): dict(size=25, p_lazy=0.1, make_reward_stochastic=True, randomize_actions=False),
     ("RiverSwim", True): dict(size=25, p_lazy=0.05, make_reward_stochastic=True, randomize_actions=False),
@@ -49,7 +48,7 @@ BENCH_MDPS = {
     ("MiniGridEmpty", True): dict(size=6, n_starting_states=3, make_reward_stochastic=True, randomize_actions=False),
 }
 
-# The reference's steps per second (one run, 20 000 steps, indicators every 100 steps; colosseum-timings.md).
+# The reference's steps per second (one run, 20 000 steps, indicators every 100 steps; docs/benchmark.md §10).
 REFERENCE = {
     ("q_learning_continuous", "RiverSwim"): "35.9k",
     ("q_learning_continuous", "Taxi"): "21.2k",
@@ -177,7 +176,7 @@ def write(out: Path, rows: list[dict], profile: list[dict], args, load0, elapsed
         f"machine; treat absolute numbers as lower bounds). Total {elapsed:.0f} s.",
         "",
         "Agent-steps per second summed over seeds (compile time in brackets); the reference runs one seed per "
-        "process (colosseum-timings.md).",
+        "process (docs/benchmark.md §10).",
         "",
         "| agent | MDP | S | " + " | ".join(f"{s} seeds" for s in seed_counts) + " | reference (1 seed) |",
         "|---|---|---|" + "---|" * len(seed_counts) + "---|",

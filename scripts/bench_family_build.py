@@ -2,7 +2,7 @@
 
 Each configuration is built ``--repeats`` times in this process; the minimum and the median are written to
 ``results/bench_family_build/build_times.csv``. The reference package's build times (Colosseum 1.2, same kind of
-machine, ../shared/reference/colosseum-timings.md) are listed next to ours where it gives one.
+machine, docs/benchmark.md §10) are listed next to ours where it gives one.
 
     PYTHONPATH=$PWD python scripts/bench_family_build.py
 """

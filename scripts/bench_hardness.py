@@ -8,7 +8,7 @@ what it finished) and ``results/bench_hardness.md`` (the tables).
    ``--repeats`` executions of the compiled program) separately. Each size also times one all-targets backup of
    the hitting times in the dense form (``einsum`` over ``T[S, A, S]``) and in the successor-list form the diameter
    uses.
-2. Suite: all 80 MDPs of ``shared/spec/benchmark.md`` §3 (seed 0) in one :func:`hardness.measures_many` call, both
+2. Suite: all 80 MDPs of docs/benchmark.md §3 (seed 0) in one :func:`hardness.measures_many` call, both
    variants: the first call (compilation of the size buckets' programs + run) and the best warm call (run only;
    compile = first - warm). ``--single-stack-baseline`` also times the 40 continuous members in one padded stack
    mapped with ``lax.map``, the layout ``measures_many`` replaces.
@@ -30,14 +30,14 @@ import numpy as np
 
 import hardness
 import jaxmdp
-from hardness.benchmark import suite as benchmark_suite
 from hardness.batched import map_measures
+from hardness.benchmark import suite as benchmark_suite
 from hardness.diameter import _expect_columns
 from jaxmdp import episodic
 
 RESULTS = Path(__file__).resolve().parents[1] / "results"
 
-# Reference timings (shared/reference/colosseum-timings.md, warm numba, one core): (family, S) -> diameter seconds.
+# Reference timings (docs/benchmark.md §10, warm numba, one core): (family, S) -> diameter seconds.
 REFERENCE_DIAMETER_S = {
     ("MiniGridEmpty", 64): 0.01, ("MiniGridEmpty", 256): 0.43, ("MiniGridEmpty", 484): 10.0,
     ("MiniGridEmpty", 784): 39.1, ("MiniGridEmpty", 1024): 74.0,
@@ -191,7 +191,7 @@ def write_markdown(rows: list[dict], args):
         "## Time against the number of states (one MDP per call)",
         "",
         "`sweep` columns: one all-targets backup of the hitting times, dense `einsum` over `T[S,A,S]` vs successor "
-        "lists. Reference: the reference package's diameter (shared/reference/colosseum-timings.md, warm, one core).",
+        "lists. Reference: the reference package's diameter (docs/benchmark.md §10, warm, one core).",
         "",
         "| family | setting | S | variant | diameter run s | value norm run s | gaps run s | compile s (d/vn/g) "
         "| diameter | sweep dense ms | sweep succ ms | reference diameter s |",
@@ -217,7 +217,7 @@ def write_markdown(rows: list[dict], args):
         )
     lines += [
         "",
-        "Reference (shared/reference/colosseum-timings.md, warm, one core): diameter MiniGridEmpty continuous "
+        "Reference (docs/benchmark.md §10, warm, one core): diameter MiniGridEmpty continuous "
         "64/256/484/784/1024 states 0.01/0.43/10.0/39.1/74 s; SimpleGrid 49/225/400/625/1024 states "
         "0.01/0.53/9.9/30.2/117 s; value norm and gaps <= 2 s; episodic diameter MiniGridEmpty 64/144/196/256 "
         "states 0.27/4.3/11.8/28.4 s.",

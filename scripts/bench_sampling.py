@@ -8,45 +8,42 @@ ratios). Three measurements:
 2. Beta rewards, ns per draw: ``vmap`` of ``sample_beta`` against ``jax.random.beta`` over 4096 members, shapes
    uniform on (0.05, 5).
 3. PSRL episodic agent-steps per second on MiniGridEmpty size 5 (S = 100, A = 3, H = 13), 64 seeds, through
-   ``jaxmdp.experiment.runner`` (indicators every 100 steps), with ``jax.random.loggamma`` / ``jax.random.beta`` patched into
-   ``agents.posteriors`` and ``jaxmdp.env`` against ours. One host device per core, as ``scripts/bench_agents.py``.
+   ``jaxmdp.experiment.runner`` (indicators every 100 steps): the registered agent against the same agent whose
+   ``plan`` draws its posteriors with ``jax.random.loggamma`` (``psrl_episodic.plan``'s ``log_gamma`` argument).
+   The MDP's rewards are deterministic, so the environment draws no Beta rewards. One host device per core, as
+   ``scripts/bench_agents.py``.
 
 Writes ``results/bench_sampling.md``. Usage: ``python scripts/bench_sampling.py [--reps 3] [--psrl-steps 520]``.
 """
 
 from __future__ import annotations
 
-import os
-
 from jaxmdp.experiment.devices import use_every_core
 
-use_every_core()  # one lockstep loop per core: the runner shards the members over the host devices
+use_every_core()  # before any JAX computation: one lockstep loop per core (the runner shards over host devices)
 
 import argparse  # noqa: E402
 import dataclasses  # noqa: E402
+import functools  # noqa: E402
+import os  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-import jaxmdp  # noqa: E402  (first: it sets XLA flags before JAX creates its backend)
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import agents  # noqa: E402
 import agents.posteriors as posteriors  # noqa: E402
-import jaxmdp.env as env  # noqa: E402
-from jaxmdp.experiment import runner
+import jaxmdp  # noqa: E402
+from agents import psrl_episodic  # noqa: E402
+from jaxmdp.experiment import runner  # noqa: E402
 from jaxmdp.sampling import beta_sampling  # noqa: E402
 
 
-def jax_log_gamma(key, a, *, dtype=jnp.float32, **_):
-    """``jax.random.loggamma`` with the call signature of ``beta_sampling.sample_log_gamma``."""
-    return jax.random.loggamma(key, a, dtype=dtype)
-
-
-def jax_beta(key, a, b, *, dtype=jnp.float32, **_):
-    """``jax.random.beta`` with the call signature of ``beta_sampling.sample_beta``."""
-    return jax.random.beta(key, a, b, dtype=dtype)
+def jax_log_gamma(key, a):
+    """``jax.random.loggamma`` as a ``log_gamma`` sampler of ``agents.posteriors`` (``a``'s dtype)."""
+    return jax.random.loggamma(key, a, dtype=a.dtype)
 
 
 def interleaved(fns: dict, args: tuple, reps: int) -> dict:
@@ -89,24 +86,19 @@ def beta_draws(members: int, reps: int) -> dict:
 
 def psrl_steps(seeds: int, steps: int, reps: int) -> dict:
     mdp = jaxmdp.make("MiniGridEmpty", episodic=True, seed=0, size=5)
+    assert not mdp.stochastic_rewards  # so the environment's Beta sampler plays no part
     base = agents.get("psrl_episodic")
-    # Copies: the runner caches compiled programs per agent object, so each sampler gets its own program.
-    versions = {"jax": dataclasses.replace(base), "new": dataclasses.replace(base)}
-    originals = (posteriors.sample_log_gamma, env.sample_beta)
-    patches = {"jax": (jax_log_gamma, jax_beta), "new": originals}
+    jax_plan = functools.partial(psrl_episodic.plan, log_gamma=jax_log_gamma)
+    versions = {"jax": dataclasses.replace(base, name="psrl_episodic[jax.random]", plan=jax_plan), "new": base}
     grid = runner.product([mdp], [base.default_hparams], seeds=range(seeds))
     best, compile_s = {k: np.inf for k in versions}, {}
-    try:
-        for rep in range(reps + 1):  # the first run of each compiles
-            for k, agent in versions.items():
-                posteriors.sample_log_gamma, env.sample_beta = patches[k]
-                res = runner.run(agent, grid, steps, log_period=100, n_records=5)
-                if rep == 0:
-                    compile_s[k] = res.compile_s
-                best[k] = min(best[k], res.run_s)
-                print(f"  psrl {k}: {seeds * steps / res.run_s:,.0f} agent-steps/s", flush=True)
-    finally:
-        posteriors.sample_log_gamma, env.sample_beta = originals
+    for rep in range(reps + 1):  # the first run of each compiles
+        for k, agent in versions.items():
+            res = runner.run(agent, grid, steps, log_period=100, n_records=5)
+            if rep == 0:
+                compile_s[k] = res.compile_s
+            best[k] = min(best[k], res.run_s)
+            print(f"  psrl {k}: {seeds * steps / res.run_s:,.0f} agent-steps/s", flush=True)
     return dict(S=mdp.n_states, seeds=seeds, steps=steps,
                 **{f"{k}_steps_per_s": seeds * steps / v for k, v in best.items()},
                 **{f"{k}_compile_s": v for k, v in compile_s.items()})
@@ -143,8 +135,8 @@ def write(out: Path, draws: list[dict], beta: dict, psrl: dict, args, load0, ela
     lines = [
         "# Gamma / Beta sampler: jaxmdp.sampling.beta_sampling against jax.random",
         "",
-        f"{os.cpu_count()} cores ({cpu}), jax {jax.__version__}. `jax.random` and ours (`jaxmdp.sampling.beta_sampling`) timed "
-        f"in one process, interleaved, best of {args.reps} (PSRL: best of {args.psrl_reps}). Load average "
+        f"{os.cpu_count()} cores ({cpu}), jax {jax.__version__}. `jax.random` and ours "
+        f"(`jaxmdp.sampling.beta_sampling`) timed in one process, interleaved, best of {args.reps} (PSRL: best of {args.psrl_reps}). Load average "
         f"before/after: {load0[0]:.1f} / {os.getloadavg()[0]:.1f}: other processes share the machine, so read the "
         f"ratios. Wall ns, then CPU ns summed over threads. Total {elapsed:.0f} s.",
         "",
@@ -176,8 +168,8 @@ def write(out: Path, draws: list[dict], beta: dict, psrl: dict, args, load0, ela
         "## PSRL episodic in the runner",
         "",
         f"MiniGridEmpty size 5 (S = {psrl['S']}, A = 3, H = 13), {psrl['seeds']} seeds, {psrl['steps']} steps, "
-        "indicators every 100 steps, `jaxmdp.experiment.runner.run` (one host device per core). jax: `jax.random.loggamma` and "
-        "`jax.random.beta` patched into `agents.posteriors` and `jaxmdp.env`.",
+        "indicators every 100 steps, `jaxmdp.experiment.runner.run` (one host device per core). jax: the agent's "
+        "posteriors drawn with `jax.random.loggamma` (deterministic rewards: no Beta draws).",
         "",
         "| sampler | agent-steps/s | compile s |",
         "|---|---|---|",

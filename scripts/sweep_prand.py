@@ -2,9 +2,9 @@
 
 One base MDP per seed; every value of ``p_rand`` is the jittable kernel transform of it (``jaxmdp.apply_p_rand``), so
 each seed's whole grid is one batched call of ``hardness.measures``; beside the measures, the regret of the tuned
-near-optimal agent (``hardness.analysis.near_optimal``: PSRL episodic, UCRL2 continuous; ``--agent-steps 0`` leaves it out).
-Writes ``results/sweep_prand/`` (CSV of raw and normalised measures and regrets per (seed, p_rand), the settings as
-JSON, a PNG figure).
+near-optimal agent (``hardness.analysis.near_optimal``: PSRL episodic, UCRL2 continuous; ``--agent-steps 0`` leaves it
+out). Writes ``results/sweep_prand/`` (CSV of raw and normalised measures and regrets per (seed, p_rand), the settings
+as JSON, a PNG figure).
 
     python scripts/sweep_prand.py          # MiniGridEmpty (size 5) episodic, p_rand 0..0.5, 3 seeds, tuned PSRL
     python scripts/sweep_prand.py --family RiverSwim --setting continuous --param size=20 --seeds 0 1 2

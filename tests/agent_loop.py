@@ -1,6 +1,6 @@
 """A minimal lockstep agent/MDP interaction loop for the agents' own tests, written independently of
-:mod:`jaxmdp.experiment.runner`: it returns per-step traces (actions, rewards, plan flags) that the runner does not keep, so the
-agent tests check each algorithm without going through the runner's chunking, sharding and indicators.
+:mod:`jaxmdp.experiment.runner`: it returns per-step traces (actions, rewards, plan flags) that the runner does not
+keep, so the agent tests check each algorithm without going through the runner's chunking, sharding and indicators.
 
 One ``lax.scan`` over time steps drives a batch of agents (leading axis: one key per member) on one MDP shared by
 the batch or on a stacked batch of MDPs (one per member, from ``jaxmdp.stack``). Per step:

@@ -124,7 +124,7 @@ def reference_fixture_mdp(z) -> tuple[jaxmdp.MDP, np.ndarray | None]:
 
 
 def normalize_by_hand(x: np.ndarray) -> np.ndarray:
-    """Paper App. E with the 0.5 rule of measures.md §6.5, entry by entry: ``(x - min) / (max - min)`` over all
+    """Paper App. E with the 0.5 rule of docs/measures.md §6.5, entry by entry: ``(x - min) / (max - min)`` over all
     finite entries; 0.5 for every finite entry when ``max - min < 1e-4``; NaN for non-finite entries."""
     x = np.asarray(x, np.float64)
     out = np.full(x.shape, np.nan)

@@ -97,7 +97,7 @@ def wei_constants(hw, sp, delta, S, A, T, exponent=1 / 3):
 
 
 def test_wei_constants():
-    # The spec's derived values (agents.md §5: S=25, A=2, T=500 000 -> H = 8.2931, bonus at N=1 0.6005) come from
+    # The spec's derived values (docs/agents.md §5: S=25, A=2, T=500 000 -> H = 8.2931, bonus at N=1 0.6005) come from
     # the reference's delta = 0.95 and exponent 0.333; they check this reading of the formulas.
     H, _, b = wei_constants(0.942, 0.014, 0.95, 25, 2, 500_000, exponent=0.333)
     assert H == pytest.approx(8.2931, abs=1e-4) and b == pytest.approx(0.6005, abs=1e-4)

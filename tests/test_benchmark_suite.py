@@ -1,4 +1,4 @@
-"""The benchmark suite data (benchmark.md §3) and, for the registered families, the reference's cached seed-0
+"""The benchmark suite data (docs/benchmark.md §3) and, for the registered families, the reference's cached seed-0
 diameter and value norm of each entry (printed with 4 decimals)."""
 
 import collections
@@ -12,7 +12,7 @@ import jaxmdp
 from hardness.benchmark import suite as bs
 from jaxmdp import episodic
 
-# Paper Table 1 / benchmark.md §3: MDPs per setting and family.
+# Paper Table 1 / docs/benchmark.md §3: MDPs per setting and family.
 COUNTS = {
     "episodic ergodic": dict(DeepSea=2, FrozenLake=1, MiniGridEmpty=7, MiniGridRooms=3, RiverSwim=2, SimpleGrid=3, Taxi=2),
     "episodic communicating": dict(DeepSea=2, FrozenLake=1, MiniGridEmpty=5, MiniGridRooms=4, RiverSwim=2, SimpleGrid=4, Taxi=2),

@@ -1,4 +1,4 @@
-"""Construction (construction.py): the order of the action permutations (families.md §1.4, §1.6) and the horizon's
+"""Construction (construction.py): the order of the action permutations (docs/families.md §1.4, §1.6) and the horizon's
 eccentricity search (§1.8)."""
 
 import numpy as np
@@ -72,3 +72,16 @@ def test_a_family_with_a_formula_horizon_skips_the_eccentricity_search(monkeypat
     assert jaxmdp.make("Taxi", episodic=True, seed=0, size=4, length=1, n_locations=3).H == 24
     with pytest.raises(AssertionError, match="search ran"):
         jaxmdp.make("RiverSwim", episodic=True, seed=0, size=3)
+
+
+def test_a_builder_declaring_other_common_defaults_is_refused():
+    # The common defaults live in COMMON_DEFAULTS; a family whose public signature drifts from them fails at import.
+    from jaxmdp.mdp_families import construction
+    from jaxmdp.mdp_families.river_swim import RiverSwimFamily
+
+    def declaration(*, episodic, seed, size, p_rand=None, p_lazy=None, randomize_actions=False,
+                    make_reward_stochastic=False, reward_variance_multiplier=1.0, H=None):
+        """A RiverSwim whose randomize_actions defaults to False."""
+
+    with pytest.raises(TypeError, match="randomize_actions"):
+        construction.family_builder(RiverSwimFamily)(declaration)

@@ -171,6 +171,31 @@ def test_chain_gain_is_accurate_on_slowly_mixing_chains():
     np.testing.assert_allclose(g, mu @ r, rtol=2e-6)
 
 
+def np_cesaro(P, x, n=4000):
+    """Cesàro mean over ``n`` of the partial sums ``sum_{i<m} P^i x`` (the bias when ``x = r - g``)."""
+    acc, y = np.zeros_like(x), x.copy()
+    out = np.zeros_like(x)
+    for _ in range(n):
+        acc += y
+        out += acc
+        y = P @ y
+    return out / n
+
+
+def test_chain_bias_against_cesaro():
+    rng = np.random.default_rng(5)
+    P = rng.random((5, 5))
+    P /= P.sum(1, keepdims=True)
+    periodic = np.roll(np.eye(4), 1, axis=1)  # a 4-cycle: partial sums oscillate, the Cesàro limit exists
+    for chain in (P, periodic):
+        r = rng.random(chain.shape[0])
+        h = np.asarray(dp.chain_bias(jnp.asarray(chain, jnp.float32), jnp.asarray(r, jnp.float32)))
+        g = np.full_like(r, r @ np.linalg.matrix_power(0.5 * (np.eye(len(r)) + chain), 4000)[0])
+        # (I - P) h = r - g and the Cesàro bias: mean over n of sum_{i<n} P^i (r - g).
+        np.testing.assert_allclose((np.eye(len(r)) - chain) @ h, r - g, atol=2e-5)
+        np.testing.assert_allclose(h, np_cesaro(chain, r - g), atol=2e-3)
+
+
 def test_optimal_gain_equals_brute_force_over_policies():
     rng = np.random.default_rng(5)
     for _ in range(3):

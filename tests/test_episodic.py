@@ -1,7 +1,7 @@
 """jaxmdp.episodic: reachable pairs, T_epi, the reference's episodic-graph order and continuous form.
 
 Independent checks: a numpy breadth-first construction of the reachable pairs, T_epi built entry by entry from its
-definition (families.md §1.8), the reference's stored episodic-graph node order, and RiverSwim's closed form
+definition (docs/families.md §1.8), the reference's stored episodic-graph node order, and RiverSwim's closed form
 (``size (size + 1) / 2`` reachable pairs).
 """
 
@@ -134,7 +134,7 @@ def test_reset_quirk_lands_on_graph_index_not_on_pair():
 def test_recorded_successor_order_is_used_by_family_mdps():
     m = jaxmdp.make("RiverSwim", episodic=True, seed=0, size=4, p_lazy=0.1, p_rand=0.1, randomize_actions=False)
     assert m.info.layout_value("start_order") == (0,)
-    # X = 1: base action LEFT lists X=0, the lazy self-loop X=1, then RIGHT's X=2 (families.md §1.3).
+    # X = 1: base action LEFT lists X=0, the lazy self-loop X=1, then RIGHT's X=2 (docs/families.md §1.3).
     assert episodic.graph_successors(m)[1] == [0, 1, 2]
     relabelled = jaxmdp.permute_states(m, [3, 2, 1, 0])
     assert episodic.graph_successors(relabelled)[2] == [1, 2, 3]  # stale metadata is ignored

@@ -15,8 +15,8 @@ from agents.extended_value_iteration import (
     optimistic_expectation,
     optimistic_kernel,
 )
-from agents.planning import relative_value_iteration
 from jaxmdp import dynamic_programming as dp
+from jaxmdp.dynamic_programming import relative_value_iteration
 
 
 @pytest.mark.parametrize("seed", range(6))

@@ -1,4 +1,5 @@
-"""DeepSea (families.md §2.2): structure, rewards, horizon, validation and rendering, against the spec's examples."""
+"""DeepSea (docs/families.md §2.2): structure, rewards, horizon, validation and rendering, against the spec's
+examples."""
 
 import numpy as np
 import pytest
@@ -137,7 +138,7 @@ def test_validation_errors():
     with pytest.raises(ValueError, match="p_lazy must be None for DeepSea"):
         _make(size=4, p_lazy=0.1)
     assert _make(size=4, p_lazy=0.0).n_states == 10  # 0 means "no lazy mechanic", as in the reference
-    with pytest.raises(ValueError, match="suboptimal_return must be below optimal_return - 0.1"):
+    with pytest.raises(ValueError, match="optimal_return - 0.1 must exceed suboptimal_return"):
         _make(size=4, suboptimal_return=0.95)
     with pytest.raises(ValueError, match=r"optimal_return must lie in \(0, size=4\)"):
         _make(size=4, make_reward_stochastic=True, optimal_return=4.0, suboptimal_return=0.5)

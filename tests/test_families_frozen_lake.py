@@ -1,4 +1,4 @@
-"""FrozenLake (families.md §2.4): the random lake, slippery moves, rewards, horizon, validation and rendering."""
+"""FrozenLake (docs/families.md §2.4): the random lake, slippery moves, rewards, horizon, validation and rendering."""
 
 from collections import deque
 

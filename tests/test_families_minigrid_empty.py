@@ -1,4 +1,4 @@
-"""MiniGridEmpty (families.md §2.5): worked example, draws, dynamics, sizes, horizons, validation, rendering."""
+"""MiniGridEmpty (docs/families.md §2.5): worked example, draws, dynamics, sizes, horizons, validation, rendering."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,5 @@
-"""MiniGridRooms (families.md §2.6): worked example, layout, draws, dynamics, sizes, horizons, validation, rendering."""
+"""MiniGridRooms (docs/families.md §2.6): worked example, layout, draws, dynamics, sizes, horizons, validation,
+rendering."""
 
 import random
 

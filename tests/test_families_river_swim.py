@@ -1,4 +1,4 @@
-"""RiverSwim (river_swim.py): validation of the parameters of the stochastic default rewards (families.md §2.1)."""
+"""RiverSwim (river_swim.py): validation of the parameters of the stochastic default rewards (docs/families.md §2.1)."""
 
 import pytest
 

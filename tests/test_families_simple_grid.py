@@ -1,12 +1,13 @@
-"""SimpleGrid (families.md §2.3): starts, corner-loop rewards, horizon, validation and rendering."""
+"""SimpleGrid (docs/families.md §2.3): starts, corner-loop rewards, horizon, validation and rendering."""
 
+import inspect
 import random
 
 import numpy as np
 import pytest
 
 import jaxmdp
-from jaxmdp.mdp_families.simple_grid import SimpleGridFamily, SimpleGridReward
+from jaxmdp.mdp_families.simple_grid import SimpleGridFamily, SimpleGridReward, simple_grid
 
 UP, RIGHT, DOWN, LEFT, NO_OP = range(5)
 
@@ -21,7 +22,11 @@ def _idx(m, x, y):
 
 
 def _family(size, **kw):
-    return SimpleGridFamily(size=size, make_reward_stochastic=False, reward_variance_multiplier=1.0, **kw)
+    """The family object with the builder's defaults (the builder's declaration is where they live)."""
+    own = inspect.signature(SimpleGridFamily).parameters
+    defaults = {name: p.default for name, p in inspect.signature(simple_grid).parameters.items()
+                if name in own and p.default is not p.empty}
+    return SimpleGridFamily(**{**defaults, "size": size, "make_reward_stochastic": False, **kw})
 
 
 def test_worked_example_starts_size_4_seed_0():

@@ -1,4 +1,4 @@
-"""Taxi (families.md §2.7): walls, locations, worked example, dynamics, sizes, horizon, validation, rendering."""
+"""Taxi (docs/families.md §2.7): walls, locations, worked example, dynamics, sizes, horizon, validation, rendering."""
 
 import itertools
 

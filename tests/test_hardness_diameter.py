@@ -67,7 +67,7 @@ def test_deep_sea_closed_form(n):
 
 
 def test_river_swim_worked_example():
-    # families.md §2.1: size 5, p_lazy 0.1, p_rand 0.2 -> diameter 5.3816 (the reference, eps = 1e-3).
+    # docs/families.md §2.1: size 5, p_lazy 0.1, p_rand 0.2 -> diameter 5.3816 (the reference, eps = 1e-3).
     m = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=5, p_lazy=0.1, p_rand=0.2, randomize_actions=False)
     np.testing.assert_allclose(float(hardness.diameter(m, variant="colosseum").value), 5.3816, atol=1e-4)
     T = np.asarray(m.T, np.float64)
@@ -119,7 +119,7 @@ def test_episodic_paper_deterministic_river_swim():
 
 
 def test_colosseum_episodic_worked_example():
-    # measures.md §3.2: RiverSwim episodic size 40, deterministic -> 40.0; DeepSea-like chains give H.
+    # docs/measures.md §3.2: RiverSwim episodic size 40, deterministic -> 40.0; DeepSea-like chains give H.
     m = jaxmdp.make("RiverSwim", episodic=True, seed=0, size=40, randomize_actions=False)
     assert float(hardness.diameter(m, variant="colosseum").value) == 40.0
 
@@ -145,7 +145,8 @@ def test_colosseum_episodic_never_reached_state_is_infinite():
 
 
 def np_sparse_reference(T):
-    """measures.md §3.1, the reference's solver above 1000 states, written sequentially (targets in index order)."""
+    """docs/measures.md §3.1, the reference's solver above 1000 states, written sequentially (targets in index
+    order)."""
     S = T.shape[0]
     D = -np.inf
     for e in range(S):

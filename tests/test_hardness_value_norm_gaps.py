@@ -117,40 +117,17 @@ def test_deterministic_shortcut():
     assert float(hardness.value_norm(m, variant="colosseum").value) == 0.0
     stoch = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=5, randomize_actions=False, make_reward_stochastic=True)
     assert not bool(hardness.deterministic_base(stoch))
-    # Deterministic dynamics, stochastic rewards: the code form is not a variance and is positive (measures.md §4.1).
+    # Deterministic dynamics, stochastic rewards: the code form is not a variance and is positive (docs/measures.md
+    # §4.1).
     assert float(hardness.value_norm(stoch, variant="colosseum").value) > 0.0
     assert float(hardness.value_norm(stoch).value) == 0.0  # the true variance is zero
 
 
 def test_river_swim_worked_example_value_norm_and_gaps():
-    # families.md §2.1: size 5, p_lazy 0.1, p_rand 0.2: value norm 0.8957, gap sum 53.378.
+    # docs/families.md §2.1: size 5, p_lazy 0.1, p_rand 0.2: value norm 0.8957, gap sum 53.378.
     m = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=5, p_lazy=0.1, p_rand=0.2, randomize_actions=False)
     np.testing.assert_allclose(float(hardness.value_norm(m, variant="colosseum").value), 0.8957, atol=1e-4)
     np.testing.assert_allclose(float(hardness.sum_reciprocal_gaps(m, variant="colosseum").value), 53.378, atol=1e-3)
-
-
-def np_cesaro(P, x, n=4000):
-    acc, y = np.zeros_like(x), x.copy()
-    out = np.zeros_like(x)
-    for _ in range(n):
-        acc += y
-        out += acc
-        y = P @ y
-    return out / n
-
-
-def test_chain_bias_against_cesaro():
-    rng = np.random.default_rng(5)
-    P = rng.random((5, 5))
-    P /= P.sum(1, keepdims=True)
-    periodic = np.roll(np.eye(4), 1, axis=1)  # a 4-cycle: partial sums oscillate, the Cesàro limit exists
-    for chain in (P, periodic):
-        r = rng.random(chain.shape[0])
-        h = np.asarray(hardness.chain_bias(jax.numpy.asarray(chain, jax.numpy.float32), jax.numpy.asarray(r, jax.numpy.float32)))
-        g = np.full_like(r, r @ np.linalg.matrix_power(0.5 * (np.eye(len(r)) + chain), 4000)[0])
-        # (I - P) h = r - g and the Cesàro bias: mean over n of sum_{i<n} P^i (r - g).
-        np.testing.assert_allclose((np.eye(len(r)) - chain) @ h, r - g, atol=2e-5)
-        np.testing.assert_allclose(h, np_cesaro(chain, r - g), atol=2e-3)
 
 
 @pytest.mark.parametrize("form", ["regularized", "raw"])

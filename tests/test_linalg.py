@@ -1,9 +1,10 @@
-"""jaxmdp.jaxlib_workarounds.linalg.solve: jnp.linalg.solve's numbers under any vmap, and no deadlock of jaxlib 0.10.2's CPU pool.
+"""jaxmdp.jaxlib_workarounds.linalg.solve: jnp.linalg.solve's numbers under any vmap, and no deadlock of jaxlib 0.10.2's
+CPU pool.
 
 The deadlock check runs in a subprocess with ``NPROC=2`` (XLA's intra-op pool of two threads, whatever the machine)
 and a program with eight independent batched solves in a loop. With ``vmap(jnp.linalg.solve)`` in place of
-:func:`jaxmdp.jaxlib_workarounds.linalg.solve`, this program and two like it hung in each of 9 tries (1 and 2 host devices, jaxlib
-0.10.2), so the subprocess's timeout is the regression test.
+:func:`jaxmdp.jaxlib_workarounds.linalg.solve`, this program and two like it hung in each of 9 tries (1 and 2 host
+devices, jaxlib 0.10.2), so the subprocess's timeout is the regression test.
 """
 
 from __future__ import annotations
@@ -83,7 +84,7 @@ def test_many_concurrent_batched_solves_do_not_deadlock_the_cpu_pool():
         done = subprocess.run([sys.executable, "-c", DEADLOCK_PROGRAM], env=env, capture_output=True, text=True,
                               timeout=90, cwd=REPO)
     except subprocess.TimeoutExpired:
-        pytest.fail("batched solves deadlocked XLA's CPU thread pool (jaxmdp.jaxlib_workarounds.linalg.solve must map one system at a "
-                    "time)")
+        pytest.fail("batched solves deadlocked XLA's CPU thread pool (jaxmdp.jaxlib_workarounds.linalg.solve must map "
+                    "one system at a time)")
     assert done.returncode == 0, done.stderr[-2000:]
     assert "finite True" in done.stdout

@@ -49,8 +49,8 @@ def test_custom_mdp_rewards_from_transition_means():
         (dict(R=np.array([[np.inf], [0.0]])), "R must be finite"),
         (dict(P0=np.array([0.5, 0.6])), "P0 must be a probability distribution"),
         (dict(P0=np.ones(3) / 3), r"P0 must have shape \(2,\)"),
-        (dict(H=0), "H must be a positive integer"),
-        (dict(H=2.5), "H must be a positive integer"),
+        (dict(H=0), "H must be an integer >= 1"),
+        (dict(H=2.5), "H must be an integer >= 1"),
         (dict(reward_conc=-np.ones((2, 1, 2))), "reward_conc must be >= 0"),
     ],
 )

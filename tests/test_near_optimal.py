@@ -1,4 +1,5 @@
-"""The tuned near-optimal agent (hardness.analysis.near_optimal) and the search spaces it samples (agents.search_spaces).
+"""The tuned near-optimal agent (hardness.analysis.near_optimal) and the search spaces it samples
+(agents.search_spaces).
 
 The search logic (objective = mean over tuning seeds, argmin per MDP, evaluation of the winner with the evaluation
 seeds) runs against a fake runner whose regrets are a known function of the member, so every selection can be

@@ -1,19 +1,17 @@
-"""hardness.analysis.plotting: the percentile bootstrap over seeds against a brute-force numpy bootstrap drawing the same
-resamples, NaN handling, and what plot_scenario draws (read back from the figure and the PNG)."""
+"""hardness.analysis.plotting: the percentile bootstrap over seeds against a brute-force numpy bootstrap drawing the
+same resamples, NaN handling, and what plot_scenario draws (read back from the figure and the PNG)."""
 
 from __future__ import annotations
 
 import math
+import sys
 
-import matplotlib
+import matplotlib.colors
 import matplotlib.image
 import numpy as np
 import pytest
 
-matplotlib.use("Agg", force=True)
-import matplotlib.pyplot as plt  # noqa: E402
-
-from hardness.analysis import plotting  # noqa: E402
+from hardness.analysis import plotting
 
 
 def brute_force_means(samples: np.ndarray, n_resamples: int, seed: int) -> np.ndarray:
@@ -134,16 +132,22 @@ def test_bootstrap_errors_name_the_parameter(call, name):
 
 @pytest.fixture
 def drawn(monkeypatch):
-    """The figures plot_scenario closes, kept for inspection."""
+    """The figures plot_scenario draws, kept for inspection."""
     figs = []
-    close = plt.close
+    build = plotting.scenario_figure
 
-    def keep(fig=None):
-        figs.append(fig)
-        close(fig)
+    def keep(*args, **kwargs):
+        figs.append(build(*args, **kwargs))
+        return figs[-1]
 
-    monkeypatch.setattr(plt, "close", keep)
+    monkeypatch.setattr(plotting, "scenario_figure", keep)
     return figs
+
+
+def no_pyplot_figures() -> bool:
+    """Plotting leaves pyplot's global state alone: no open pyplot figure (if pyplot is loaded at all)."""
+    plt = sys.modules.get("matplotlib.pyplot")
+    return plt is None or plt.get_fignums() == []
 
 
 def test_plot_scenario_draws_a_line_and_a_band_per_curve(tmp_path, drawn):
@@ -180,7 +184,7 @@ def test_plot_scenario_draws_a_line_and_a_band_per_curve(tmp_path, drawn):
         assert np.isclose(verts[:, 1].min(), lo[ok].min()) and np.isclose(verts[:, 1].max(), hi[ok].max())
         assert np.allclose(band.get_facecolor()[0][:3], matplotlib.colors.to_rgb(line.get_color()))
     assert len(ax.lines[1].get_xdata()) == 3
-    assert plt.get_fignums() == []
+    assert no_pyplot_figures()
 
 
 def test_plot_scenario_free_text_axis_label(tmp_path, drawn):
@@ -202,5 +206,5 @@ def test_plot_scenario_errors(tmp_path, x, curves, name):
     with pytest.raises(ValueError) as err:
         plotting.plot_scenario(x, curves, tmp_path / "f.png", xlabel="p_rand")
     assert name in str(err.value)
-    assert plt.get_fignums() == []  # the figure is closed on error
+    assert no_pyplot_figures()
     assert not (tmp_path / "f.png").exists()

@@ -26,7 +26,7 @@ AGENT = PSRL_CONTINUOUS
 HP = PSRLContinuousHParams(max_psi=3)  # psi = 2 on the probes: one unused candidate slot
 N_STEPS = 3000
 
-# agents.md §4, "derived values at T = 500 000 (checked against the package)".
+# docs/agents.md §4, "derived values at T = 500 000 (checked against the package)".
 SPEC_TABLE = [
     ((5, 2), (2, 5.0)),
     ((25, 2), (2, 5.0)),

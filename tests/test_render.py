@@ -1,4 +1,4 @@
-"""Text rendering (families.md §1.10)."""
+"""Text rendering (docs/families.md §1.10)."""
 
 import pytest
 

@@ -9,7 +9,7 @@ import jaxmdp
 
 
 def test_river_swim_worked_example_rows():
-    # families.md §2.1: size 5, no randomisation, p_lazy 0.1, p_rand 0.2.
+    # docs/families.md §2.1: size 5, no randomisation, p_lazy 0.1, p_rand 0.2.
     m = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=5, randomize_actions=False, p_lazy=0.1, p_rand=0.2)
     T, R = np.asarray(m.T), np.asarray(m.R)
     np.testing.assert_allclose(T[0, 0, :2], [0.91, 0.09], rtol=1e-6)  # LEFT at X=0

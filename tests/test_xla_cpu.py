@@ -1,5 +1,7 @@
-"""The jaxlib 0.10.2 CPU miscompilation guard (jaxmdp/jaxlib_workarounds/xla_cpu.py): the pattern that broke is computed correctly."""
+"""The jaxlib 0.10.2 CPU miscompilation guard (jaxmdp/jaxlib_workarounds/xla_cpu.py): the pattern that broke is
+computed correctly; the guard logs when it applies and can be turned off."""
 
+import logging
 import os
 
 import jax
@@ -54,3 +56,23 @@ def test_fused_transform_value_norm_of_deterministic_mdp_is_zero():
     out = np.asarray(f(jnp.asarray([0.0, 0.5], jnp.float32)))
     assert out[0] == 0.0
     np.testing.assert_allclose(out[1], float(hardness.value_norm(jaxmdp.apply_p_rand(base, 0.5)).value), rtol=1e-5)
+
+
+def test_opt_out_and_log(monkeypatch, caplog):
+    # No backend yet, as at import time; monkeypatch restores XLA_FLAGS and the opt-out variable afterwards.
+    import jaxlib
+
+    monkeypatch.setattr(xla_cpu, "_backend_exists", lambda: False)
+    monkeypatch.setenv("XLA_FLAGS", "--xla_foo=1")
+    monkeypatch.setenv(xla_cpu.OPT_OUT_VARIABLE, "1")
+    assert not xla_cpu.disable_ynn_fusion()
+    assert os.environ["XLA_FLAGS"] == "--xla_foo=1"
+    monkeypatch.setenv(xla_cpu.OPT_OUT_VARIABLE, "0")  # "0" does not opt out
+    with caplog.at_level(logging.INFO, logger="jaxmdp"):
+        added = xla_cpu.disable_ynn_fusion()
+    affected = xla_cpu._version_tuple(jaxlib.__version__) >= xla_cpu._FIRST_AFFECTED
+    assert added == affected
+    if affected:
+        assert os.environ["XLA_FLAGS"] == f"--xla_foo=1 {xla_cpu.YNN_FLAG}="
+        assert xla_cpu.OPT_OUT_VARIABLE in caplog.text and "jax-ml/jax#39103" in caplog.text
+        assert not xla_cpu.disable_ynn_fusion()  # already there: added once

@@ -3,8 +3,8 @@
 For every MDP of a grid, the near-optimal agent of the setting (PSRL episodic, UCRL2 continuous; App. D) is tuned
 by random search over its hyperparameter space (:mod:`agents.search_spaces`) and the best candidate is then run
 once more with fresh seeds; its expected cumulative regret is the measure. Both phases are one lockstep runner call
-each (:mod:`jaxmdp.experiment.runner`): the search is ``MDPs x candidates x tuning seeds`` members, the evaluation one member per
-``(MDP, evaluation seed)``.
+each (:mod:`jaxmdp.experiment.runner`): the search is ``MDPs x candidates x tuning seeds`` members, the evaluation one
+member per ``(MDP, evaluation seed)``.
 
 The objective of the search is the mean over tuning seeds of the per-step normalised cumulative regret after
 ``n_steps`` (App. E, ``normalized_cumulative_regret``), so candidates are compared on the regret they incur, not on
@@ -27,6 +27,7 @@ import numpy as np
 
 import agents as agent_registry
 from agents.search_spaces import sample_candidates
+from jaxmdp._checks import check_int
 from jaxmdp.experiment import runner
 from jaxmdp.mdp import MDP
 
@@ -69,12 +70,6 @@ def near_optimal_agent(episodic: bool):
     return agent_registry.get(NEAR_OPTIMAL_AGENTS["episodic" if episodic else "continuous"])
 
 
-def _check_int(name: str, value: Any, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}; got {value!r}")
-    return int(value)
-
-
 def tuned_regret(
     mdps: MDP,
     eval_seeds: Sequence[int],
@@ -103,10 +98,10 @@ def tuned_regret(
     if not isinstance(mdps, MDP) or mdps.T.ndim != 4:
         raise ValueError("mdps must be a stacked batch of MDPs (jaxmdp.stack or a vmapped transform)")
     M = mdps.T.shape[0]
-    n_steps = _check_int("n_steps", n_steps, 1)
-    n_candidates = _check_int("n_candidates", n_candidates, 1)
-    n_tuning_seeds = _check_int("n_tuning_seeds", n_tuning_seeds, 1)
-    eval_seeds = [_check_int("eval_seeds", s, 0) for s in eval_seeds]
+    n_steps = check_int("n_steps", n_steps, 1)
+    n_candidates = check_int("n_candidates", n_candidates, 1)
+    n_tuning_seeds = check_int("n_tuning_seeds", n_tuning_seeds, 1)
+    eval_seeds = [check_int("eval_seeds", s, 0) for s in eval_seeds]
     if len(eval_seeds) != M:
         raise ValueError(f"eval_seeds must hold one seed per MDP ({M}); got {len(eval_seeds)}")
     if max(eval_seeds) >= TUNING_SEED_OFFSET:

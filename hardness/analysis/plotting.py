@@ -2,8 +2,8 @@
 
 One panel per scenario: every normalised measure against the swept parameter, as the mean over seeds with its 95%
 percentile-bootstrap confidence band over seeds (the paper: "95% bootstrapped confidence intervals over twelve
-random seeds"). The bootstrap is numpy with an explicit seed, so a figure is reproducible. Plots use matplotlib's
-Agg backend (files only, no display needed).
+random seeds"). The bootstrap is numpy with an explicit seed, so a figure is reproducible. Figures are built on
+:class:`matplotlib.figure.Figure` directly, so plotting touches neither pyplot's global figures nor the backend.
 
 Curves are keyed by name, so an extra measure (e.g. the normalised regret of a tuned near-optimal agent) is one more
 entry of the ``curves`` mapping.
@@ -16,8 +16,11 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
+from matplotlib.figure import Figure
 
-__all__ = ["LABELS", "bootstrap_means", "bootstrap_ci", "plot_scenario"]
+from jaxmdp._checks import check_int
+
+__all__ = ["LABELS", "AXIS_LABELS", "bootstrap_means", "bootstrap_ci", "scenario_figure", "plot_scenario"]
 
 #: Legend labels of the known curves (anything else is labelled by its key).
 LABELS: Mapping[str, str] = {
@@ -46,8 +49,7 @@ def bootstrap_means(samples: np.ndarray, n_resamples: int = 1000, seed: int = 0)
     x = np.asarray(samples, np.float64)
     if x.ndim != 2 or x.shape[0] < 1 or x.shape[1] < 1:
         raise ValueError(f"samples must have shape [n_seeds, n_values] with both >= 1; got {x.shape}")
-    if isinstance(n_resamples, bool) or not isinstance(n_resamples, (int, np.integer)) or n_resamples < 1:
-        raise ValueError(f"n_resamples must be an integer >= 1; got {n_resamples!r}")
+    n_resamples = check_int("n_resamples", n_resamples)
     idx = np.random.default_rng(seed).integers(0, x.shape[0], size=(int(n_resamples), x.shape[0]))
     return _finite_mean(x[idx], axis=1)  # [B, n_seeds, n_values] -> [B, n_values]
 
@@ -78,6 +80,45 @@ def bootstrap_ci(
     return _finite_mean(x, axis=0), lo, hi
 
 
+def scenario_figure(
+    x: Sequence[float],
+    curves: Mapping[str, np.ndarray],
+    *,
+    xlabel: str,
+    title: str = "",
+    level: float = 0.95,
+    n_resamples: int = 1000,
+    seed: int = 0,
+) -> Figure:
+    """A figure (a :class:`matplotlib.figure.Figure`, outside pyplot's state) with, for every ``curves[name]``
+    (``[n_seeds, n_values]``, normalised), the mean over seeds against ``x`` and its bootstrap band
+    (:func:`bootstrap_ci`). ``xlabel`` is a key of :data:`AXIS_LABELS` or free text. Points whose mean is NaN (no
+    finite seed) are left out of the line."""
+    x = np.asarray(x, np.float64)
+    if x.ndim != 1:
+        raise ValueError(f"x must be one-dimensional; got shape {x.shape}")
+    if not curves:
+        raise ValueError("curves must not be empty")
+    fig = Figure(figsize=(5.0, 3.6), dpi=150)
+    ax = fig.subplots()
+    for name, values in curves.items():
+        values = np.asarray(values, np.float64)
+        if values.ndim != 2 or values.shape[1] != x.size:
+            raise ValueError(f"curves[{name!r}] must have shape [n_seeds, {x.size}]; got {values.shape}")
+        mean, lo, hi = bootstrap_ci(values, level, n_resamples, seed)
+        ok = np.isfinite(mean)
+        (line,) = ax.plot(x[ok], mean[ok], marker="o", markersize=3, label=LABELS.get(name, name))
+        ax.fill_between(x[ok], lo[ok], hi[ok], color=line.get_color(), alpha=0.2, linewidth=0)
+    ax.set_xlabel(AXIS_LABELS.get(xlabel, xlabel))
+    ax.set_ylabel("Normalised value")
+    if title:
+        ax.set_title(title, fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
 def plot_scenario(
     x: Sequence[float],
     curves: Mapping[str, np.ndarray],
@@ -89,39 +130,10 @@ def plot_scenario(
     n_resamples: int = 1000,
     seed: int = 0,
 ) -> Path:
-    """Write a PNG: for every ``curves[name]`` (``[n_seeds, n_values]``, normalised), the mean over seeds against
-    ``x`` with its bootstrap band (:func:`bootstrap_ci`). ``xlabel`` is a key of :data:`AXIS_LABELS` or free text.
-    Points whose mean is NaN (no finite seed) are left out of the line. Returns the path written."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
-
-    x = np.asarray(x, np.float64)
-    if x.ndim != 1:
-        raise ValueError(f"x must be one-dimensional; got shape {x.shape}")
-    if not curves:
-        raise ValueError("curves must not be empty")
+    """Write :func:`scenario_figure` of ``x`` and ``curves`` to a PNG at ``path`` (folders created); returns the path.
+    Nothing is written when the arguments are invalid."""
+    fig = scenario_figure(x, curves, xlabel=xlabel, title=title, level=level, n_resamples=n_resamples, seed=seed)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig, ax = plt.subplots(figsize=(5.0, 3.6), dpi=150)
-    try:
-        for name, values in curves.items():
-            values = np.asarray(values, np.float64)
-            if values.ndim != 2 or values.shape[1] != x.size:
-                raise ValueError(f"curves[{name!r}] must have shape [n_seeds, {x.size}]; got {values.shape}")
-            mean, lo, hi = bootstrap_ci(values, level, n_resamples, seed)
-            ok = np.isfinite(mean)
-            (line,) = ax.plot(x[ok], mean[ok], marker="o", markersize=3, label=LABELS.get(name, name))
-            ax.fill_between(x[ok], lo[ok], hi[ok], color=line.get_color(), alpha=0.2, linewidth=0)
-        ax.set_xlabel(AXIS_LABELS.get(xlabel, xlabel))
-        ax.set_ylabel("Normalised value")
-        if title:
-            ax.set_title(title, fontsize=9)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
-        fig.tight_layout()
-        fig.savefig(path)
-    finally:
-        plt.close(fig)
+    fig.savefig(path)
     return path

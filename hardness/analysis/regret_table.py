@@ -6,12 +6,12 @@ continuous versions of the chosen instances, for ``--steps`` steps and ``--seeds
 agents' default (benchmark-tuned) hyperparameters. An agent's whole grid, MDPs x seeds, is one
 :func:`jaxmdp.experiment.runner.run` call (one lockstep program, the MDPs padded to common shapes).
 
-The score is the paper's (Table 2, App. E; benchmark.md §2): the ``normalized_cumulative_regret`` of the last record
-divided by the number of steps, i.e. the per-step normalised regret ``(rho* - rho^pi_t) / (rho* - rho^-)`` averaged
-over the run (continuous; episodic: the episode regret over ``V*_0 - V^-_0``), 0 for an optimal agent and 1 for the
-worst policy. The table gives its mean and 95% confidence interval over seeds (Student t), and the raw
-``cumulative_regret`` after the last step likewise. Indicators are exact policy evaluations every ``--log-period``
-steps (100, as the reference); learning never stops (no wall-clock budget, unlike the reference's 10 minutes).
+The score is the paper's (Table 2, App. E; docs/benchmark.md §2): the ``normalized_cumulative_regret`` of the last
+record divided by the number of steps, i.e. the per-step normalised regret ``(rho* - rho^pi_t) / (rho* - rho^-)``
+averaged over the run (continuous; episodic: the episode regret over ``V*_0 - V^-_0``), 0 for an optimal agent and 1 for
+the worst policy. The table gives its mean and 95% confidence interval over seeds (Student t), and the raw
+``cumulative_regret`` after the last step likewise. Indicators are exact policy evaluations every ``--log-period`` steps
+(100, as the reference); learning never stops (no wall-clock budget, unlike the reference's 10 minutes).
 
 Instances (``--families``; ``--sizes``, for every family or per family; the same parameters in both settings):
 
@@ -430,7 +430,8 @@ def markdown(rows: Sequence[dict], runs: Sequence[AgentRun], settings: dict) -> 
 
 
 def _write_csv(path: Path, header: Sequence[str], rows: Sequence[list]) -> None:
-    """A CSV in the runner's number format (:func:`jaxmdp.experiment.records.format_row`: floats to 9 significant digits)."""
+    """A CSV in the runner's number format (:func:`jaxmdp.experiment.records.format_row`: floats to 9 significant
+    digits)."""
     with path.open("w", newline="") as f:
         w = csv.writer(f)
         w.writerow(header)

@@ -41,7 +41,7 @@ import dataclasses
 import functools
 from collections.abc import Mapping, Sequence
 from types import MappingProxyType
-from typing import Any, Literal
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -50,6 +50,7 @@ import numpy as np
 import jaxmdp
 from hardness.batched import map_measures
 from hardness.measures import HardnessMeasures, measures, normalize
+from jaxmdp._checks import Variant, check_int, check_range, check_variant
 from jaxmdp.episodic import continuous_form, stack_continuous_forms
 from jaxmdp.mdp import MDP
 from jaxmdp.transforms import MAX_NOISE_PROBABILITY
@@ -75,7 +76,6 @@ __all__ = [
     "sweep_size",
 ]
 
-Variant = Literal["paper", "colosseum"]
 
 #: The measures computed by every scenario, in :class:`hardness.HardnessMeasures` field order.
 MEASURES: tuple[str, ...] = ("diameter", "value_norm", "sum_reciprocal_gaps")
@@ -110,7 +110,7 @@ def _defaults(size_param: str, sizes: Sequence[int], **params: Any) -> FamilyDef
     return FamilyDefaults(MappingProxyType(dict(make_reward_stochastic=True, **params)), size_param, tuple(sizes))
 
 
-#: Per-family defaults. Number of states (families.md §3): RiverSwim ``size``; DeepSea ``size(size+1)/2``;
+#: Per-family defaults. Number of states (docs/families.md §3): RiverSwim ``size``; DeepSea ``size(size+1)/2``;
 #: SimpleGrid ``size^2``; FrozenLake the reachable non-hole cells (seed dependent); MiniGridEmpty ``4 size^2``;
 #: MiniGridRooms ``4 (n_rooms rs^2 + 2k(k-1))``; Taxi ``free cells x n_locations^2``; MiniGridDoorKey grows as
 #: ``size^4``.
@@ -164,12 +164,6 @@ class ScenarioSpec:
         return out
 
 
-def _check_int(name: str, value: Any, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise ValueError(f"{name} must be integers >= {minimum}; got {value!r}")
-    return int(value)
-
-
 def scenario_spec(
     scenario: int,
     family: str,
@@ -202,18 +196,16 @@ def scenario_spec(
         raise ValueError(f"scenario must be one of {sorted(SCENARIOS)}; got {scenario!r}")
     if family not in jaxmdp.families():
         raise ValueError(f"family must be one of {', '.join(jaxmdp.families())}; got {family!r}")
-    if variant not in ("paper", "colosseum"):
-        raise ValueError(f"variant must be 'paper' or 'colosseum'; got {variant!r}")
-    if not isinstance(gamma, (int, float)) or not 0.0 < float(gamma) < 1.0:
-        raise ValueError(f"gamma must lie in (0, 1); got {gamma!r}")
+    check_variant(variant)
+    check_range("gamma", gamma, 0.0, 1.0, low_open=True, high_open=True)
     defaults = FAMILY_DEFAULTS.get(family)
     if defaults is None and (params is None or (scenario in (3, 4) and values is None)):
         raise ValueError(
-            f"family {family!r} has no defaults in hardness.analysis.scenarios.FAMILY_DEFAULTS: give params (and values for "
-            "scenarios 3-4)"
+            f"family {family!r} has no defaults in hardness.analysis.scenarios.FAMILY_DEFAULTS: give params (and "
+            "values for scenarios 3-4)"
         )
 
-    seeds = tuple(_check_int("seeds", s, 0) for s in seeds)
+    seeds = tuple(check_int("seeds", s, 0) for s in seeds)
     if not seeds:
         raise ValueError("seeds must not be empty")
     if len(set(seeds)) != len(seeds):
@@ -236,7 +228,7 @@ def scenario_spec(
     if not values:
         raise ValueError("values must not be empty")
     if swept == "size":
-        values = tuple(_check_int("values", v, 1) for v in values)
+        values = tuple(check_int("values", v, 1) for v in values)
     else:
         checked = []
         for v in values:

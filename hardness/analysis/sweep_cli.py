@@ -1,12 +1,12 @@
 """The command line shared by ``scripts/sweep_prand.py``, ``sweep_plazy.py`` and ``sweep_size.py`` (paper §3.2, App. D).
 
-A run computes one scenario of :mod:`hardness.analysis.scenarios` for one family and setting, seed by seed (``--seeds-per-call``
-seeds per batched call), and after every call rewrites, atomically, ``<out>/<stem>.csv``: one row per finished
-``(seed, value)`` with the raw measures, their ``converged`` flags and their App. E normalisation over the rows written
-so far (so the final file holds the normalisation over all seeds and values). ``<stem>.json`` records the settings;
-``--resume`` reuses the finished seeds of an earlier run with the same settings and computes only the others. At the
-end ``<stem>.png`` shows the normalised measures against the swept parameter (mean over seeds, 95% bootstrap band).
-Progress goes to stderr, the paths written to stdout.
+A run computes one scenario of :mod:`hardness.analysis.scenarios` for one family and setting, seed by seed
+(``--seeds-per-call`` seeds per batched call), and after every call rewrites, atomically, ``<out>/<stem>.csv``: one row
+per finished ``(seed, value)`` with the raw measures, their ``converged`` flags and their App. E normalisation over the
+rows written so far (so the final file holds the normalisation over all seeds and values). ``<stem>.json`` records the
+settings; ``--resume`` reuses the finished seeds of an earlier run with the same settings and computes only the others.
+At the end ``<stem>.png`` shows the normalised measures against the swept parameter (mean over seeds, 95% bootstrap
+band). Progress goes to stderr, the paths written to stdout.
 """
 
 from __future__ import annotations
@@ -27,9 +27,9 @@ import numpy as np
 
 import jaxmdp
 from hardness.analysis import scenarios
-from hardness.measures import normalize
 from hardness.analysis.near_optimal import NEAR_OPTIMAL_AGENTS, tuned_regret
 from hardness.analysis.plotting import plot_scenario
+from hardness.measures import normalize
 
 MEASURES = scenarios.MEASURES
 #: Columns of the tuned near-optimal agent (empty when ``--agent-steps 0``): its expected cumulative regret, the
@@ -94,7 +94,8 @@ def build_parser(description: str, default_out: str, scenario_choices: Sequence[
     parser.add_argument("--setting", default=DEFAULT_SETTING, choices=["episodic", "continuous"],
                         help="default %(default)s")
     parser.add_argument("--values", type=number, nargs="+", default=None,
-                        help="grid of the swept parameter (default: hardness.analysis.scenarios defaults for the family)")
+                        help="grid of the swept parameter (default: the family's defaults in "
+                             "hardness.analysis.scenarios)")
     parser.add_argument("--seeds", type=int, nargs="+", default=list(DEFAULT_SEEDS), help="default %(default)s")
     parser.add_argument("--param", type=parse_param, action="append", default=[], metavar="KEY=VALUE",
                         help="family parameter, repeatable; replaces the family default of that key")
@@ -347,8 +348,9 @@ def run(args: argparse.Namespace, scenario: int, parser: argparse.ArgumentParser
 
 
 def agent_regret(grid: scenarios.ScenarioGrid, agent: dict[str, Any]) -> dict[str, Any]:
-    """The tuned near-optimal agent's regret on every MDP of ``grid`` (:func:`hardness.analysis.near_optimal.tuned_regret`);
-    MDP ``(seed, value)`` is evaluated with that seed. Arrays ``[n_seeds, n_values]``."""
+    """The tuned near-optimal agent's regret on every MDP of ``grid``
+    (:func:`hardness.analysis.near_optimal.tuned_regret`); MDP ``(seed, value)`` is evaluated with that seed. Arrays
+    ``[n_seeds, n_values]``."""
     n, V = len(grid.seeds), len(grid.spec.values)
     result = tuned_regret(
         scenarios.grid_mdps(grid), np.repeat(grid.seeds, V), n_steps=agent["steps"],

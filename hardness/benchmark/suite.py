@@ -1,4 +1,4 @@
-"""The Colosseum benchmark as data: the 80 MDPs of benchmark.md §3 (4 settings x 20), and their construction.
+"""The Colosseum benchmark as data: the 80 MDPs of docs/benchmark.md §3 (4 settings x 20), and their construction.
 
 Each :class:`BenchmarkEntry` holds the keys its gin file sets (verbatim; everything else is the family default),
 the effective reward distributions the reference prints, and what the reference reports for seed 0 (``S``, ``H``,
@@ -7,10 +7,10 @@ communication class, cached diameter and value norm). :func:`build` makes the MD
 
 Reward distributions: several gin files set distributions other than the family defaults (every Taxi entry, the
 episodic RiverSwim entries -- whose "optimal" end pays ``Beta(0.01, 0.11)``, mean 0.083, less per step than the left
-end, see the remark below benchmark.md's tables -- and some continuous MiniGridEmpty entries). Wherever a stochastic
-entry's printed effective distributions differ from the family defaults at the printed two-decimal precision, they
-are passed explicitly (:attr:`BenchmarkEntry.overrides`) with the printed parameters taken literally. This reproduces
-the cached seed-0 diameters and value norms (checked in the tests); the print cannot tell ``0.11`` from
+end, see the remark below docs/benchmark.md's tables -- and some continuous MiniGridEmpty entries). Wherever a
+stochastic entry's printed effective distributions differ from the family defaults at the printed two-decimal precision,
+they are passed explicitly (:attr:`BenchmarkEntry.overrides`) with the printed parameters taken literally. This
+reproduces the cached seed-0 diameters and value norms (checked in the tests); the print cannot tell ``0.11`` from
 ``1/0.9 - 1``, which give the same cached numbers.
 """
 
@@ -30,7 +30,7 @@ SETTINGS = ("episodic ergodic", "episodic communicating", "continuous ergodic", 
 
 @dataclasses.dataclass(frozen=True)
 class BenchmarkEntry:
-    """One benchmark MDP (benchmark.md §3). ``H``, ``n_states``, the class and the cached measures are the
+    """One benchmark MDP (docs/benchmark.md §3). ``H``, ``n_states``, the class and the cached measures are the
     reference's values for seed 0 (``None`` where not applicable or not cached)."""
 
     setting: str
@@ -58,7 +58,7 @@ class BenchmarkEntry:
         return {**dict(self.gin_params), **dict(self.overrides)}
 
 
-#: Printed labels of each family's reward distributions (benchmark.md §3) -> constructor parameter names.
+#: Printed labels of each family's reward distributions (docs/benchmark.md §3) -> constructor parameter names.
 _DISTRIBUTION_PARAMS: dict[str, dict[str, str]] = {
     **{
         fam: {"opt": "optimal_distribution", "sub": "sub_optimal_distribution", "other": "other_distribution"}

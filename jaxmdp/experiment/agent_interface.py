@@ -42,7 +42,7 @@ from flax import struct
 
 from jaxmdp.mdp import MDP
 
-__all__ = ["MDPSpec", "Transition", "Agent", "spec_of"]
+__all__ = ["MDPSpec", "Transition", "Agent", "spec_of", "where_due"]
 
 
 class MDPSpec(struct.PyTreeNode):
@@ -100,9 +100,12 @@ class Transition(struct.PyTreeNode):
     terminated: jax.Array
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class Agent:
-    """A named bundle of the interface functions (see the module docstring) and default hyperparameters."""
+    """A named bundle of the interface functions (see the module docstring) and default hyperparameters.
+
+    Agents compare and hash by identity (the runner caches compiled programs per agent): ``dataclasses.replace``
+    makes a new agent."""
 
     name: str
     episodic: bool
@@ -117,3 +120,17 @@ class Agent:
     check_hparams: Callable[[Any], None] = lambda hparams: None
     #: What ``obs`` is: ``"state"`` (a state index), ``"emission"`` (a BlockMDP observation) or ``"any"``.
     observation: Literal["state", "emission", "any"] = "state"
+
+
+def where_due(due: jax.Array, new: Any, old: Any) -> Any:
+    """``new`` where ``due`` else ``old``, leaf by leaf: the keep-where-due merge of planning.
+
+    ``due`` is a boolean scalar (one member: an agent's ``plan`` applies it to itself, so that a plan requested by a
+    member that does not need one is a no-op whoever calls it) or ``[B]`` over the leading member axis of every leaf
+    (the runner, which plans for the whole batch when any member needs to and keeps the result only for those that
+    do).
+    """
+    due = jnp.asarray(due)
+    if due.ndim == 0:
+        return jax.tree.map(lambda n, o: jnp.where(due, n, o), new, old)
+    return jax.tree.map(lambda n, o: jnp.where(due.reshape(due.shape + (1,) * (n.ndim - due.ndim)), n, o), new, old)

@@ -1,4 +1,4 @@
-"""Exact expected-regret indicators of an agent's current policy (paper App. A.1 and App. E; measures.md §6).
+"""Exact expected-regret indicators of an agent's current policy (paper App. A.1 and App. E; docs/measures.md §6).
 
 An agent exposes its current best policy estimate ``pi_t`` (``[S, A]`` continuous, ``[H, S, A]`` episodic). The
 indicators evaluate it *exactly* (no sampling) on the true MDP:
@@ -8,27 +8,26 @@ indicators evaluate it *exactly* (no sampling) on the true MDP:
   expectation over the start distribution) and the per-step regret ``r_t = Delta / H``. The normalised regret is
   ``Delta / sum_s P0(s) (V*_0(s) - V^-_0(s))`` with ``pi^-`` the value-minimising policy (App. E), and the per-step
   expected reward ``rho_t = sum_s P0(s) V^pi_0(s) / H``.
-  ``variant="colosseum"`` reproduces the reference (measures.md §6.2, [quirk]): ``Delta`` and its normaliser are taken
-  at ``s0``, the start state of the most recent episode (the one in progress, or the one the logged step just
+  ``variant="colosseum"`` reproduces the reference (docs/measures.md §6.2, [quirk]): ``Delta`` and its normaliser are
+  taken at ``s0``, the start state of the most recent episode (the one in progress, or the one the logged step just
   ended), ``Delta(s0) = max(0, V*_0(s0) - V^pi_0(s0))``.
 * **Continuous**: ``rho_t = rho^pi(s)``, the exact long-run average reward of ``pi`` from the current state ``s``
   (:func:`~jaxmdp.dynamic_programming.gain_vector`, which also handles multichain policies), and
   ``r_t = max(0, rho* - rho_t)``, normalised by ``rho* - rho^-``. ``rho*`` and ``rho^-`` come from
   :func:`jaxmdp.reference_values`: gain-optimal / gain-minimal policies by default (the paper), the greedy policies of
-  the ``gamma = 0.99`` discounted values with ``variant="colosseum"`` (measures.md §2.1, [paper≠code]); the colosseum
-  variant also zeroes regrets ``<= 1e-3`` as the reference does. ``rho*`` is the optimal gain from ``P0``, which is
-  the optimal gain from every state in a weakly communicating MDP.
+  the ``gamma = 0.99`` discounted values with ``variant="colosseum"`` (docs/measures.md §2.1, [paper≠code]); the
+  colosseum variant also zeroes regrets ``<= 1e-3`` as the reference does. ``rho*`` is the optimal gain from ``P0``,
+  which is the optimal gain from every state in a weakly communicating MDP.
 
 When the normaliser vanishes (``<= 1e-6 (1 + |optimum|)``: every policy is optimal up to float precision) the
 normalised regret is defined as 0, the value of the limit, instead of a ratio of round-off errors.
 
-The baselines of the reference's CSV (random, worst and optimal policies, measures.md §6.3) are linear in the step
+The baselines of the reference's CSV (random, worst and optimal policies, docs/measures.md §6.3) are linear in the step
 count; :func:`baseline_columns` computes them from the per-step constants of :class:`IndicatorConstants`.
 """
 
 from __future__ import annotations
 
-from typing import Literal
 
 import jax
 import jax.numpy as jnp
@@ -36,6 +35,7 @@ import numpy as np
 from flax import struct
 
 from jaxmdp import dynamic_programming as dp
+from jaxmdp._checks import Variant, check_variant
 from jaxmdp.mdp import MDP
 from jaxmdp.values import reference_values
 
@@ -51,14 +51,13 @@ __all__ = [
     "baseline_columns",
 ]
 
-Variant = Literal["paper", "colosseum"]
 
-#: Regrets at most this large are set to zero by the reference's continuous indicator (measures.md §6.2).
+#: Regrets at most this large are set to zero by the reference's continuous indicator (docs/measures.md §6.2).
 COLOSSEUM_REGRET_ATOL = 1e-3
 # Relative size below which a normaliser counts as zero.
 _DEGENERATE_RTOL = 1e-6
 
-#: The reference's CSV columns, in its order (benchmark.md §2).
+#: The reference's CSV columns, in its order (docs/benchmark.md §2).
 CSV_COLUMNS = (
     "steps",
     "cumulative_regret",
@@ -85,8 +84,7 @@ AGENT_COLUMNS = ("cumulative_regret", "cumulative_reward", "cumulative_expected_
 
 
 def _check_variant(variant: str) -> None:
-    if variant not in ("paper", "colosseum"):
-        raise ValueError(f"variant must be 'paper' or 'colosseum'; got {variant!r}")
+    check_variant(variant)
 
 
 class IndicatorConstants(struct.PyTreeNode):
@@ -115,7 +113,7 @@ class Instant(struct.PyTreeNode):
 
 def indicator_constants(mdp: MDP, variant: Variant = "paper") -> IndicatorConstants:
     """The constants of :class:`IndicatorConstants` for one (unbatched) MDP; jittable, ``variant`` static."""
-    _check_variant(variant)
+    check_variant(variant)
     ref = reference_values(mdp, variant)
     if mdp.episodic:
         horizon = mdp.horizon.astype(mdp.dtype)
@@ -158,7 +156,7 @@ def instant_from_values(
     variant: Variant = "paper",
 ) -> Instant:
     """The cheap half: the indicators of a policy whose :func:`policy_values` are ``values`` (module docstring)."""
-    _check_variant(variant)
+    check_variant(variant)
     if mdp.episodic:
         horizon = mdp.horizon.astype(mdp.dtype)
         if variant == "paper":
@@ -209,7 +207,7 @@ def instantaneous(
 def baseline_columns(
     steps: np.ndarray, optimal: np.ndarray, worst: np.ndarray, random: np.ndarray
 ) -> dict[str, np.ndarray]:
-    """The random / worst / optimal baseline columns of measures.md §6.3 after ``steps`` steps (host-side numpy).
+    """The random / worst / optimal baseline columns of docs/measures.md §6.3 after ``steps`` steps (host-side numpy).
 
     With per-step expected rewards ``rho*``, ``rho^-``, ``rho^u`` and ``c = steps``: the random policy's cumulative
     regret is ``(rho* - rho^u) c``, its normalised one ``(rho* - rho^u) / (rho* - rho^-) c``, its cumulative expected
@@ -237,7 +235,7 @@ def baseline_columns(
 
 def normalized_reward(cumulative: np.ndarray, steps: np.ndarray, optimal: np.ndarray, worst: np.ndarray) -> np.ndarray:
     """``(C - c rho^-) / (rho* - rho^-)``: a cumulative (expected) reward ``C`` after ``c`` steps, normalised
-    (measures.md §6.3; 0 when the normaliser vanishes)."""
+    (docs/measures.md §6.3; 0 when the normaliser vanishes)."""
     c = np.asarray(steps, np.float64)
     opt, wst = np.asarray(optimal, np.float64), np.asarray(worst, np.float64)
     span = opt - wst

@@ -1,8 +1,8 @@
 """What a lockstep run produces: records of the running sums and the reference's CSV columns.
 
 A record holds, for every member, the four running sums the runner accumulates
-(:data:`jaxmdp.experiment.indicators.AGENT_COLUMNS`); every other column of the reference's CSV (benchmark.md §2) follows from
-them, the step count and the member's :class:`~jaxmdp.experiment.indicators.IndicatorConstants`.
+(:data:`jaxmdp.experiment.indicators.AGENT_COLUMNS`); every other column of the reference's CSV (docs/benchmark.md §2)
+follows from them, the step count and the member's :class:`~jaxmdp.experiment.indicators.IndicatorConstants`.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from jaxmdp.experiment.members import Grid
 from jaxmdp.experiment.indicators import AGENT_COLUMNS, CSV_COLUMNS, baseline_columns, normalized_reward
+from jaxmdp.experiment.members import Grid
 
 __all__ = [
     "format_row",

@@ -1,7 +1,7 @@
 """The lockstep experiment runner: many (MDP, hyperparameters, seed) members in one compiled program.
 
 A run drives a flat batch of ``B`` *members* (a :class:`Grid`), each with its own MDP, hyperparameters and key,
-through ``n_steps`` agent/MDP interaction steps (paper §3.3 and App. A.1; measures.md §6.1):
+through ``n_steps`` agent/MDP interaction steps (paper §3.3 and App. A.1; docs/measures.md §6.1):
 
 * the time loop is a ``lax.fori_loop`` over the steps between two log points, whose body ``vmap``s ``jaxmdp.step``
   and the agent's ``act``/``update`` over the batch, inside a ``lax.while_loop`` over log points (with the log's
@@ -22,9 +22,9 @@ The host runs the compiled loop in chunks (:func:`run`), shows progress, appends
 can checkpoint the carry so that an interrupted run resumes without losing finished work. Every random draw comes
 from the member's key folded with the step index, so a run's results do not depend on how it was chunked or whether
 it was resumed. Learning always runs for ``n_steps`` steps; compute time is reported beside the results (the
-reference instead stops learning after a wall-clock budget, benchmark.md §2).
+reference instead stops learning after a wall-clock budget, docs/benchmark.md §2).
 
-Step bookkeeping (differs from the reference's off-by-one, measures.md §6.1, which logs at loop index ``t`` with
+Step bookkeeping (differs from the reference's off-by-one, docs/measures.md §6.1, which logs at loop index ``t`` with
 ``t + 1`` steps done but labels and charges ``t``): the record labelled ``steps = c`` is made after exactly ``c``
 interaction steps and agent updates, every cumulative quantity covers exactly those ``c`` steps, and the indicator
 of a log evaluates the policy estimate after the ``c``-th update.
@@ -33,12 +33,13 @@ of a log evaluates the policy estimate after the ``c``-th update.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import os
 import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -46,8 +47,9 @@ import numpy as np
 from flax import struct
 
 from jaxmdp import env
-from jaxmdp.experiment.agent_interface import Agent, Transition, spec_of
-from jaxmdp.experiment.members import Grid, grid, product, seed_keys, stack_hparams
+from jaxmdp._checks import VARIANTS, Variant, check_int, check_variant
+from jaxmdp.experiment.agent_interface import Agent, Transition, spec_of, where_due
+from jaxmdp.experiment.checkpoints import fingerprint, load_checkpoint, save_checkpoint
 from jaxmdp.experiment.indicators import (
     AGENT_COLUMNS,
     IndicatorConstants,
@@ -55,13 +57,12 @@ from jaxmdp.experiment.indicators import (
     instant_from_values,
     policy_values,
 )
-from jaxmdp.mdp import MDP
-from jaxmdp.experiment.checkpoints import fingerprint, load_checkpoint, save_checkpoint
+from jaxmdp.experiment.members import Grid, grid, product, seed_keys, stack_hparams
 from jaxmdp.experiment.records import MEMBER_COLUMNS, RunResult, append_rows, csv_rows, record_steps, truncate_csv
+from jaxmdp.mdp import MDP
 
 __all__ = ["Grid", "grid", "product", "seed_keys", "stack_hparams", "RunResult", "run", "record_steps", "MEMBER_COLUMNS"]
 
-Variant = Literal["paper", "colosseum"]
 
 # Sub-keys of a member's key: environment, actions, planning, initialisation.
 _N_SUBKEYS = 4
@@ -125,10 +126,13 @@ def _keys(key_data: jax.Array, which: int, t: jax.Array) -> jax.Array:
     return jax.vmap(jax.random.fold_in, in_axes=(0, None))(base, t)
 
 
-def _where_members(mask: jax.Array, new: Any, old: Any) -> Any:
-    return jax.tree.map(lambda a, b: jnp.where(mask.reshape(mask.shape + (1,) * (a.ndim - 1)), a, b), new, old)
+# The program builders are cached with a bound (least recently used first out), keyed by the agent (by identity:
+# ``Agent`` compares and hashes as an object) and the static settings; ``jax.jit`` caches per input shape below that.
+# A cached entry holds its agent, so an agent's identity cannot be reused while its programs are cached.
+_MAX_CACHED_PROGRAMS = 32
 
 
+@functools.lru_cache(maxsize=_MAX_CACHED_PROGRAMS)
 def _init_program(agent: Agent) -> Callable:
     def init(mdps: MDP, mdp_index: jax.Array, hparams: Any, key_data: jax.Array, n_steps: jax.Array) -> Carry:
         sub = jax.vmap(lambda k: jax.random.key_data(jax.random.split(jax.random.wrap_key_data(k), _N_SUBKEYS)))(
@@ -165,6 +169,7 @@ def _init_program(agent: Agent) -> Callable:
     return jax.jit(init)
 
 
+@functools.lru_cache(maxsize=_MAX_CACHED_PROGRAMS)
 def _chunk_program(
     agent: Agent, variant: Variant, capacity: int, n_shards: int, carry_treedef: Any
 ) -> Callable:
@@ -185,7 +190,7 @@ def _chunk_program(
 
             def do_plan(state):
                 keys = _keys(c.key_data, 2, c.t + 1)
-                return _where_members(needs, jax.vmap(agent.plan)(keys, state), state)
+                return where_due(needs, jax.vmap(agent.plan)(keys, state), state)
 
             return c.replace(agent_state=jax.lax.cond(jnp.any(needs), do_plan, lambda s: s, c.agent_state))
 
@@ -273,26 +278,9 @@ def _chunk_program(
     return jax.jit(jax.shard_map(chunk, mesh=mesh, in_specs=in_specs, out_specs=out_specs, check_vma=False))
 
 
+@functools.lru_cache(maxsize=len(VARIANTS))
 def _constants_program(variant: Variant) -> Callable:
     return jax.jit(jax.vmap(lambda m: indicator_constants(m, variant)))
-
-
-# Compiled programs, keyed by the agent's identity and the static settings; jit caches per input shape below that.
-# The agent is stored beside its program so that its id cannot be reused by another object while the entry exists.
-_PROGRAMS: dict[tuple, tuple[Callable, Any]] = {}
-
-
-def _program(kind: str, agent: Agent | None, *static) -> Callable:
-    key = (kind, id(agent), *static)
-    if key not in _PROGRAMS:
-        if kind == "init":
-            fn = _init_program(agent)
-        elif kind == "chunk":
-            fn = _chunk_program(agent, *static)
-        else:
-            fn = _constants_program(*static)
-        _PROGRAMS[key] = (fn, agent)
-    return _PROGRAMS[key][0]
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -304,17 +292,11 @@ def _n_shards(n_members: int, shards: int | None) -> int:
     available = jax.local_device_count()
     if shards is None:
         return max(d for d in range(1, available + 1) if n_members % d == 0)
-    shards = _check_positive_int("shards", shards)
+    shards = check_int("shards", shards)
     if shards > available or n_members % shards:
         raise ValueError(f"shards must divide the {n_members} members and be at most the {available} local devices; "
                          f"got {shards}")
     return shards
-
-
-def _check_positive_int(name: str, value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise ValueError(f"{name} must be a positive integer; got {value!r}")
-    return int(value)
 
 
 def _validate(agent: Agent, g: Grid, variant: str) -> None:
@@ -322,8 +304,7 @@ def _validate(agent: Agent, g: Grid, variant: str) -> None:
         raise ValueError(f"agent must be a jaxmdp.experiment.agent_interface.Agent; got {type(agent).__name__}")
     if not isinstance(g, Grid):
         raise ValueError("grid must be a jaxmdp.experiment.runner.Grid (see runner.grid and runner.product)")
-    if variant not in ("paper", "colosseum"):
-        raise ValueError(f"variant must be 'paper' or 'colosseum'; got {variant!r}")
+    check_variant(variant)
     if agent.episodic != g.episodic:
         kind = lambda e: "episodic" if e else "continuous"  # noqa: E731
         raise ValueError(
@@ -411,11 +392,11 @@ def _validated_settings(
     shards: int | None,
 ) -> _Settings:
     """Check every argument on the host, before anything compiles, and derive the chunking (see :func:`run`)."""
-    n_steps = _check_positive_int("n_steps", n_steps)
-    log_period = _check_positive_int("log_period", log_period)
-    n_records = _check_positive_int("n_records", n_records)
+    n_steps = check_int("n_steps", n_steps)
+    log_period = check_int("log_period", log_period)
+    n_records = check_int("n_records", n_records)
     if chunk_steps is not None:
-        chunk_steps = _check_positive_int("chunk_steps", chunk_steps)
+        chunk_steps = check_int("chunk_steps", chunk_steps)
     if n_steps >= 2**31 - 1:
         raise ValueError(f"n_steps must be below 2**31 - 1; got {n_steps}")
     _validate(agent, grid, variant)
@@ -448,14 +429,14 @@ def _compile(agent: Agent, grid: Grid, settings: _Settings) -> _Program:
         record_period=jnp.asarray(settings.record_period, jnp.int32),
     )
     t0 = time.perf_counter()
-    unique_consts = _program("constants", None, settings.variant)(mdps)
+    unique_consts = _constants_program(settings.variant)(mdps)
     consts = jax.tree.map(lambda x: x[mdp_index], unique_consts)
-    init_jit = _program("init", agent)
+    init_jit = _init_program(agent)
     init_fn = init_jit.lower(mdps, mdp_index, hparams, key_data, sched.n_steps).compile()
     carry_shape = jax.eval_shape(init_jit, mdps, mdp_index, hparams, key_data, sched.n_steps)
     leaves, treedef = jax.tree.flatten(carry_shape)
     carry_layout = (treedef, tuple(x.ndim for x in leaves))
-    chunk_fn = _program("chunk", agent, settings.variant, settings.capacity, settings.n_shards, carry_layout)
+    chunk_fn = _chunk_program(agent, settings.variant, settings.capacity, settings.n_shards, carry_layout)
     chunk_exe = chunk_fn.lower(carry_shape, mdps, mdp_index, consts, sched, jnp.int32(0)).compile()
     jax.block_until_ready(consts)
     return _Program(
@@ -580,7 +561,9 @@ def run(
     ckpt = Path(checkpoint_path) if checkpoint_path is not None else None
     csv_file = Path(csv_path) if csv_path is not None else None
     start = _start_or_resume(program, grid.n_members, run_id, ckpt, csv_file, resume)
-    done, run_s = _run_chunks(agent, grid, program, start, settings, run_id, ckpt, csv_file, progress, stop_after_chunks)
+    done, run_s = _run_chunks(
+        agent, grid, program, start, settings, run_id, ckpt, csv_file, progress, stop_after_chunks
+    )
     return RunResult(
         steps=done.steps,
         values=done.values,

@@ -1,4 +1,4 @@
-"""Guard against a silent miscompilation of jaxlib 0.10.2's CPU backend (the version pinned in pyproject.toml).
+"""Guard against a silent miscompilation of jaxlib 0.10.2's CPU backend.
 
 jaxlib 0.10.2 hands some elementwise-then-reduce fusions to its new YNNPACK path (``__ynn_fusion``), which can return
 wrong numbers without any error (jax-ml/jax#39103; crashes in jax-ml/jax#39257 and #40412). In jaxmdp it hit the
@@ -8,24 +8,34 @@ episodic value norm under ``jit(vmap(...))`` of a transformed MDP (256 states, 1
 
 Importing :mod:`jaxmdp` therefore adds ``--xla_cpu_experimental_ynn_fusion_type=`` (empty: no YNNPACK fusions) to
 ``XLA_FLAGS`` when all of these hold: the installed jaxlib is 0.10.2 or newer (older versions do not know the flag and
-would abort on it), the user has not set that flag themselves, and no JAX backend exists yet (XLA reads the flags
-once, when the first backend is created). If a backend already exists the flag cannot take effect any more and a
-``RuntimeWarning`` says so: import jaxmdp before running any JAX computation.
+would abort on it), the user has not set that flag themselves, ``JAXMDP_NO_XLA_GUARD`` is not set to a non-empty value
+other than ``0`` (the opt-out), and no JAX backend exists yet (XLA reads the flags once, when the first backend is
+created). When it adds the flag it says so on the ``jaxmdp`` logger (level INFO). If a backend already exists the
+flag cannot take effect any more and a ``RuntimeWarning`` says so: import jaxmdp before running any JAX computation.
+
+Whether a backend exists has no public JAX API; the check uses ``jax._src.xla_bridge.backends_are_initialized`` and,
+should that private function move, assumes no backend yet (the flag is then added, and at worst has no effect).
 """
 
 from __future__ import annotations
 
+import logging
 import os
 import re
 import warnings
 
-__all__ = ["YNN_FLAG", "disable_ynn_fusion", "ynn_fusion_disabled"]
+__all__ = ["YNN_FLAG", "OPT_OUT_VARIABLE", "disable_ynn_fusion", "ynn_fusion_disabled"]
 
 #: The XLA option; an empty value disables every YNNPACK fusion on CPU.
 YNN_FLAG = "--xla_cpu_experimental_ynn_fusion_type"
 
+#: Set this environment variable (to anything but ``""`` or ``"0"``) to leave ``XLA_FLAGS`` alone.
+OPT_OUT_VARIABLE = "JAXMDP_NO_XLA_GUARD"
+
 # First jaxlib release with the miscompilation (and the flag).
 _FIRST_AFFECTED = (0, 10, 2)
+
+_log = logging.getLogger("jaxmdp")
 
 
 def _version_tuple(version: str) -> tuple[int, ...]:
@@ -41,15 +51,27 @@ def ynn_fusion_disabled() -> bool:
     return YNN_FLAG in os.environ.get("XLA_FLAGS", "")
 
 
+def _opted_out() -> bool:
+    return os.environ.get(OPT_OUT_VARIABLE, "") not in ("", "0")
+
+
+def _backend_exists() -> bool:
+    try:
+        from jax._src import xla_bridge
+    except ImportError:  # pragma: no cover - a JAX release that moved it
+        return False
+    check = getattr(xla_bridge, "backends_are_initialized", None)
+    return bool(check()) if check is not None else False
+
+
 def disable_ynn_fusion() -> bool:
-    """Add the flag to ``XLA_FLAGS`` if needed and still effective (module docstring); returns whether it was added."""
+    """Add the flag to ``XLA_FLAGS`` if needed, wanted and still effective (module docstring); returns whether it
+    was added."""
     import jaxlib
 
-    if _version_tuple(jaxlib.__version__) < _FIRST_AFFECTED or ynn_fusion_disabled():
+    if _version_tuple(jaxlib.__version__) < _FIRST_AFFECTED or ynn_fusion_disabled() or _opted_out():
         return False
-    from jax._src import xla_bridge
-
-    if xla_bridge.backends_are_initialized():
+    if _backend_exists():
         warnings.warn(
             "jaxmdp was imported after JAX created its backend, so it could not disable the YNNPACK fusions of "
             f"jaxlib {jaxlib.__version__}, which can silently return wrong numbers on CPU (jax-ml/jax#39103). "
@@ -59,4 +81,9 @@ def disable_ynn_fusion() -> bool:
         )
         return False
     os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {YNN_FLAG}=".strip()
+    _log.info(
+        "jaxmdp: added %s= to XLA_FLAGS (jaxlib %s miscompiles some CPU reductions with YNNPACK fusions, "
+        "jax-ml/jax#39103); set %s=1 to opt out",
+        YNN_FLAG, jaxlib.__version__, OPT_OUT_VARIABLE,
+    )
     return True

@@ -1,7 +1,7 @@
 """Host-side construction of a family's MDP, reproducing Colosseum's state order and random draws.
 
 A family describes its dynamics on *nodes* (small immutable records) through :class:`Family`; :func:`build_mdp`
-turns it into an :class:`~jaxmdp.MDP` exactly as families.md §1 states:
+turns it into an :class:`~jaxmdp.MDP` exactly as docs/families.md §1 states:
 
 1. two generators from ``seed``: ``G = numpy.random.RandomState(seed)`` and ``F = random.Random(seed)``;
 2. the family's starting nodes (drawing from ``G`` / ``F`` as the family specifies);
@@ -11,7 +11,7 @@ turns it into an :class:`~jaxmdp.MDP` exactly as families.md §1 states:
    permutation ``sigma_n = argsort(G.rand(A))`` (``randomize_actions``) is drawn when ``n`` is first processed if
    the rewards are point masses, but only *after* the subtree reached through base action 0 of ``n`` has been
    expanded if they are stochastic (except for the very first node) -- the reference draws it lazily and its
-   first use depends on its "all rewards deterministic" flag (this refines families.md §1.4/§1.6, which state the
+   first use depends on its "all rewards deterministic" flag (this refines docs/families.md §1.4/§1.6, which state the
    pre-order draw only);
 4. ``T[s, sigma_n[b], s'] += p`` for every entry, and ``reward_mean/conc[s, sigma_n[b], s'] = D(n, b, n')``, filled for
    every ``s'`` a kernel transform could add (``s`` itself and every action's successors);
@@ -20,8 +20,8 @@ turns it into an :class:`~jaxmdp.MDP` exactly as families.md §1 states:
 
 The draws from ``F`` made while expanding (the seeds of the reference's per-pair samplers) influence nothing
 structural and are skipped. Agent action ``k`` executes base action ``sigma_n^{-1}[k]`` and is rewarded with that
-base action's distribution (the reference looks the reward up with ``sigma_n[k]``, families.md §1.4 [quirk]; the two
-agree in every shipped family because their action-dependent rewards have ``A = 2`` or no randomisation).
+base action's distribution (the reference looks the reward up with ``sigma_n[k]``, docs/families.md §1.4 [quirk]; the
+two agree in every shipped family because their action-dependent rewards have ``A = 2`` or no randomisation).
 """
 
 from __future__ import annotations
@@ -36,14 +36,15 @@ from typing import Any
 import numpy as np
 
 from jaxmdp._checks import check_int
-from jaxmdp.mdp_families.distributions import Distribution, PointMass
 from jaxmdp.mdp import MDP, MDPInfo, custom_mdp
+from jaxmdp.mdp_families.distributions import Distribution, PointMass
 from jaxmdp.transforms import MAX_NOISE_PROBABILITY
 
 __all__ = [
     "Family",
     "CommonParams",
     "COMMON_PARAMETERS",
+    "COMMON_DEFAULTS",
     "build_mdp",
     "family_builder",
     "check_noise_probability",
@@ -72,7 +73,7 @@ def check_noise_probability(name: str, value: float | None) -> float:
     return v
 
 
-#: Keyword parameters that every family builder takes (families.md §1.2), validated by :class:`CommonParams`.
+#: Keyword parameters that every family builder takes (docs/families.md §1.2), validated by :class:`CommonParams`.
 COMMON_PARAMETERS = (
     "episodic",
     "seed",
@@ -84,33 +85,42 @@ COMMON_PARAMETERS = (
     "H",
 )
 
+#: The defaults of the common parameters (``episodic`` and ``seed`` have none). Every builder declares them in its
+#: public signature; :func:`family_builder` checks that the declaration agrees with this table.
+COMMON_DEFAULTS: dict[str, Any] = {
+    "p_rand": None,
+    "p_lazy": None,
+    "randomize_actions": True,
+    "make_reward_stochastic": False,
+    "reward_variance_multiplier": 1.0,
+    "H": None,
+}
+
 
 class CommonParams:
-    """Validated parameters shared by every family (families.md §1.2)."""
+    """Validated parameters shared by every family (docs/families.md §1.2)."""
 
     def __init__(
         self,
         *,
         episodic: bool,
         seed: int,
-        p_rand: float | None = None,
-        p_lazy: float | None = None,
-        randomize_actions: bool = True,
-        make_reward_stochastic: bool = False,
-        reward_variance_multiplier: float = 1.0,
-        H: int | None = None,
+        p_rand: float | None,
+        p_lazy: float | None,
+        randomize_actions: bool,
+        make_reward_stochastic: bool,
+        reward_variance_multiplier: float,
+        H: int | None,
     ) -> None:
         if not isinstance(episodic, (bool, np.bool_)):
             raise ValueError(f"episodic must be True or False; got {episodic!r}")
-        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-            raise ValueError(f"seed must be a non-negative integer; got {seed!r}")
+        check_int("seed", seed, 0)
         if not (isinstance(reward_variance_multiplier, (int, float)) and reward_variance_multiplier > 0):
             raise ValueError(f"reward_variance_multiplier must be > 0; got {reward_variance_multiplier!r}")
         if H is not None:
             if not episodic:
                 raise ValueError("H is only meaningful for episodic MDPs (episodic=True)")
-            if isinstance(H, bool) or not isinstance(H, (int, np.integer)) or H < 1:
-                raise ValueError(f"H must be a positive integer or None; got {H!r}")
+            check_int("H", H, context=" or None")
         self.episodic = bool(episodic)
         self.seed = int(seed)
         self.p_rand = check_noise_probability("p_rand", p_rand)
@@ -134,7 +144,8 @@ class CommonParams:
 
 class Family(abc.ABC):
     """A family's dynamics on nodes. Subclasses set ``name``, ``n_actions``, ``node_fields`` and implement the
-    abstract methods; :func:`build_mdp` does the rest."""
+    abstract methods; :func:`build_mdp` does the rest. The constructor takes every parameter without a default: the
+    defaults live in one place, the builder's declaration (:func:`family_builder`), which passes them all."""
 
     name: str = ""
     n_actions: int = 0
@@ -159,12 +170,12 @@ class Family(abc.ABC):
         """``(starting nodes, their probabilities, possible starting nodes)``, drawing from ``G`` / ``F``."""
 
     def params(self) -> tuple[tuple[str, Any], ...]:
-        """The family's own parameters in the reference's order (families.md, each family's 'parameter dict')."""
+        """The family's own parameters in the reference's order (docs/families.md, each family's 'parameter dict')."""
         return ()
 
     def minimum_horizon(self, eccentricity: Callable[[], int]) -> int:
         """``H_min`` of the episodic version; ``eccentricity()`` searches the graph for the largest shortest-path
-        distance from a possible starting node (default: ``1 + eccentricity()``, families.md §1.8). A family whose
+        distance from a possible starting node (default: ``1 + eccentricity()``, docs/families.md §1.8). A family whose
         horizon does not depend on the graph should not call it."""
         return 1 + eccentricity()
 
@@ -188,8 +199,8 @@ class Family(abc.ABC):
 def _effective_outcomes(
     base: Sequence[Sequence[tuple[Node, float]]], node: Node, b: int, p_rand: float, p_lazy: float
 ) -> list[tuple[Node, float]]:
-    """families.md §1.3: own outcomes, then the lazy self-loop, then the other actions' outcomes (``base[c]`` is the
-    base outcome list of action ``c`` at ``node``)."""
+    """docs/families.md §1.3: own outcomes, then the lazy self-loop, then the other actions' outcomes (``base[c]`` is
+    the base outcome list of action ``c`` at ``node``)."""
     A = len(base)
     own_w = (1.0 - p_lazy) * ((1.0 - p_rand) + p_rand / A)
     out = [(n2, q * own_w) for n2, q in base[b]]
@@ -280,7 +291,7 @@ def build_mdp(fam: Family, common: CommonParams) -> MDP:
                 discover(n2)
                 if rewards_deterministic[0]:
                     draw_sigma(n)
-                    # The reference's lookup uses sigma_n[b] as the base action (families.md §1.4 [quirk]).
+                    # The reference's lookup uses sigma_n[b] as the base action (docs/families.md §1.4 [quirk]).
                     if not isinstance(fam.reward(n, int(sigma[n][b]), n2), PointMass):
                         rewards_deterministic[0] = False
             visited.add(n)
@@ -338,7 +349,7 @@ def build_mdp(fam: Family, common: CommonParams) -> MDP:
             H_min = fam.minimum_horizon(lambda: _eccentricity(successors, possible_starts))
             H = H_min if common.H is None else max(H_min, common.H)
 
-    # The reference's episodic graph (families.md §1.8) walks each node's successors in edge-creation order and the
+    # The reference's episodic graph (docs/families.md §1.8) walks each node's successors in edge-creation order and the
     # starts in sampler order; record both so jaxmdp.episodic can reproduce its pair order (and its reset quirk).
     successor_order = tuple(
         tuple(dict.fromkeys(index[n2] for b in range(A) for n2, p in lists[(n, b)] if p > 0)) for n in nodes
@@ -372,6 +383,9 @@ def family_builder(family: type[Family]) -> Callable[[Callable[..., MDP]], Calla
         missing = [p for p in COMMON_PARAMETERS if p not in signature.parameters]
         if missing:
             raise TypeError(f"the builder {declaration.__name__} must declare the common parameters {missing}")
+        wrong = [p for p, d in COMMON_DEFAULTS.items() if signature.parameters[p].default != d]
+        if wrong:
+            raise TypeError(f"the builder {declaration.__name__} must give {wrong} the defaults of COMMON_DEFAULTS")
 
         @functools.wraps(declaration)
         def builder(*args: Any, **kwargs: Any) -> MDP:

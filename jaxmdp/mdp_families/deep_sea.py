@@ -1,4 +1,4 @@
-"""DeepSea (Osband et al. 2019; paper App. C; families.md §2.2).
+"""DeepSea (Osband et al. 2019; paper App. C; docs/families.md §2.2).
 
 A ``size x size`` triangle explored by diving: the agent starts at the top-left ``(X=0, Y=size-1)`` and every step
 goes one row down (``Y-1``) and one column LEFT (0, ``max(X-1, 0)``) or RIGHT (1, ``min(X+1, size-1)``); from the
@@ -14,15 +14,16 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.mdp_families.construction import Family, family_builder, integer_parameter
 from jaxmdp.mdp_families.distributions import (
     Beta,
     Distribution,
     PointMass,
     check_default_reward_parameter,
+    check_reward_margin,
     resolve_distributions,
 )
-from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
 __all__ = ["DeepSeaNode", "DeepSeaFamily", "deep_sea"]
@@ -47,18 +48,14 @@ class DeepSeaFamily(Family):
         size: int,
         make_reward_stochastic: bool,
         reward_variance_multiplier: float,
-        optimal_return: float = 1.0,
-        suboptimal_return: float = 0.5,
-        optimal_distribution: Any = None,
-        sub_optimal_distribution: Any = None,
-        other_distribution: Any = None,
+        optimal_return: float,
+        suboptimal_return: float,
+        optimal_distribution: Any,
+        sub_optimal_distribution: Any,
+        other_distribution: Any,
     ) -> None:
         self.size = integer_parameter("size", size, 2, self.name)
-        if not suboptimal_return < optimal_return - 0.1:
-            raise ValueError(
-                "suboptimal_return must be below optimal_return - 0.1; "
-                f"got {suboptimal_return} and {optimal_return}"
-            )
+        check_reward_margin("optimal_return", optimal_return, "suboptimal_return", suboptimal_return)
         self.optimal_return = float(optimal_return)
         self.suboptimal_return = float(suboptimal_return)
         given = {
@@ -151,7 +148,7 @@ def deep_sea(
     other_distribution: Any = None,
     H: int | None = None,
 ) -> MDP:
-    """Build a DeepSea MDP (families.md §2.2).
+    """Build a DeepSea MDP (docs/families.md §2.2).
 
     ``S = size (size + 1) / 2`` reachable cells. Default rewards: deterministic optimal 1, sub-optimal ``1/size^2``,
     other 0; stochastic (``v = reward_variance_multiplier``) optimal ``Beta(v (size/optimal_return - 1), v)``,

@@ -1,4 +1,4 @@
-"""Reward distributions of the families: Beta or point mass (families.md §1.5).
+"""Reward distributions of the families: Beta or point mass (docs/families.md §1.5).
 
 A family's reward distribution ``D(s, a, s')`` is stored in the MDP as its mean and Beta concentration
 (``conc = alpha + beta``, ``0`` for a point mass). Users may pass distributions as :class:`Beta` / :class:`PointMass`
@@ -18,6 +18,7 @@ __all__ = [
     "as_distribution",
     "resolve_distributions",
     "check_default_reward_parameter",
+    "check_reward_margin",
 ]
 
 
@@ -114,3 +115,13 @@ def check_default_reward_parameter(name: str, value: float, upper: float, upper_
     if not 0 < value < upper:
         bound = f"{upper:g}" if upper_text is None else upper_text
         raise ValueError(f"{name} must lie in (0, {bound}) for the stochastic default rewards; got {value}")
+
+
+def check_reward_margin(optimal_name: str, optimal: float, sub_optimal_name: str, sub_optimal: float) -> None:
+    """Raise ``ValueError`` unless ``optimal - 0.1 > sub_optimal``: the family's optimal reward (or return) clearly
+    above its sub-optimal one, as the reference requires (docs/families.md)."""
+    if not optimal - 0.1 > sub_optimal:
+        raise ValueError(
+            f"{optimal_name} - 0.1 must exceed {sub_optimal_name}; got {optimal_name}={optimal}, "
+            f"{sub_optimal_name}={sub_optimal}"
+        )

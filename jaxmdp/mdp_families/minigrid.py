@@ -1,4 +1,4 @@
-"""Pieces shared by the MiniGrid families (paper App. C "MiniGrid MDPs"; families.md §2.5, §2.6).
+"""Pieces shared by the MiniGrid families (paper App. C "MiniGrid MDPs"; docs/families.md §2.5, §2.6).
 
 The agent stands on a cell ``(X, Y)`` facing a direction ``Dir``: ``UP = 0`` (``Y + 1``), ``RIGHT = 1`` (``X + 1``),
 ``DOWN = 2`` (``Y - 1``), ``LEFT = 3`` (``X - 1``). Base actions ``0 = MoveForward`` (one cell in the facing
@@ -78,7 +78,7 @@ def minigrid_distributions(
     optimal_distribution: Any,
     other_distribution: Any,
 ) -> dict[str, Distribution]:
-    """The optimal / other reward distributions (families.md §2.5).
+    """The optimal / other reward distributions (docs/families.md §2.5).
 
     Defaults: point masses 1 and 0; stochastic ``Beta(v (size^2 - 1), v)`` (mean ``1 - 1/size^2``) and
     ``Beta(v, v (size^2 - 1))`` (mean ``1/size^2``) with ``v = reward_variance_multiplier``. Explicit distributions

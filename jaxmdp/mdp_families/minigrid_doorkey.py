@@ -33,7 +33,7 @@ MDP is weakly communicating (paper App. C and §5: the reason the family was lef
 Without ``p_rand``/``p_lazy``, the episodic optimal return from a start is ``H - L + 1`` where ``L`` is the length of
 the shortest action sequence that enters the goal (afterwards turning on the goal pays every step).
 
-**Departures from the legacy v1.0 implementation** (families.md §2.8; not reproduced, only described): v1.0 had six
+**Departures from the legacy v1.0 implementation** (docs/families.md §2.8; not reproduced, only described): v1.0 had six
 actions (an extra DropObject), picked the key up when standing *on* its cell and let the agent walk over it, tracked the
 key's position ``(XKey, YKey)`` because it could be dropped, and drew its layout with its own random stream. Here the
 action set is the paper's five, pick-up works from the facing cell, the key blocks movement until picked up, and the
@@ -51,6 +51,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.mdp_families.construction import family_builder, integer_parameter
 from jaxmdp.mdp_families.minigrid import (
     MOVE_FORWARD,
@@ -62,7 +63,6 @@ from jaxmdp.mdp_families.minigrid import (
     render_minigrid,
     turned,
 )
-from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
 __all__ = ["MiniGridDoorKeyNode", "MiniGridDoorKeyFamily", "minigrid_doorkey", "PICK_UP", "OPEN"]
@@ -90,8 +90,8 @@ class MiniGridDoorKeyFamily(MiniGridFamily):
         n_starting_states: int,
         make_reward_stochastic: bool,
         reward_variance_multiplier: float,
-        optimal_distribution: Any = None,
-        other_distribution: Any = None,
+        optimal_distribution: Any,
+        other_distribution: Any,
     ) -> None:
         self.size = integer_parameter("size", size, 3, self.name)
         # The smallest agent room is one line of `size` cells, one of which holds the key.
@@ -202,7 +202,7 @@ def minigrid_doorkey(
     H: int | None = None,
 ) -> MDP:
     """Build a MiniGridDoorKey MDP (see the module docstring). Default horizon: ``1 +`` the largest shortest-path
-    distance from a possible start (families.md §1.8), which covers fetching the key, opening the door and reaching
+    distance from a possible start (docs/families.md §1.8), which covers fetching the key, opening the door and reaching
     the farthest cell.
 
     Args:

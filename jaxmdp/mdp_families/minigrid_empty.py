@@ -1,4 +1,4 @@
-"""MiniGridEmpty (paper App. C, "MG-Empty"; families.md §2.5).
+"""MiniGridEmpty (paper App. C, "MG-Empty"; docs/families.md §2.5).
 
 An empty ``size x size`` grid (cells ``0..size-1``, no wall cells). Nodes are ``(X, Y, Dir)``; actions
 ``MoveForward`` (clipped at the border: bumping keeps the node), ``TurnRight``, ``TurnLeft`` (see
@@ -23,6 +23,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.mdp_families.construction import family_builder, integer_parameter
 from jaxmdp.mdp_families.minigrid import (
     MOVE_FORWARD,
@@ -32,7 +33,6 @@ from jaxmdp.mdp_families.minigrid import (
     render_minigrid,
     turned,
 )
-from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
 __all__ = ["MiniGridEmptyNode", "MiniGridEmptyFamily", "minigrid_empty", "side_cells"]
@@ -68,8 +68,8 @@ class MiniGridEmptyFamily(MiniGridFamily):
         n_starting_states: int,
         make_reward_stochastic: bool,
         reward_variance_multiplier: float,
-        optimal_distribution: Any = None,
-        other_distribution: Any = None,
+        optimal_distribution: Any,
+        other_distribution: Any,
     ) -> None:
         self.size = integer_parameter("size", size, 3, self.name)
         # Only the `size` cells of the start side can be starting cells.
@@ -134,7 +134,7 @@ def minigrid_empty(
     other_distribution: Any = None,
     H: int | None = None,
 ) -> MDP:
-    """Build a MiniGridEmpty MDP (families.md §2.5): ``S = 4 size^2``, default horizon ``2 size + 3``.
+    """Build a MiniGridEmpty MDP (docs/families.md §2.5): ``S = 4 size^2``, default horizon ``2 size + 3``.
 
     Args:
       size: grid side, an integer ``>= 3``.

@@ -1,4 +1,4 @@
-"""MiniGridRooms (paper App. C, "MG-Rooms"; families.md §2.6).
+"""MiniGridRooms (paper App. C, "MG-Rooms"; docs/families.md §2.6).
 
 ``k x k`` square rooms (``k = sqrt(n_rooms)``) of ``rs x rs`` cells (``rs = room_size``) separated by one-cell walls
 with a door in the middle of every room span. Room ``(rx, ry)`` holds the cells ``(i + (rs+1) rx, j + (rs+1) ry)``,
@@ -27,6 +27,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.mdp_families.construction import family_builder, integer_parameter
 from jaxmdp.mdp_families.minigrid import (
     MOVE_FORWARD,
@@ -36,7 +37,6 @@ from jaxmdp.mdp_families.minigrid import (
     render_minigrid,
     turned,
 )
-from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
 __all__ = ["MiniGridRoomsNode", "MiniGridRoomsFamily", "minigrid_rooms", "room_cells", "admissible_cells"]
@@ -78,8 +78,8 @@ class MiniGridRoomsFamily(MiniGridFamily):
         n_starting_states: int,
         make_reward_stochastic: bool,
         reward_variance_multiplier: float,
-        optimal_distribution: Any = None,
-        other_distribution: Any = None,
+        optimal_distribution: Any,
+        other_distribution: Any,
     ) -> None:
         self.room_size = integer_parameter("room_size", room_size, 2, self.name)
         is_int = isinstance(n_rooms, (int, np.integer)) and not isinstance(n_rooms, (bool, np.bool_))
@@ -138,7 +138,7 @@ class MiniGridRoomsFamily(MiniGridFamily):
 
 def render_minigrid_rooms(info: MDPInfo, node: tuple[int, ...]) -> list[list[str]]:
     """Grid of side ``g = k rs + k - 1``: ``W`` on wall cells, ``G`` at the goal, the agent's arrow over it; the top
-    printed row is ``Y = g-1`` (families.md §2.6). Symbols ``[" ", ">", "<", "v", "^", "G", "W"]``.
+    printed row is ``Y = g-1`` (docs/families.md §2.6). Symbols ``[" ", ">", "<", "v", "^", "G", "W"]``.
 
     With 1-based ``x, y`` and door coordinates ``D = {floor(rs/2) + i (rs+1) + 1}``, a cell is a wall when
     (``x != g``, ``x mod (rs+1) = 0``, ``y not in D``) or (``y != g``, ``y mod (rs+1) = 0``, ``x not in D``).
@@ -174,7 +174,7 @@ def minigrid_rooms(
     other_distribution: Any = None,
     H: int | None = None,
 ) -> MDP:
-    """Build a MiniGridRooms MDP (families.md §2.6): ``S = 4 (n_rooms rs^2 + 2 k (k-1))``, default horizon
+    """Build a MiniGridRooms MDP (docs/families.md §2.6): ``S = 4 (n_rooms rs^2 + 2 k (k-1))``, default horizon
     ``2 k (rs+1) + 3``.
 
     Args:

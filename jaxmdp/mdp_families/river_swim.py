@@ -1,4 +1,4 @@
-"""RiverSwim (Strehl & Littman 2008; paper App. C; families.md §2.1).
+"""RiverSwim (Strehl & Littman 2008; paper App. C; docs/families.md §2.1).
 
 A chain ``X = 0 .. size-1`` starting at ``X = 0``; LEFT (0) moves to ``max(X-1, 0)``, RIGHT (1) to
 ``min(X+1, size-1)``, deterministically (the classic "current" is replaced by ``p_rand`` / ``p_lazy``). RIGHT at the
@@ -12,15 +12,16 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.mdp_families.construction import Family, family_builder, integer_parameter
 from jaxmdp.mdp_families.distributions import (
     Beta,
     Distribution,
     PointMass,
     check_default_reward_parameter,
+    check_reward_margin,
     resolve_distributions,
 )
-from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
 __all__ = ["RiverSwimNode", "RiverSwimFamily", "river_swim"]
@@ -44,18 +45,16 @@ class RiverSwimFamily(Family):
         episodic: bool,
         make_reward_stochastic: bool,
         reward_variance_multiplier: float,
-        optimal_mean_reward: float = 0.9,
-        sub_optimal_mean_reward: float = 0.2,
-        optimal_distribution: Any = None,
-        sub_optimal_distribution: Any = None,
-        other_distribution: Any = None,
+        optimal_mean_reward: float,
+        sub_optimal_mean_reward: float,
+        optimal_distribution: Any,
+        sub_optimal_distribution: Any,
+        other_distribution: Any,
     ) -> None:
         self.size = integer_parameter("size", size, 2, self.name)
-        if not optimal_mean_reward - 0.1 > sub_optimal_mean_reward:
-            raise ValueError(
-                "optimal_mean_reward - 0.1 must exceed sub_optimal_mean_reward; "
-                f"got {optimal_mean_reward} and {sub_optimal_mean_reward}"
-            )
+        check_reward_margin(
+            "optimal_mean_reward", optimal_mean_reward, "sub_optimal_mean_reward", sub_optimal_mean_reward
+        )
         self.optimal_mean_reward = float(optimal_mean_reward)
         self.sub_optimal_mean_reward = float(sub_optimal_mean_reward)
         given = {
@@ -144,7 +143,7 @@ def river_swim(
     other_distribution: Any = None,
     H: int | None = None,
 ) -> MDP:
-    """Build a RiverSwim MDP (families.md §2.1). Default horizon ``H = size``.
+    """Build a RiverSwim MDP (docs/families.md §2.1). Default horizon ``H = size``.
 
     Default rewards: deterministic optimal 1, sub-optimal 0.005, other 0; stochastic (``v =
     reward_variance_multiplier``, ``mu_o = optimal_mean_reward``, ``mu_s = sub_optimal_mean_reward``, divided by

@@ -1,4 +1,4 @@
-"""SimpleGrid (paper App. C; families.md §2.3).
+"""SimpleGrid (paper App. C; docs/families.md §2.3).
 
 A ``size x size`` grid of cells ``(X, Y)`` with five deterministic actions UP (``Y+1``), RIGHT (``X+1``), DOWN
 (``Y-1``), LEFT (``X-1``) and NO_OP, clipped at the border. Staying in a corner (a *corner loop*: NO_OP, bumping into
@@ -14,15 +14,16 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.mdp_families.construction import Family, family_builder, integer_parameter
 from jaxmdp.mdp_families.distributions import (
     Beta,
     Distribution,
     PointMass,
     check_default_reward_parameter,
+    check_reward_margin,
     resolve_distributions,
 )
-from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
 __all__ = ["SimpleGridNode", "SimpleGridReward", "SimpleGridFamily", "simple_grid"]
@@ -73,13 +74,13 @@ class SimpleGridFamily(Family):
         size: int,
         make_reward_stochastic: bool,
         reward_variance_multiplier: float,
-        reward_type: Any = SimpleGridReward.XOR,
-        n_starting_states: int = 1,
-        optimal_mean_reward: float = 0.9,
-        sub_optimal_mean_reward: float = 0.2,
-        optimal_distribution: Any = None,
-        sub_optimal_distribution: Any = None,
-        other_distribution: Any = None,
+        reward_type: Any,
+        n_starting_states: int,
+        optimal_mean_reward: float,
+        sub_optimal_mean_reward: float,
+        optimal_distribution: Any,
+        sub_optimal_distribution: Any,
+        other_distribution: Any,
     ) -> None:
         self.size = integer_parameter("size", size, 2, self.name)
         self.reward_type = _reward_type(reward_type)
@@ -87,11 +88,9 @@ class SimpleGridFamily(Family):
         self.n_starting_states = integer_parameter(
             "n_starting_states", n_starting_states, 1, self.name, (self.size - 1) ** 2
         )
-        if not optimal_mean_reward - 0.1 > sub_optimal_mean_reward:
-            raise ValueError(
-                "optimal_mean_reward - 0.1 must exceed sub_optimal_mean_reward; "
-                f"got {optimal_mean_reward} and {sub_optimal_mean_reward}"
-            )
+        check_reward_margin(
+            "optimal_mean_reward", optimal_mean_reward, "sub_optimal_mean_reward", sub_optimal_mean_reward
+        )
         self.optimal_mean_reward = float(optimal_mean_reward)
         self.sub_optimal_mean_reward = float(sub_optimal_mean_reward)
         given = {
@@ -216,7 +215,7 @@ def simple_grid(
     other_distribution: Any = None,
     H: int | None = None,
 ) -> MDP:
-    """Build a SimpleGrid MDP (families.md §2.3).
+    """Build a SimpleGrid MDP (docs/families.md §2.3).
 
     ``S = size^2``. Starting cells: ``n_starting_states`` of the ``(size-1)^2`` cells closest to the centre (seeded
     shuffles), uniform. Default rewards: deterministic optimal 1, sub-optimal 0, other 0.5 ([paper≠code]: the paper

@@ -1,4 +1,4 @@
-"""Taxi (Dietterich 2000; paper App. C; families.md §2.7).
+"""Taxi (Dietterich 2000; paper App. C; docs/families.md §2.7).
 
 **Walls.** ``size`` rows ``X = 0..size-1`` of ``size`` columns ``Y`` are built top to bottom: for ``j = 0, 1, ...`` a
 wall pattern row is made (even ``j``: ``floor((width + space) / 2)`` free cells first; then units ``i = 0, 1, ...``
@@ -42,15 +42,16 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.mdp_families.construction import Family, family_builder, integer_parameter
 from jaxmdp.mdp_families.distributions import (
     Beta,
     Distribution,
     PointMass,
     check_default_reward_parameter,
+    check_reward_margin,
     resolve_distributions,
 )
-from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.render import register_renderer
 
 __all__ = ["TaxiNode", "TaxiFamily", "taxi", "taxi_walls", "MAX_LOCATION_DRAWS"]
@@ -111,9 +112,9 @@ class TaxiFamily(Family):
         sub_optimal_mean_reward: float,
         make_reward_stochastic: bool,
         reward_variance_multiplier: float,
-        default_r: Any = None,
-        successfully_delivery_r: Any = None,
-        failure_delivery_r: Any = None,
+        default_r: Any,
+        successfully_delivery_r: Any,
+        failure_delivery_r: Any,
     ) -> None:
         self.size = integer_parameter("size", size, 4, self.name)
         self.length = integer_parameter("length", length, 0, self.name, self.size - 1)
@@ -132,11 +133,9 @@ class TaxiFamily(Family):
         self.n_quadrants = self.rows_of_quadrants**2
         self.optimal_mean_reward = float(optimal_mean_reward)
         self.sub_optimal_mean_reward = float(sub_optimal_mean_reward)
-        if not self.optimal_mean_reward - 0.1 > self.sub_optimal_mean_reward:
-            raise ValueError(
-                "optimal_mean_reward - 0.1 must exceed sub_optimal_mean_reward; "
-                f"got {optimal_mean_reward} and {sub_optimal_mean_reward}"
-            )
+        check_reward_margin(
+            "optimal_mean_reward", self.optimal_mean_reward, "sub_optimal_mean_reward", self.sub_optimal_mean_reward
+        )
         given = {
             "default_r": default_r,
             "successfully_delivery_r": successfully_delivery_r,
@@ -233,7 +232,7 @@ class TaxiFamily(Family):
         return starts, [1.0 / len(starts)] * len(starts), starts
 
     def minimum_horizon(self, eccentricity: Callable[[], int]) -> int:
-        """``floor(1.5 size^2)`` whatever the graph (families.md §1.8); the eccentricity search is skipped."""
+        """``floor(1.5 size^2)`` whatever the graph (docs/families.md §1.8); the eccentricity search is skipped."""
         return int(1.5 * self.size**2)
 
     def params(self) -> tuple[tuple[str, Any], ...]:
@@ -293,7 +292,7 @@ def taxi(
     reward_variance_multiplier: float = 1.0,
     H: int | None = None,
 ) -> MDP:
-    """Build a Taxi MDP (families.md §2.7): ``S = free cells x n_locations^2``, horizon ``floor(1.5 size^2)``.
+    """Build a Taxi MDP (docs/families.md §2.7): ``S = free cells x n_locations^2``, horizon ``floor(1.5 size^2)``.
 
     Args:
       size: grid side, an integer ``>= 4``.

@@ -29,16 +29,15 @@ Dirichlet draws (29 against 44 ns per entry, ``[64, 100, 4, 100]``); we do not r
 normal's tails at ``P(|x| > 5.4) ~ 7e-8``, as ``jax.random.gamma`` does.
 
 **Rounds.** A large array (``n`` entries) runs one round over every entry, which accepts > 95% of them. The rejected
-entries are compacted (:func:`jaxmdp.sampling.compaction.compact`) into a buffer of ``m1 = n // 16 + 64`` slots that runs one
-more trial each; the entries it rejects go to a buffer of ``m2 = m1 // 16 + 64`` slots that runs rounds of four
-trials until every one is accepted; the results are scattered back. At most 4.83% of the entries are rejected per
-trial, so a buffer overflows with probability below ``1e-16`` whatever ``n`` (binomial tails, worst shape); if one
-does, the whole pass (compaction, both buffers) repeats on the entries still rejected, with a fresh key, until
-none is left. The earlier sampler ran whole-array rounds until every entry was accepted: for ``n ~ 10^6`` about five
-rounds of three random words per entry, where this one runs one round (two words per entry) and then trials for the
-~5% it rejected. ``jax.random.gamma`` runs a ``while_loop`` per entry that splits its key at every trial.
-Small arrays (below 1024 entries, e.g. the two Gammas of one Beta) run rounds of ``candidates`` trials over the whole
-array.
+entries are compacted (:func:`jaxmdp.sampling.compaction.compact`) into a buffer of ``m1 = n // 16 + 64`` slots that
+runs one more trial each; the entries it rejects go to a buffer of ``m2 = m1 // 16 + 64`` slots that runs rounds of four
+trials until every one is accepted; the results are scattered back. At most 4.83% of the entries are rejected per trial,
+so a buffer overflows with probability below ``1e-16`` whatever ``n`` (binomial tails, worst shape); if one does, the
+whole pass (compaction, both buffers) repeats on the entries still rejected, with a fresh key, until none is left. The
+earlier sampler ran whole-array rounds until every entry was accepted: for ``n ~ 10^6`` about five rounds of three
+random words per entry, where this one runs one round (two words per entry) and then trials for the ~5% it rejected.
+``jax.random.gamma`` runs a ``while_loop`` per entry that splits its key at every trial. Small arrays (below 1024
+entries, e.g. the two Gammas of one Beta) run rounds of ``candidates`` trials over the whole array.
 
 Every entry gets the first accepted trial of a sequence of trials on fresh random numbers, the sequence chosen by
 rejections alone: exactly rejection sampling, the entries independent. The loops end with probability one (every

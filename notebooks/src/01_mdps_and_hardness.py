@@ -220,9 +220,9 @@ for name in names:
 #
 # `hardness.analysis.scenarios.run_scenario(scenario, family, ...)` runs one of the paper's four scenarios (1: `p_rand`,
 # 2: `p_lazy`, 3: size, 4: size with `p_rand = 0.1`) over seeds and values in one batched call and normalises every
-# measure to [0, 1] across the sweep (paper App. E). `hardness.analysis.plotting.plot_scenario` draws the mean over seeds with
-# a 95% bootstrap band and writes a PNG (the figure is shown below by loading that file). FrozenLake maps depend on
-# the seed, so the bands are not empty.
+# measure to [0, 1] across the sweep (paper App. E). `hardness.analysis.plotting.plot_scenario` draws the mean over
+# seeds with a 95% bootstrap band and writes a PNG (the figure is shown below by loading that file). FrozenLake maps
+# depend on the seed, so the bands are not empty.
 
 # %%
 result = scenarios.run_scenario(1, "FrozenLake", episodic=False, seeds=(0, 1, 2),

@@ -57,8 +57,8 @@ print(river, "| spec:", spec.n_states, "states,", spec.n_actions, "actions, epis
 # %% [markdown]
 # The interaction loop, written by hand: `act`, `jaxmdp.step` (gymnax-style, with auto-reset), `update`, then
 # `plan` when the agent asks for it. `jax.vmap` over keys runs several seeds. (Under `vmap` a `lax.cond` turns into
-# a select that computes both branches every step; `jaxmdp.experiment.runner` avoids that by planning under one unbatched
-# `cond`, "some member needs to plan", which is what you want for planning agents.)
+# a select that computes both branches every step; `jaxmdp.experiment.runner` avoids that by planning under one
+# unbatched `cond`, "some member needs to plan", which is what you want for planning agents.)
 
 # %%
 def interact(agent, key, mdp, hparams, n_steps):
