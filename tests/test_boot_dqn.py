@@ -35,7 +35,8 @@ def np_ensemble_q(params, prior, obs, prior_scale):
 def with_identical_heads(state):
     """Every head (online, target, prior) a copy of head 0."""
     same = lambda tree: jax.tree.map(lambda x: jnp.broadcast_to(x[:1], x.shape), tree)  # noqa: E731
-    return state.replace(params=same(state.params), target_params=same(state.params), prior_params=same(state.prior_params))
+    params = same(state.params)
+    return state.replace(params=params, target_params=params, prior_params=same(state.prior_params))
 
 
 @jax.jit

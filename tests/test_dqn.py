@@ -63,7 +63,8 @@ def np_loss(params, target_params, batch, gamma, action_mask):
     q = np_q(params, np.asarray(batch.obs))
     q_t = np.where(np.asarray(action_mask), np_q(target_params, np.asarray(batch.next_obs)), -np.inf)
     a = np.asarray(batch.action)
-    delta = np.asarray(batch.reward, np.float64) + gamma * np.asarray(batch.continuation) * q_t.max(-1) - q[np.arange(len(a)), a]
+    r, c = np.asarray(batch.reward, np.float64), np.asarray(batch.continuation, np.float64)
+    delta = r + gamma * c * q_t.max(-1) - q[np.arange(len(a)), a]
     return 0.5 * np.mean(delta**2)
 
 

@@ -54,14 +54,17 @@ import jax.numpy as jnp
 from flax import struct
 
 from agents.deep import replay
-from agents.deep.common import adam, adam_step, cast_hparams, observation_shape, observation_table, on_table
+from agents.deep.common import adam, cast_hparams, observation_shape, observation_table, on_table
 from agents.deep.dqn import (
+    QHParams,
+    QState,
     ReplayItem,
     check_common,
     empty_item,
     epsilon_greedy,
     guarded,
     item_of,
+    make_sgd_step,
     q_network,
     sgd_due,
     td_errors,
@@ -83,21 +86,14 @@ __all__ = [
 ]
 
 
-class BootDQNHParams(struct.PyTreeNode):
+class BootDQNHParams(QHParams):
     """BootDQN's hyperparameters (module docstring); the episodic agent's set."""
 
     epsilon: float | jax.Array = 0.0
-    learning_rate: float | jax.Array = 1e-3
-    discount: float | jax.Array = 1.0
-    sgd_period: int | jax.Array = 1
-    target_update_period: int | jax.Array = 4
+    batch_size: int = struct.field(pytree_node=False, default=128)
     mask_prob: float | jax.Array = 0.5
     noise_scale: float | jax.Array = 0.0
     prior_scale: float | jax.Array = 3.0
-    network_width: int = struct.field(pytree_node=False, default=50)
-    network_depth: int = struct.field(pytree_node=False, default=2)
-    batch_size: int = struct.field(pytree_node=False, default=128)
-    replay_capacity: int = struct.field(pytree_node=False, default=10_000)
     n_ensemble: int = struct.field(pytree_node=False, default=20)
 
 
@@ -115,24 +111,13 @@ class BootReplayItem(ReplayItem):
     noise: jax.Array
 
 
-class BootDQNState(struct.PyTreeNode):
-    """Online, prior and target parameters (leading head axis ``K``), Adam's state, the replay buffer, the counters,
-    the active head, the key of the per-transition draws, the emission table and the valid actions."""
+class BootDQNState(QState):
+    """:class:`agents.deep.dqn.QState` (parameters with a leading head axis ``K``) with the prior parameters, the
+    active head and the key of the per-transition draws."""
 
-    params: Any
     prior_params: Any
-    target_params: Any
-    opt_state: Any
-    replay: replay.ReplayState
-    steps: jax.Array
-    sgd_steps: jax.Array
     active_head: jax.Array
     key: jax.Array
-    observations: jax.Array
-    action_mask: jax.Array
-    hparams: BootDQNHParams
-    n_actions: int = struct.field(pytree_node=False)
-    episodic: bool = struct.field(pytree_node=False)
 
 
 def ensemble_q(state: BootDQNState, params: Any, obs: jax.Array) -> jax.Array:
@@ -230,16 +215,8 @@ def loss(params: Any, target_params: Any, batch: BootReplayItem, state: BootDQNS
     return 0.5 * jnp.sum(jnp.mean(batch.mask.T * delta**2, axis=1))
 
 
-def sgd_step(key: jax.Array, state: BootDQNState) -> BootDQNState:
-    """One Adam step of the ensemble loss on a uniform batch (every head at once); target copy as in DQN."""
-    hp = state.hparams
-    batch = replay.make(hp.replay_capacity, hp.batch_size).sample(state.replay, key).experience
-    grads = jax.grad(loss)(state.params, state.target_params, batch, state)
-    params, opt_state = adam_step(state.params, grads, state.opt_state, hp.learning_rate)
-    sgd_steps = state.sgd_steps + 1
-    copy = sgd_steps % hp.target_update_period == 0
-    target = jax.tree.map(lambda p, t: jnp.where(copy, p, t), params, state.target_params)
-    return state.replace(params=params, target_params=target, opt_state=opt_state, sgd_steps=sgd_steps)
+#: One Adam step of the ensemble loss on a uniform batch (every head at once); target copy as in DQN.
+sgd_step = make_sgd_step(loss)
 
 
 plan = guarded(sgd_step, needs_plan)

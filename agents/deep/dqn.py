@@ -62,6 +62,8 @@ from jaxmdp import dynamic_programming as dp
 from jaxmdp.agent_interface import Agent, MDPSpec, Transition
 
 __all__ = [
+    "QHParams",
+    "QState",
     "DQNHParams",
     "DQNState",
     "ReplayItem",
@@ -74,19 +76,24 @@ __all__ = [
 ]
 
 
-class DQNHParams(struct.PyTreeNode):
-    """DQN's hyperparameters: numeric leaves (vmappable) and static sizes (module docstring)."""
+class QHParams(struct.PyTreeNode):
+    """The hyperparameters shared by DQN and BootDQN: numeric leaves (vmappable) and static sizes."""
 
     epsilon: float | jax.Array = 0.05
     learning_rate: float | jax.Array = 1e-3
     discount: float | jax.Array = 1.0
     sgd_period: int | jax.Array = 1
     target_update_period: int | jax.Array = 4
-    min_replay: int | jax.Array = 100
     network_width: int = struct.field(pytree_node=False, default=50)
     network_depth: int = struct.field(pytree_node=False, default=2)
     batch_size: int = struct.field(pytree_node=False, default=32)
     replay_capacity: int = struct.field(pytree_node=False, default=10_000)
+
+
+class DQNHParams(QHParams):
+    """DQN's hyperparameters (module docstring): :class:`QHParams` and ``min_replay``."""
+
+    min_replay: int | jax.Array = 100
 
 
 class ReplayItem(struct.PyTreeNode):
@@ -99,9 +106,9 @@ class ReplayItem(struct.PyTreeNode):
     next_obs: jax.Array
 
 
-class DQNState(struct.PyTreeNode):
-    """Online and target parameters, Adam's state, the replay buffer, the step and SGD counters, the emission table
-    (for the policy estimate) and the valid actions."""
+class QState(struct.PyTreeNode):
+    """What DQN and BootDQN both hold: online and target parameters, Adam's state, the replay buffer, the step and
+    SGD counters, the emission table (for the policy estimate) and the valid actions."""
 
     params: Any
     target_params: Any
@@ -111,9 +118,13 @@ class DQNState(struct.PyTreeNode):
     sgd_steps: jax.Array
     observations: jax.Array
     action_mask: jax.Array
-    hparams: DQNHParams
+    hparams: Any
     n_actions: int = struct.field(pytree_node=False)
     episodic: bool = struct.field(pytree_node=False)
+
+
+class DQNState(QState):
+    """DQN's state (:class:`QState` with :class:`DQNHParams`)."""
 
 
 def q_network(hparams: Any, n_actions: int) -> MLP:
@@ -251,19 +262,24 @@ def guarded(sgd: Callable[[jax.Array, Any], Any], due: Callable[[Any], jax.Array
     return lambda key, state: jax.lax.cond(due(state), sgd, lambda k, s: s, key, state)
 
 
-def sgd_step(key: jax.Array, state: DQNState) -> DQNState:
-    """One Adam step of the loss on a uniform batch; the target copies the online network after every
-    ``target_update_period``-th step."""
-    buffer = replay.make(state.hparams.replay_capacity, state.hparams.batch_size)
-    batch = buffer.sample(state.replay, key).experience
-    grads = jax.grad(loss)(state.params, state.target_params, batch, state)
-    params, opt_state = adam_step(state.params, grads, state.opt_state, state.hparams.learning_rate)
-    sgd_steps = state.sgd_steps + 1
-    copy = sgd_steps % state.hparams.target_update_period == 0
-    target = jax.tree.map(lambda p, t: jnp.where(copy, p, t), params, state.target_params)
-    return state.replace(params=params, target_params=target, opt_state=opt_state, sgd_steps=sgd_steps)
+def make_sgd_step(loss_fn: Callable[[Any, Any, Any, Any], jax.Array]) -> Callable[[jax.Array, Any], Any]:
+    """``sgd_step(key, state)``: one Adam step of ``loss_fn(params, target_params, batch, state)`` on a uniform batch
+    from the replay buffer; the target copies the online network after every ``target_update_period``-th step."""
+
+    def sgd_step(key: jax.Array, state: QState) -> QState:
+        hp = state.hparams
+        batch = replay.make(hp.replay_capacity, hp.batch_size).sample(state.replay, key).experience
+        grads = jax.grad(loss_fn)(state.params, state.target_params, batch, state)
+        params, opt_state = adam_step(state.params, grads, state.opt_state, hp.learning_rate)
+        sgd_steps = state.sgd_steps + 1
+        copy = sgd_steps % hp.target_update_period == 0
+        target = jax.tree.map(lambda p, t: jnp.where(copy, p, t), params, state.target_params)
+        return state.replace(params=params, target_params=target, opt_state=opt_state, sgd_steps=sgd_steps)
+
+    return sgd_step
 
 
+sgd_step = make_sgd_step(loss)
 plan = guarded(sgd_step, needs_plan)
 
 
