@@ -1,4 +1,4 @@
-"""Tabular agents as pure functions over pytrees (paper §3.3; spec ``agents.md``).
+"""Tabular and deep agents as pure functions over pytrees (paper §3.3; spec ``agents.md``).
 
 ``AGENTS`` maps each agent's name to its :class:`jaxmdp.agent_interface.Agent`; :func:`get` looks one up.
 """
@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import difflib
 
+from agents.deep.actor_critic import ACTOR_CRITIC_CONTINUOUS, ACTOR_CRITIC_EPISODIC
+from agents.deep.actor_critic_rnn import ACTOR_CRITIC_RNN_CONTINUOUS, ACTOR_CRITIC_RNN_EPISODIC
 from agents.psrl_continuous import PSRL_CONTINUOUS
 from agents.psrl_episodic import PSRL_EPISODIC
 from agents.q_learning_continuous import Q_LEARNING_CONTINUOUS
@@ -25,6 +27,10 @@ AGENTS: dict[str, Agent] = {
         PSRL_EPISODIC,
         PSRL_CONTINUOUS,
         UCRL2,
+        ACTOR_CRITIC_EPISODIC,
+        ACTOR_CRITIC_CONTINUOUS,
+        ACTOR_CRITIC_RNN_EPISODIC,
+        ACTOR_CRITIC_RNN_CONTINUOUS,
     )
 }
 

@@ -1,4 +1,4 @@
-"""Hyperparameter search spaces of the tabular agents and random-search candidates (paper App. D, App. F).
+"""Hyperparameter search spaces of the agents and random-search candidates (paper App. D, App. F).
 
 Each space is the reference's (spec ``agents.md``, "Search space" of every agent): independent uniform ranges over
 the named numeric fields of the agent's hyperparameter pytree; every other field keeps its default. Candidates are
@@ -17,7 +17,11 @@ import numpy as np
 
 from jaxmdp.agent_interface import Agent
 
-__all__ = ["SEARCH_SPACES", "search_space", "sample_candidates"]
+__all__ = ["SEARCH_SPACES", "SIZE_CHOICES", "search_space", "sample_candidates"]
+
+_ACTOR_CRITICS = (
+    "actor_critic_episodic", "actor_critic_continuous", "actor_critic_rnn_episodic", "actor_critic_rnn_continuous"
+)
 
 #: Agent name -> ``{field: (low, high)}``, uniform ranges of agents.md.
 SEARCH_SPACES: Mapping[str, Mapping[str, tuple[float, float]]] = MappingProxyType(
@@ -39,6 +43,20 @@ SEARCH_SPACES: Mapping[str, Mapping[str, tuple[float, float]]] = MappingProxyTyp
         "q_learning_continuous": MappingProxyType(
             {"h_weight": (0.001, 1.1), "span_approx_weight": (0.001, 1.1), "min_at": (0.001, 0.2)}
         ),
+        # The actor-critics (agents.md §7): the reference chooses td_lambda in {0.7, 0.8, 0.9}; here the range
+        # that covers those choices. Their static sizes are in SIZE_CHOICES.
+        **{name: MappingProxyType({"td_lambda": (0.7, 0.9)}) for name in _ACTOR_CRITICS},
+    }
+)
+
+#: Agent name -> ``{static size: choices}`` of agents.md §7. Sizes shape arrays, so a grid cannot vmap over them:
+#: :func:`sample_candidates` leaves them at their defaults, and a search over them runs one grid per combination.
+SIZE_CHOICES: Mapping[str, Mapping[str, tuple[int, ...]]] = MappingProxyType(
+    {
+        name: MappingProxyType(
+            {"width": (64, 128, 256), "depth": (2, 4), "max_sequence_length": (16, 32, 64, 128)}
+        )
+        for name in _ACTOR_CRITICS
     }
 )
 
