@@ -4,7 +4,7 @@ discounting chain) and the checks run on them, shared by ``test_actor_critic.py`
 Every probe has the same shapes (2 states, 3 actions padded to 4, deterministic transitions, episodic ``H = 2``), so
 one compiled run per agent serves all probes. The agent observes a one-hot emission table: ``onehot(s)``
 (continuous) or ``[onehot(h), onehot(s)]`` (episodic). The run is vmapped over a learning-rate grid (``G``) and
-over seeds (``B``) in one program.
+over seeds (``B``) in one batch.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import numpy as np
 
 import jaxmdp
 from agent_loop import make_runner, seeds
-from jaxmdp.agent_interface import Agent
+from jaxmdp.agent_interface import Agent, MDPSpec, Transition, spec_of
 
 S, A, H = 2, 3, 2
 PADDED_A = A + 1
@@ -26,10 +26,10 @@ BANDIT_REWARDS = (0.2, 0.5, 1.0)
 CONSTANT_REWARD = 0.5
 
 
-def probe(kind: str, episodic: bool) -> jaxmdp.MDP:
+def probe(kind: str, episodic: bool, horizon: int = H) -> jaxmdp.MDP:
     """``bandit``: state 0 loops, action ``a`` pays ``BANDIT_REWARDS[a]``; ``constant``: every step pays
     ``CONSTANT_REWARD``; ``chain``: ``0 -> 1 -> 0 ...`` whatever the action, paying 0 in state 0 and 1 in state 1.
-    Start in state 0; action 3 is padding."""
+    Start in state 0; action 3 is padding; episodes of ``horizon`` steps."""
     T, R = np.zeros((S, A, S)), np.zeros((S, A))
     if kind == "bandit":
         T[:, :, 0], R[0] = 1.0, BANDIT_REWARDS
@@ -39,8 +39,8 @@ def probe(kind: str, episodic: bool) -> jaxmdp.MDP:
         T[0, :, 1], T[1, :, 0], R[1] = 1.0, 1.0, 1.0
     else:
         raise ValueError(kind)
-    mdp = jaxmdp.custom_mdp(T, R=R, P0=[1.0, 0.0], H=H if episodic else None)
-    return jaxmdp.pad(mdp, S, PADDED_A, 1, H if episodic else None)
+    mdp = jaxmdp.custom_mdp(T, R=R, P0=[1.0, 0.0], H=horizon if episodic else None)
+    return jaxmdp.pad(mdp, S, PADDED_A, 1, horizon if episodic else None)
 
 
 def emission_table(episodic: bool) -> jax.Array:
@@ -63,9 +63,17 @@ def probe_hparams(agent: Agent):
 
 
 def grid_runner(agent: Agent, n_steps: int):
-    """``run(keys [G, B], mdp, hparams [G], emissions)``: the agent-loop run vmapped over the hyperparameter grid."""
-    run = make_runner(agent, n_steps, trace=True)
-    return jax.jit(jax.vmap(run, in_axes=(0, None, 0, None)))
+    """``run(keys [G, B], mdp, hparams [G], emissions)``: the agent-loop run of the ``G x B`` members (learning rate
+    by seed) as one batch; the results are reshaped to ``[G, B, ...]``."""
+    run = make_runner(agent, n_steps, trace=True, member_hparams=True)
+
+    def grid_run(keys, mdp, hparams, emissions):
+        G, B = keys.shape
+        member_hparams = jax.tree.map(lambda x: jnp.repeat(x, B, axis=0), hparams)
+        result = run(keys.reshape(G * B), mdp, member_hparams, emissions)
+        return jax.tree.map(lambda x: x.reshape(G, B, *x.shape[1:]) if x.ndim else x, result)
+
+    return grid_run
 
 
 def grid_keys(base: int = 0) -> jax.Array:
@@ -100,11 +108,11 @@ def expected_values(kind: str, episodic: bool) -> dict[tuple[int, ...], float]:
 
 
 def check_bandit(result, logits: np.ndarray, policy: np.ndarray) -> None:
-    """Every member's policy concentrates on the best arm (2) at the episode start: softmax probability >= 0.99 and
+    """Every member's policy concentrates on the best arm (2) at the episode start: softmax probability >= 0.95 and
     the policy estimate puts all its mass there; the padded action is never played nor in the policy."""
     lead = (slice(None), slice(None)) + (0,) * (logits.ndim - 3)
     p = jax.nn.softmax(jnp.asarray(logits[lead]), axis=-1)
-    np.testing.assert_array_less(0.99, np.asarray(p[..., 2]))
+    np.testing.assert_array_less(0.95, np.asarray(p[..., 2]))
     np.testing.assert_array_equal(policy[lead][..., 2], 1.0)
     check_never_padded(result, policy)
 
@@ -144,3 +152,65 @@ def check_same_key_same_result(runner, agent: Agent, result) -> None:
     # seeds within a run differ too
     actions = np.asarray(result.actions)
     assert not np.array_equal(actions[0, 0], actions[0, 1])
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Scripted streams and hyperparameter checks
+# ---------------------------------------------------------------------------------------------------------------
+
+BAD_HPARAMS = [
+    ("learning_rate", 0.0),
+    ("learning_rate", float("nan")),
+    ("td_lambda", 1.5),
+    ("discount", -0.1),
+    ("entropy_cost", -1.0),
+    ("width", 0),
+    ("depth", 1.5),
+    ("max_sequence_length", True),
+]
+
+
+STREAM_HORIZON = 8
+
+
+def spec(episodic: bool, obs_dim: int = 3, table: bool = True, horizon: int = H) -> MDPSpec:
+    """The spec of the (padded) bandit probe with episodes of ``horizon`` steps and a random
+    ``[horizon, S, obs_dim]`` / ``[S, obs_dim]`` emission table (or none)."""
+    obs = np.random.default_rng(0).normal(size=(horizon, S, obs_dim) if episodic else (S, obs_dim))
+    table_or_none = jnp.asarray(obs, jnp.float32) if table else None
+    return spec_of(probe("bandit", episodic, horizon), 100).replace(observations=table_or_none)
+
+
+def stream(agent: Agent, hp, terminals: set[int], n: int, obs_dim: int = 3):
+    """Feed ``n`` scripted transitions through ``update`` / ``needs_plan`` / ``plan``, ``terminated`` at the steps in
+    ``terminals`` (random observations; ``next_obs`` is the next step's ``obs`` except after an episode end). The
+    spec's episodes have ``STREAM_HORIZON`` steps, longer than the scripted ones and than the tests' sequences.
+
+    Returns the steps after which the agent learned, the transitions, and the states: ``states[0]`` after ``init``
+    and the initial ``plan``, ``states[t + 1] = (after update, after plan)`` of step ``t``.
+    """
+    stream_spec = spec(agent.episodic, obs_dim, horizon=STREAM_HORIZON)
+    state = agent.plan(jax.random.key(1), agent.init(jax.random.key(0), stream_spec, hp))
+    update, needs, plan = jax.jit(agent.update), jax.jit(agent.needs_plan), jax.jit(agent.plan)
+    rng = np.random.default_rng(0)
+    obs = jnp.asarray(rng.normal(size=obs_dim), jnp.float32)
+    learned, transitions, states = [], [], [state]
+    for t in range(n):
+        next_obs = jnp.asarray(rng.normal(size=obs_dim), jnp.float32)
+        tr = Transition(
+            obs=obs,
+            action=jnp.asarray(t % 2, jnp.int32),
+            reward=jnp.asarray(rng.uniform(), jnp.float32),
+            next_obs=next_obs,
+            h=jnp.asarray(0, jnp.int32),
+            terminated=jnp.asarray(t in terminals),
+        )
+        obs = jnp.asarray(rng.normal(size=obs_dim), jnp.float32) if t in terminals else next_obs
+        updated = update(state, tr)
+        state = updated
+        if bool(needs(updated)):
+            learned.append(t)
+            state = plan(jax.random.key(t), updated)
+        transitions.append(tr)
+        states.append((updated, state))
+    return learned, transitions, states

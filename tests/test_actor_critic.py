@@ -19,7 +19,7 @@ import agents
 from agents.deep import actor_critic as ac
 from agents.deep import policy_gradient as pg
 from agents.search_spaces import SEARCH_SPACES, SIZE_CHOICES, sample_candidates
-from jaxmdp.agent_interface import MDPSpec, Transition, spec_of
+from jaxmdp.agent_interface import Transition
 
 AC_NAMES = ("actor_critic_episodic", "actor_critic_continuous")
 
@@ -171,13 +171,6 @@ def test_sampling_follows_the_softmax_and_never_a_padded_action():
 # ---------------------------------------------------------------------------------------------------------------
 
 
-def _spec(episodic: bool, obs_dim: int = 3, table: bool = True) -> MDPSpec:
-    mdp = probes.probe("bandit", episodic)
-    spec = spec_of(mdp, 100)
-    obs = jnp.asarray(np.random.default_rng(0).normal(size=(probes.H, 2, obs_dim) if episodic else (2, obs_dim)))
-    return spec.replace(observations=obs if table else None)
-
-
 def test_registered_with_defaults_and_search_space():
     for name in AC_NAMES + ("actor_critic_rnn_episodic", "actor_critic_rnn_continuous"):
         agent = agents.get(name)
@@ -195,27 +188,15 @@ def test_registered_with_defaults_and_search_space():
 def test_init_needs_an_emission_table_of_the_right_setting():
     agent = agents.get("actor_critic_episodic")
     with pytest.raises(ValueError, match=r"jaxmdp.block_mdp\(mdp, 'state_info'\)"):
-        agent.init(jax.random.key(0), _spec(True, table=False), agent.default_hparams)
+        agent.init(jax.random.key(0), probes.spec(True, table=False), agent.default_hparams)
     with pytest.raises(ValueError, match="episodic"):
-        agent.init(jax.random.key(0), _spec(False), agent.default_hparams)
-    spec = _spec(True)
+        agent.init(jax.random.key(0), probes.spec(False), agent.default_hparams)
+    spec = probes.spec(True)
     with pytest.raises(ValueError, match=r"\[H, S, \*obs\]"):
         agent.init(jax.random.key(0), spec.replace(observations=spec.observations[0]), agent.default_hparams)
 
 
-BAD_HPARAMS = [
-    ("learning_rate", 0.0),
-    ("learning_rate", float("nan")),
-    ("td_lambda", 1.5),
-    ("discount", -0.1),
-    ("entropy_cost", -1.0),
-    ("width", 0),
-    ("depth", 1.5),
-    ("max_sequence_length", True),
-]
-
-
-@pytest.mark.parametrize(("field", "value"), BAD_HPARAMS)
+@pytest.mark.parametrize(("field", "value"), probes.BAD_HPARAMS)
 def test_bad_hyperparameters_are_rejected(field, value):
     for name in AC_NAMES:
         agent = agents.get(name)
@@ -224,50 +205,34 @@ def test_bad_hyperparameters_are_rejected(field, value):
     agent.check_hparams(agent.default_hparams.replace(learning_rate=np.asarray([1e-3, 1e-2])))  # a grid is fine
 
 
-def _stream(agent, hp, terminals, n, obs_dim=3):
-    """Feed ``n`` scripted transitions (``terminated`` at the steps in ``terminals``) through update / needs_plan /
-    plan; return the steps after which the agent learned, and the states after each step."""
-    spec = _spec(agent.episodic, obs_dim=obs_dim)
-    state = agent.plan(jax.random.key(1), agent.init(jax.random.key(0), spec, hp))
-    update, needs, plan = jax.jit(agent.update), jax.jit(agent.needs_plan), jax.jit(agent.plan)
-    rng = np.random.default_rng(0)
-    learned, states = [], [state]
-    for t in range(n):
-        tr = Transition(
-            obs=jnp.asarray(rng.normal(size=obs_dim), jnp.float32),
-            action=jnp.asarray(t % 2, jnp.int32),
-            reward=jnp.asarray(rng.uniform(), jnp.float32),
-            next_obs=jnp.asarray(rng.normal(size=obs_dim), jnp.float32),
-            h=jnp.asarray(0, jnp.int32),
-            terminated=jnp.asarray(t in terminals),
-        )
-        state = update(state, tr)
-        if bool(needs(state)):
-            learned.append(t)
-            state = plan(jax.random.key(t), state)
-        states.append(state)
-    return learned, states
-
-
 @pytest.mark.parametrize("name", AC_NAMES)
 def test_learning_steps_happen_exactly_at_buffer_full_or_episode_end(name):
     agent = agents.get(name)
     hp = agent.default_hparams.replace(width=8, depth=1, max_sequence_length=3)
-    learned, states = _stream(agent, hp, terminals={1, 6}, n=12)
+    learned, _, states = probes.stream(agent, hp, terminals={1, 6}, n=12)
     # L = 3, episode ends after steps 1 and 6: episodic learns after 1 (end), 4 (full), 6 (end), 9 (full); the
     # continuous agent never sees an episode end: every third step.
     assert learned == ([1, 4, 6, 9] if agent.episodic else [2, 5, 8, 11])
-    assert [int(s.n_updates) for s in states[1:]] == [sum(t <= u for t in learned) for u in range(12)]
+    after = [plan_state for _, plan_state in states[1:]]
+    assert [int(s.n_updates) for s in after] == [sum(t <= u for t in learned) for u in range(12)]
     for t in range(12):  # the parameters change exactly at the learning steps; the buffer restarts there
-        before, after = states[t], states[t + 1]
-        changed = any(not np.array_equal(a, b) for a, b in zip(jax.tree.leaves(before.params), jax.tree.leaves(after.params)))
+        before = states[0] if t == 0 else after[t - 1]
+        pairs = zip(jax.tree.leaves(before.params), jax.tree.leaves(after[t].params), strict=True)
+        changed = any(not np.array_equal(a, b) for a, b in pairs)
         assert changed == (t in learned)
-        assert int(after.buffer.count) == (0 if t in learned else int(before.buffer.count) + 1)
+        assert int(after[t].buffer.count) == (0 if t in learned else int(before.buffer.count) + 1)
+
+
+def test_episodic_buffer_holds_at_most_an_episode():
+    for name, length in (("actor_critic_episodic", 2), ("actor_critic_continuous", 32), ("actor_critic_rnn_episodic", 2)):
+        agent = agents.get(name)
+        state = agent.init(jax.random.key(0), probes.spec(agent.episodic), agent.default_hparams.replace(width=4))
+        assert state.buffer.max_length == length and state.buffer.observations.shape == (length + 1, 3)
 
 
 def test_plan_is_a_no_op_when_no_learning_step_is_due():
     agent = agents.get("actor_critic_continuous")
-    state = agent.init(jax.random.key(0), _spec(False), agent.default_hparams.replace(width=8, depth=1))
+    state = agent.init(jax.random.key(0), probes.spec(False), agent.default_hparams.replace(width=8, depth=1))
     again = agent.plan(jax.random.key(1), state)
     for a, b in zip(jax.tree.leaves(state), jax.tree.leaves(again), strict=True):
         np.testing.assert_array_equal(a, b)
@@ -278,7 +243,7 @@ def test_a_learning_step_moves_value_and_policy_towards_the_return():
     the other observation's outputs barely move."""
     agent = agents.get("actor_critic_episodic")
     hp = agent.default_hparams.replace(width=8, depth=1, learning_rate=1e-2)
-    spec = _spec(True)
+    spec = probes.spec(True)
     state = agent.init(jax.random.key(0), spec, hp)
     o = spec.observations[0, 0]
     for reward, sign in ((1.0, 1.0), (-1.0, -1.0)):
@@ -292,14 +257,15 @@ def test_a_learning_step_moves_value_and_policy_towards_the_return():
 @pytest.mark.parametrize("name", AC_NAMES)
 def test_policy_estimate_is_read_from_the_emission_table(name):
     agent = agents.get(name)
-    spec = _spec(agent.episodic)
+    spec = probes.spec(agent.episodic)
     state = agent.init(jax.random.key(0), spec, agent.default_hparams.replace(width=8, depth=1))
     pi = agent.policy(state)
     lead = (probes.H, 2) if agent.episodic else (2,)
     assert pi.shape == (*lead, probes.PADDED_A)
     rows = spec.observations.reshape(-1, 3)
     z = jax.vmap(lambda o: state.net.apply(state.params, o)[0])(rows)[:, : probes.A]
-    np.testing.assert_array_equal(np.asarray(pi).reshape(-1, probes.PADDED_A)[:, : probes.A], np.eye(probes.A)[np.argmax(z, -1)])
+    greedy = np.eye(probes.A)[np.argmax(z, -1)]
+    np.testing.assert_array_equal(np.asarray(pi).reshape(-1, probes.PADDED_A)[:, : probes.A], greedy)
     np.testing.assert_array_equal(pi[..., probes.A], 0.0)
 
 

@@ -4,12 +4,13 @@
 Network: observation -> flatten -> MLP ``[width] * depth`` (ReLU, final layer activated) -> a linear policy head
 (``A`` logits, padded actions at ``-inf``) and a linear value head. Actions are sampled from ``softmax(logits)``.
 
-Learning: ``update`` appends the step to a trajectory buffer of ``max_sequence_length`` steps; when it is full or
-(episodic only) the episode ended, ``needs_plan`` turns true and ``plan`` does one Adam step of the actor-critic
-loss on the buffer and empties it. Learning is a ``plan`` step so that the runner's batch-level ``lax.cond`` skips
-it at the steps where no member's buffer is due (inside ``plan`` a ``lax.cond`` on ``due`` keeps the post-``init``
-call, and any call on a buffer not due, a no-op). The continuous agent never sees an episode end (as the reference,
-whose wrapper never declares one): it learns every ``max_sequence_length`` steps and bootstraps across them.
+Learning: ``update`` appends the step to a trajectory buffer of ``max_sequence_length`` steps (episodic: at most
+``H``, an episode's length); when it is full or (episodic only) the episode ended, ``needs_plan`` turns true and
+``plan`` does one Adam step of the actor-critic loss on the buffer and empties it. Learning is a ``plan`` step so
+that the runner's batch-level ``lax.cond`` skips it at the steps where no member's buffer is due (inside ``plan`` a
+``lax.cond`` on ``due`` keeps the post-``init`` call, and any call on a buffer not due, a no-op). The continuous
+agent never sees an episode end (as the reference, whose wrapper never declares one): it learns every
+``max_sequence_length`` steps and bootstraps across them.
 
 Policy estimate (for regret): the network on every row of the noiseless emission table ``spec.observations``
 (episodic: every ``(h, s)``, ``[H, S, A]``; continuous ``[S, A]``), every arg-max logit marked with 1 and the row
@@ -96,11 +97,12 @@ def init(key: jax.Array, spec: MDPSpec, hparams: ActorCriticHParams, *, episodic
     table, obs_shape = pg.observation_table(spec, episodic, name)
     net = PolicyValueNet(hparams.width, hparams.depth, spec.n_actions)
     params = net.init(key, jnp.zeros(obs_shape, table.dtype))
+    length = pg.buffer_length(hparams.max_sequence_length, spec, episodic)
     hparams = pg.float_hparams(hparams)
     return ActorCriticState(
         params=params,
         opt_state=pg.make_optimizer(hparams).init(params),
-        buffer=pg.empty_trajectory(hparams.max_sequence_length, obs_shape, table.dtype),
+        buffer=pg.empty_trajectory(length, obs_shape, table.dtype),
         observations=table,
         action_mask=spec.action_mask,
         hparams=hparams,

@@ -102,11 +102,12 @@ def init(
     net = PolicyValueRNN(hparams.width, hparams.depth, spec.n_actions)
     carry = zero_carry(hparams.width)
     params = net.init(key, carry, jnp.zeros(obs_shape, table.dtype))
+    length = pg.buffer_length(hparams.max_sequence_length, spec, episodic)
     hparams = pg.float_hparams(hparams)
     return ActorCriticRNNState(
         params=params,
         opt_state=pg.make_optimizer(hparams).init(params),
-        buffer=pg.empty_trajectory(hparams.max_sequence_length, obs_shape, table.dtype),
+        buffer=pg.empty_trajectory(length, obs_shape, table.dtype),
         observations=table,
         action_mask=spec.action_mask,
         hparams=hparams,

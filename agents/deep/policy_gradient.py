@@ -33,6 +33,7 @@ from jaxmdp.agent_interface import MDPSpec, Transition
 
 __all__ = [
     "Trajectory",
+    "buffer_length",
     "empty_trajectory",
     "append",
     "lambda_returns",
@@ -72,6 +73,13 @@ class Trajectory(struct.PyTreeNode):
     @property
     def max_length(self) -> int:
         return self.actions.shape[0]
+
+
+def buffer_length(max_sequence_length: int, spec: MDPSpec, episodic: bool) -> int:
+    """The buffer's size: ``max_sequence_length``, or for an episodic agent ``min(max_sequence_length, H)`` (the
+    static episode length): an episode never has more steps, so the learning steps are the same and a learning step
+    does not compute the network on stale rows that can never be valid."""
+    return min(max_sequence_length, spec.H) if episodic else max_sequence_length
 
 
 def empty_trajectory(max_length: int, obs_shape: tuple[int, ...], obs_dtype: Any) -> Trajectory:
