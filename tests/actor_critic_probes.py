@@ -12,7 +12,9 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
+import agents
 import jaxmdp
 from agent_loop import make_runner, seeds
 from jaxmdp.agent_interface import Agent, MDPSpec, Transition, spec_of
@@ -107,6 +109,72 @@ def expected_values(kind: str, episodic: bool) -> dict[tuple[int, ...], float]:
     return {(0, 0): g, (1, 1): 1.0} if episodic else {(0,): g / (1 - g**2), (1,): 1 / (1 - g**2)}
 
 
+N_STEPS = {True: 2000, False: 4000}  # episodic: 1000 learning steps; continuous: 500
+
+
+def probe_run_fixture(names: tuple[str, ...]):
+    """A module-scoped fixture ``probe_run`` over the agents ``names``: ``(agent, runner, bandit result)``, one
+    compiled grid run per agent."""
+
+    @pytest.fixture(scope="module", params=names)
+    def probe_run(request):
+        agent = agents.get(request.param)
+        runner = grid_runner(agent, N_STEPS[agent.episodic])
+        return agent, runner, run_probe(runner, agent, "bandit")
+
+    return probe_run
+
+
+class ProbeLearning:
+    """The learning tests on the probes, shared by the actor-critic test files: a subclass ``Test...`` sets
+    ``outputs(state, kind, episodic) -> (logits [G, B, *lead, A], values [G, B, *lead])`` (the on-policy rows at
+    least) and ``atol``; the file defines ``probe_run = probe_run_fixture(names)``."""
+
+    atol: float
+
+    @staticmethod
+    def outputs(state, kind: str, episodic: bool) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    def test_bandit_policy_concentrates_on_the_best_arm(self, probe_run):
+        agent, _, result = probe_run
+        logits, values = self.outputs(result.state, "bandit", agent.episodic)
+        policy = np.asarray(jax.vmap(jax.vmap(agent.policy))(result.state))
+        check_bandit(result, logits, policy)
+        check_values(values, "bandit", agent.episodic, self.atol)
+
+    @pytest.mark.parametrize("kind", ["constant", "chain"])
+    def test_values_converge_to_the_discounted_values(self, probe_run, kind):
+        agent, runner, _ = probe_run
+        result = run_probe(runner, agent, kind)
+        _, values = self.outputs(result.state, kind, agent.episodic)
+        check_values(values, kind, agent.episodic, self.atol)
+        check_never_padded(result, np.asarray(jax.vmap(jax.vmap(agent.policy))(result.state)))
+
+    def test_grid_members_are_independent(self, probe_run):
+        """Reversing the learning-rate grid reverses the members' results (each member uses its own rate and
+        nothing else of the batch), and the two rates give different parameters."""
+        agent, runner, result = probe_run
+        hp = probe_hparams(agent)
+        flipped = run_probe(runner, agent, "bandit", hp.replace(learning_rate=hp.learning_rate[::-1]))
+        for a, b in zip(jax.tree.leaves(result.state.params), jax.tree.leaves(flipped.state.params), strict=True):
+            np.testing.assert_allclose(np.asarray(a)[::-1], np.asarray(b), rtol=1e-5, atol=1e-6)
+        leaves = jax.tree.leaves(result.state.params)
+        assert any(not np.allclose(x[0], x[1]) for x in map(np.asarray, leaves))
+
+    def test_same_key_same_result(self, probe_run):
+        """Same keys, same run (bit for bit); other keys, other actions; the seeds of a run differ."""
+        agent, runner, result = probe_run
+        again = run_probe(runner, agent, "bandit")
+        np.testing.assert_array_equal(np.asarray(again.actions), np.asarray(result.actions))
+        for a, b in zip(jax.tree.leaves(again.state), jax.tree.leaves(result.state), strict=True):
+            np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+        other = run_probe(runner, agent, "bandit", base=1)
+        assert not np.array_equal(np.asarray(other.actions), np.asarray(result.actions))
+        actions = np.asarray(result.actions)
+        assert not np.array_equal(actions[0, 0], actions[0, 1])
+
+
 def check_bandit(result, logits: np.ndarray, policy: np.ndarray) -> None:
     """Every member's policy concentrates on the best arm (2) at the episode start: softmax probability >= 0.95 and
     the policy estimate puts all its mass there; the padded action is never played nor in the policy."""
@@ -130,45 +198,9 @@ def check_values(values: np.ndarray, kind: str, episodic: bool, atol: float) -> 
         np.testing.assert_allclose(values[(slice(None), slice(None)) + index], v, atol=atol, err_msg=f"{kind} {index}")
 
 
-def check_grid_members_independent(runner, agent: Agent, result) -> None:
-    """Reversing the learning-rate grid reverses the members' results (each member uses its own rate and nothing
-    else of the batch), and the two rates give different parameters."""
-    hp = probe_hparams(agent)
-    flipped = run_probe(runner, agent, "bandit", hp.replace(learning_rate=hp.learning_rate[::-1]))
-    for a, b in zip(jax.tree.leaves(result.state.params), jax.tree.leaves(flipped.state.params), strict=True):
-        np.testing.assert_allclose(np.asarray(a)[::-1], np.asarray(b), rtol=1e-5, atol=1e-6)
-    leaves = jax.tree.leaves(result.state.params)
-    assert any(not np.allclose(x[0], x[1]) for x in map(np.asarray, leaves))
-
-
-def check_same_key_same_result(runner, agent: Agent, result) -> None:
-    """Same keys, same run (bit for bit); other keys, other actions."""
-    again = run_probe(runner, agent, "bandit")
-    np.testing.assert_array_equal(np.asarray(again.actions), np.asarray(result.actions))
-    for a, b in zip(jax.tree.leaves(again.state), jax.tree.leaves(result.state), strict=True):
-        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
-    other = run_probe(runner, agent, "bandit", base=1)
-    assert not np.array_equal(np.asarray(other.actions), np.asarray(result.actions))
-    # seeds within a run differ too
-    actions = np.asarray(result.actions)
-    assert not np.array_equal(actions[0, 0], actions[0, 1])
-
-
 # ---------------------------------------------------------------------------------------------------------------
-# Scripted streams and hyperparameter checks
+# Scripted streams
 # ---------------------------------------------------------------------------------------------------------------
-
-BAD_HPARAMS = [
-    ("learning_rate", 0.0),
-    ("learning_rate", float("nan")),
-    ("td_lambda", 1.5),
-    ("discount", -0.1),
-    ("entropy_cost", -1.0),
-    ("width", 0),
-    ("depth", 1.5),
-    ("max_sequence_length", True),
-]
-
 
 STREAM_HORIZON = 8
 

@@ -22,6 +22,7 @@ from agents.search_spaces import SEARCH_SPACES, SIZE_CHOICES, sample_candidates
 from jaxmdp.agent_interface import Transition
 
 AC_NAMES = ("actor_critic_episodic", "actor_critic_continuous")
+ALL_NAMES = AC_NAMES + ("actor_critic_rnn_episodic", "actor_critic_rnn_continuous")
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -172,7 +173,7 @@ def test_sampling_follows_the_softmax_and_never_a_padded_action():
 
 
 def test_registered_with_defaults_and_search_space():
-    for name in AC_NAMES + ("actor_critic_rnn_episodic", "actor_critic_rnn_continuous"):
+    for name in ALL_NAMES:
         agent = agents.get(name)
         assert agent.observation == "emission" and agent.episodic == name.endswith("episodic")
         hp = agent.default_hparams
@@ -196,9 +197,21 @@ def test_init_needs_an_emission_table_of_the_right_setting():
         agent.init(jax.random.key(0), spec.replace(observations=spec.observations[0]), agent.default_hparams)
 
 
-@pytest.mark.parametrize(("field", "value"), probes.BAD_HPARAMS)
+BAD_HPARAMS = [
+    ("learning_rate", 0.0),
+    ("learning_rate", float("nan")),
+    ("td_lambda", 1.5),
+    ("discount", -0.1),
+    ("entropy_cost", -1.0),
+    ("width", 0),
+    ("depth", 1.5),
+    ("max_sequence_length", True),
+]
+
+
+@pytest.mark.parametrize(("field", "value"), BAD_HPARAMS)
 def test_bad_hyperparameters_are_rejected(field, value):
-    for name in AC_NAMES:
+    for name in ALL_NAMES:
         agent = agents.get(name)
         with pytest.raises(ValueError, match=field):
             agent.check_hparams(agent.default_hparams.replace(**{field: value}))
@@ -224,7 +237,8 @@ def test_learning_steps_happen_exactly_at_buffer_full_or_episode_end(name):
 
 
 def test_episodic_buffer_holds_at_most_an_episode():
-    for name, length in (("actor_critic_episodic", 2), ("actor_critic_continuous", 32), ("actor_critic_rnn_episodic", 2)):
+    # probes.spec: episodes of H = 2 steps; the default sequence length is 32
+    for name, length in zip(ALL_NAMES, (2, 32, 2, 32), strict=True):
         agent = agents.get(name)
         state = agent.init(jax.random.key(0), probes.spec(agent.episodic), agent.default_hparams.replace(width=4))
         assert state.buffer.max_length == length and state.buffer.observations.shape == (length + 1, 3)
@@ -273,39 +287,16 @@ def test_policy_estimate_is_read_from_the_emission_table(name):
 # learning on probes (one compiled run per agent; vmapped over a learning-rate grid and seeds)
 # ---------------------------------------------------------------------------------------------------------------
 
-N_STEPS = {True: 2000, False: 4000}
+probe_run = probes.probe_run_fixture(AC_NAMES)
 
 
-@pytest.fixture(scope="module", params=AC_NAMES)
-def probe_run(request):
-    agent = agents.get(request.param)
-    runner = probes.grid_runner(agent, N_STEPS[agent.episodic])
-    return agent, runner, probes.run_probe(runner, agent, "bandit")
+class TestProbeLearning(probes.ProbeLearning):
+    """Bandit, constant reward, discounting chain (values on the emission table), members of the learning-rate
+    grid independent, same key same result."""
 
+    atol = 0.02
 
-def test_bandit_policy_concentrates_on_the_best_arm(probe_run):
-    agent, _, result = probe_run
-    logits, values = probes.evaluate_grid(ac.evaluate, result.state)
-    policy = np.asarray(jax.vmap(jax.vmap(agent.policy))(result.state))
-    probes.check_bandit(result, logits, policy)
-    probes.check_values(values, "bandit", agent.episodic, atol=0.02)
-
-
-@pytest.mark.parametrize("kind", ["constant", "chain"])
-def test_values_converge_to_the_discounted_values(probe_run, kind):
-    agent, runner, _ = probe_run
-    result = probes.run_probe(runner, agent, kind)
-    _, values = probes.evaluate_grid(ac.evaluate, result.state)
-    probes.check_values(values, kind, agent.episodic, atol=0.02)
-    policy = np.asarray(jax.vmap(jax.vmap(agent.policy))(result.state))
-    probes.check_never_padded(result, policy)
-
-
-def test_grid_members_are_independent(probe_run):
-    agent, runner, result = probe_run
-    probes.check_grid_members_independent(runner, agent, result)
-
-
-def test_same_key_same_result(probe_run):
-    agent, runner, result = probe_run
-    probes.check_same_key_same_result(runner, agent, result)
+    @staticmethod
+    def outputs(state, kind, episodic):
+        del kind, episodic
+        return probes.evaluate_grid(ac.evaluate, state)

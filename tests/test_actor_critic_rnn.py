@@ -126,12 +126,13 @@ def test_policy_estimate_uses_a_fresh_lstm_state(scripted):
     assert agent.policy(state).shape == (*lead, probes.PADDED_A)
 
 
-@pytest.mark.parametrize(("field", "value"), [*probes.BAD_HPARAMS, ("max_grad_norm", 0.0)])
-def test_bad_hyperparameters_are_rejected(field, value):
+@pytest.mark.parametrize("value", [0.0, -1.0, float("inf")])
+def test_bad_clip_norm_is_rejected(value):
+    """(The other hyperparameters' checks, shared with the feed-forward agents, are in test_actor_critic.py.)"""
     for name in RNN_NAMES:
         agent = agents.get(name)
-        with pytest.raises(ValueError, match=field):
-            agent.check_hparams(agent.default_hparams.replace(**{field: value}))
+        with pytest.raises(ValueError, match="max_grad_norm"):
+            agent.check_hparams(agent.default_hparams.replace(max_grad_norm=value))
 
 
 def test_init_needs_an_emission_table():
@@ -144,14 +145,7 @@ def test_init_needs_an_emission_table():
 # learning on probes (one compiled run per agent; vmapped over a learning-rate grid and seeds)
 # ---------------------------------------------------------------------------------------------------------------
 
-N_STEPS = {True: 2000, False: 4000}
-
-
-@pytest.fixture(scope="module", params=RNN_NAMES)
-def probe_run(request):
-    agent = agents.get(request.param)
-    runner = probes.grid_runner(agent, N_STEPS[agent.episodic])
-    return agent, runner, probes.run_probe(runner, agent, "bandit")
+probe_run = probes.probe_run_fixture(RNN_NAMES)
 
 
 def on_policy_outputs(state, kind: str, episodic: bool):
@@ -177,28 +171,9 @@ def on_policy_outputs(state, kind: str, episodic: bool):
     return z, v
 
 
-def test_bandit_policy_concentrates_on_the_best_arm(probe_run):
-    agent, _, result = probe_run
-    logits, values = on_policy_outputs(result.state, "bandit", agent.episodic)
-    policy = np.asarray(jax.vmap(jax.vmap(agent.policy))(result.state))
-    probes.check_bandit(result, logits, policy)
-    probes.check_values(values, "bandit", agent.episodic, atol=0.05)
+class TestProbeLearning(probes.ProbeLearning):
+    """Bandit, constant reward, discounting chain (values along the on-policy path), members of the learning-rate
+    grid independent, same key same result."""
 
-
-@pytest.mark.parametrize("kind", ["constant", "chain"])
-def test_values_converge_to_the_discounted_values(probe_run, kind):
-    agent, runner, _ = probe_run
-    result = probes.run_probe(runner, agent, kind)
-    _, values = on_policy_outputs(result.state, kind, agent.episodic)
-    probes.check_values(values, kind, agent.episodic, atol=0.05)
-    probes.check_never_padded(result, np.asarray(jax.vmap(jax.vmap(agent.policy))(result.state)))
-
-
-def test_grid_members_are_independent(probe_run):
-    agent, runner, result = probe_run
-    probes.check_grid_members_independent(runner, agent, result)
-
-
-def test_same_key_same_result(probe_run):
-    agent, runner, result = probe_run
-    probes.check_same_key_same_result(runner, agent, result)
+    atol = 0.05
+    outputs = staticmethod(on_policy_outputs)

@@ -25,6 +25,8 @@ Defaults: bsuite's (MLP ``[64, 64]``, sequence 32, ``lambda = 0.9``, discount 0.
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
+from typing import Any
 
 import flax.linen as nn
 import jax
@@ -40,6 +42,7 @@ __all__ = [
     "ActorCriticState",
     "PolicyValueNet",
     "evaluate",
+    "make_agent",
     "ACTOR_CRITIC_EPISODIC",
     "ACTOR_CRITIC_CONTINUOUS",
 ]
@@ -93,13 +96,17 @@ def check_hparams(hparams: ActorCriticHParams) -> None:
     pg.check_common_hparams(hparams)
 
 
-def init(key: jax.Array, spec: MDPSpec, hparams: ActorCriticHParams, *, episodic: bool, name: str) -> ActorCriticState:
+def initial_state(
+    cls: type, key: jax.Array, spec: MDPSpec, hparams: Any, net: nn.Module, init_params: Callable, *,
+    episodic: bool, name: str, **extra: Any,
+) -> Any:
+    """A fresh ``cls`` state: parameters ``init_params(key, observation)`` (an all-zero observation of the table's
+    shape), Adam state, an empty buffer, the emission table; ``extra`` fields as given."""
     table, obs_shape = pg.observation_table(spec, episodic, name)
-    net = PolicyValueNet(hparams.width, hparams.depth, spec.n_actions)
-    params = net.init(key, jnp.zeros(obs_shape, table.dtype))
+    params = init_params(key, jnp.zeros(obs_shape, table.dtype))
     length = pg.buffer_length(hparams.max_sequence_length, spec, episodic)
     hparams = pg.float_hparams(hparams)
-    return ActorCriticState(
+    return cls(
         params=params,
         opt_state=pg.make_optimizer(hparams).init(params),
         buffer=pg.empty_trajectory(length, obs_shape, table.dtype),
@@ -109,7 +116,13 @@ def init(key: jax.Array, spec: MDPSpec, hparams: ActorCriticHParams, *, episodic
         n_updates=jnp.zeros((), jnp.int32),
         net=net,
         episodic=episodic,
+        **extra,
     )
+
+
+def init(key: jax.Array, spec: MDPSpec, hparams: ActorCriticHParams, *, episodic: bool, name: str) -> ActorCriticState:
+    net = PolicyValueNet(hparams.width, hparams.depth, spec.n_actions)
+    return initial_state(ActorCriticState, key, spec, hparams, net, net.init, episodic=episodic, name=name)
 
 
 def act(key: jax.Array, state: ActorCriticState, obs: jax.Array, h: jax.Array) -> jax.Array:
@@ -120,7 +133,7 @@ def act(key: jax.Array, state: ActorCriticState, obs: jax.Array, h: jax.Array) -
 
 
 def update(state: ActorCriticState, tr: Transition) -> ActorCriticState:
-    """Append the step to the buffer (learning happens in :func:`plan`)."""
+    """Append the step to the buffer (learning happens in ``plan``)."""
     return state.replace(buffer=pg.append(state.buffer, tr, state.episodic))
 
 
@@ -129,18 +142,17 @@ def needs_plan(state) -> jax.Array:
     return state.buffer.due
 
 
-def _learn(state: ActorCriticState) -> ActorCriticState:
-    forward = lambda p: jax.vmap(lambda o: state.net.apply(p, o))(state.buffer.observations)  # noqa: E731
+def learning_step(state, forward) -> ActorCriticState:
+    """``state`` after one learning step on its buffer (:func:`agents.deep.policy_gradient.learn`) with the
+    network outputs ``forward(params)`` on the buffer's observations; the buffer restarts."""
     params, opt_state = pg.learn(state.params, state.opt_state, state.buffer, forward, state.hparams, state.action_mask)
     return state.replace(
         params=params, opt_state=opt_state, buffer=pg.restart(state.buffer), n_updates=state.n_updates + 1
     )
 
 
-def plan(key: jax.Array, state: ActorCriticState) -> ActorCriticState:
-    """One learning step on the buffer when it is due (module docstring); otherwise ``state`` unchanged."""
-    del key
-    return jax.lax.cond(state.buffer.due, _learn, lambda s: s, state)
+def _learn(state: ActorCriticState) -> ActorCriticState:
+    return learning_step(state, lambda p: jax.vmap(lambda o: state.net.apply(p, o))(state.buffer.observations))
 
 
 def table_rows(state) -> tuple[jax.Array, tuple[int, ...]]:
@@ -158,27 +170,41 @@ def evaluate(state: ActorCriticState) -> tuple[jax.Array, jax.Array]:
     return pg.masked_logits(logits, state.action_mask).reshape(*lead, -1), values.reshape(lead)
 
 
-def policy(state) -> jax.Array:
+def _plan(learn: Callable, key: jax.Array, state):
+    """One learning step on the buffer when it is due (module docstring); otherwise ``state`` unchanged."""
+    del key
+    return jax.lax.cond(state.buffer.due, learn, lambda s: s, state)
+
+
+def _policy(evaluate: Callable, state) -> jax.Array:
     """Arg-max logits of every table row marked and normalised (module docstring)."""
     return pg.argmax_policy(evaluate(state)[0], state.action_mask)
 
 
-def _make(episodic: bool) -> Agent:
-    name = "actor_critic_episodic" if episodic else "actor_critic_continuous"
+def make_agent(
+    name: str, episodic: bool, default_hparams: Any, init: Callable, act: Callable, update: Callable,
+    learn: Callable, evaluate: Callable,
+) -> Agent:
+    """An actor-critic :class:`Agent` (``observation="emission"``): ``plan`` runs ``learn(state)`` when the buffer
+    is due, ``policy`` marks the arg-max logits of ``evaluate(state)``."""
     return Agent(
         name=name,
         episodic=episodic,
-        default_hparams=ActorCriticHParams(),
+        default_hparams=default_hparams,
         init=functools.partial(init, episodic=episodic, name=name),
         act=act,
         update=update,
-        policy=policy,
+        policy=functools.partial(_policy, evaluate),
         needs_plan=needs_plan,
-        plan=plan,
+        plan=functools.partial(_plan, learn),
         check_hparams=check_hparams,
         observation="emission",
     )
 
 
-ACTOR_CRITIC_EPISODIC = _make(True)
-ACTOR_CRITIC_CONTINUOUS = _make(False)
+ACTOR_CRITIC_EPISODIC = make_agent(
+    "actor_critic_episodic", True, ActorCriticHParams(), init, act, update, _learn, evaluate
+)
+ACTOR_CRITIC_CONTINUOUS = make_agent(
+    "actor_critic_continuous", False, ActorCriticHParams(), init, act, update, _learn, evaluate
+)

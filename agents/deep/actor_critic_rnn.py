@@ -29,17 +29,22 @@ episodic wrapper replaces an out-of-range sampled action by a uniform one; here 
 
 from __future__ import annotations
 
-import functools
-
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
 from flax import struct
 
 from agents.deep import policy_gradient as pg
-from agents.deep.actor_critic import ActorCriticHParams, ActorCriticState, check_hparams, needs_plan, table_rows
+from agents.deep.actor_critic import (
+    ActorCriticHParams,
+    ActorCriticState,
+    initial_state,
+    learning_step,
+    make_agent,
+    table_rows,
+)
 from agents.deep.networks import MLP
-from jaxmdp.agent_interface import Agent, MDPSpec, Transition
+from jaxmdp.agent_interface import MDPSpec, Transition
 
 __all__ = [
     "ActorCriticRNNHParams",
@@ -98,24 +103,11 @@ def unroll(net: PolicyValueRNN, params: dict, carry: LSTMCarry, observations: ja
 def init(
     key: jax.Array, spec: MDPSpec, hparams: ActorCriticRNNHParams, *, episodic: bool, name: str
 ) -> ActorCriticRNNState:
-    table, obs_shape = pg.observation_table(spec, episodic, name)
     net = PolicyValueRNN(hparams.width, hparams.depth, spec.n_actions)
     carry = zero_carry(hparams.width)
-    params = net.init(key, carry, jnp.zeros(obs_shape, table.dtype))
-    length = pg.buffer_length(hparams.max_sequence_length, spec, episodic)
-    hparams = pg.float_hparams(hparams)
-    return ActorCriticRNNState(
-        params=params,
-        opt_state=pg.make_optimizer(hparams).init(params),
-        buffer=pg.empty_trajectory(length, obs_shape, table.dtype),
-        observations=table,
-        action_mask=spec.action_mask,
-        hparams=hparams,
-        n_updates=jnp.zeros((), jnp.int32),
-        net=net,
-        episodic=episodic,
-        carry=carry,
-        start_carry=carry,
+    return initial_state(
+        ActorCriticRNNState, key, spec, hparams, net, lambda k, o: net.init(k, carry, o),
+        episodic=episodic, name=name, carry=carry, start_carry=carry,
     )
 
 
@@ -137,20 +129,7 @@ def update(state: ActorCriticRNNState, tr: Transition) -> ActorCriticRNNState:
 
 def _learn(state: ActorCriticRNNState) -> ActorCriticRNNState:
     forward = lambda p: unroll(state.net, p, state.start_carry, state.buffer.observations)[1]  # noqa: E731
-    params, opt_state = pg.learn(state.params, state.opt_state, state.buffer, forward, state.hparams, state.action_mask)
-    return state.replace(
-        params=params,
-        opt_state=opt_state,
-        buffer=pg.restart(state.buffer),
-        n_updates=state.n_updates + 1,
-        start_carry=state.carry,
-    )
-
-
-def plan(key: jax.Array, state: ActorCriticRNNState) -> ActorCriticRNNState:
-    """One learning step on the buffer when it is due; otherwise ``state`` unchanged."""
-    del key
-    return jax.lax.cond(state.buffer.due, _learn, lambda s: s, state)
+    return learning_step(state, forward).replace(start_carry=state.carry)
 
 
 def evaluate(state: ActorCriticRNNState) -> tuple[jax.Array, jax.Array]:
@@ -162,27 +141,9 @@ def evaluate(state: ActorCriticRNNState) -> tuple[jax.Array, jax.Array]:
     return pg.masked_logits(logits, state.action_mask).reshape(*lead, -1), values.reshape(lead)
 
 
-def policy(state: ActorCriticRNNState) -> jax.Array:
-    """Arg-max logits of every table row (fresh LSTM state) marked and normalised."""
-    return pg.argmax_policy(evaluate(state)[0], state.action_mask)
-
-
-def _make(episodic: bool) -> Agent:
-    name = "actor_critic_rnn_episodic" if episodic else "actor_critic_rnn_continuous"
-    return Agent(
-        name=name,
-        episodic=episodic,
-        default_hparams=ActorCriticRNNHParams(),
-        init=functools.partial(init, episodic=episodic, name=name),
-        act=act,
-        update=update,
-        policy=policy,
-        needs_plan=needs_plan,
-        plan=plan,
-        check_hparams=check_hparams,
-        observation="emission",
-    )
-
-
-ACTOR_CRITIC_RNN_EPISODIC = _make(True)
-ACTOR_CRITIC_RNN_CONTINUOUS = _make(False)
+ACTOR_CRITIC_RNN_EPISODIC = make_agent(
+    "actor_critic_rnn_episodic", True, ActorCriticRNNHParams(), init, act, update, _learn, evaluate
+)
+ACTOR_CRITIC_RNN_CONTINUOUS = make_agent(
+    "actor_critic_rnn_continuous", False, ActorCriticRNNHParams(), init, act, update, _learn, evaluate
+)

@@ -13,7 +13,8 @@ the loss is ``critic + actor - entropy_cost * entropy`` with
     ``actor = -mean_t log pi(a_t | o_t) sg(G_t - V_t)``,  ``entropy = mean_t H(pi(. | o_t))``.
 
 Differences from the reference (bsuite): the losses are means over the trajectory with the critic halved (bsuite's
-TF agents sum over time, its JAX agents drop the 1/2); everything else is its algorithm.
+TF actor-critic sums the terms over time, its JAX agents take means without the 1/2); everything else is its
+algorithm.
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ __all__ = [
     "empty_trajectory",
     "append",
     "lambda_returns",
+    "masked_logits",
     "actor_critic_loss",
     "sample_action",
     "argmax_policy",
@@ -55,7 +57,7 @@ NO_TABLE_MESSAGE = (
 
 
 class Trajectory(struct.PyTreeNode):
-    """A trajectory buffer of ``L = max_sequence_length`` steps, filled from the front.
+    """A trajectory buffer of ``L`` steps (:func:`buffer_length`), filled from the front.
 
     ``observations[t]`` for ``t < count`` are the observations acted on, ``observations[count]`` the last step's
     ``next_obs`` (the bootstrap observation); ``discounts[t] = 1 - terminated_t`` (the hyperparameter ``discount``
