@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import difflib
 
+from agents.deep.actor_critic import ACTOR_CRITIC_CONTINUOUS, ACTOR_CRITIC_EPISODIC
+from agents.deep.actor_critic_rnn import ACTOR_CRITIC_RNN_CONTINUOUS, ACTOR_CRITIC_RNN_EPISODIC
 from agents.deep.boot_dqn import BOOT_DQN_CONTINUOUS, BOOT_DQN_EPISODIC
 from agents.deep.dqn import DQN_CONTINUOUS, DQN_EPISODIC
 from agents.psrl_continuous import PSRL_CONTINUOUS
@@ -32,6 +34,10 @@ AGENTS: dict[str, Agent] = {
         DQN_CONTINUOUS,
         BOOT_DQN_EPISODIC,
         BOOT_DQN_CONTINUOUS,
+        ACTOR_CRITIC_EPISODIC,
+        ACTOR_CRITIC_CONTINUOUS,
+        ACTOR_CRITIC_RNN_EPISODIC,
+        ACTOR_CRITIC_RNN_CONTINUOUS,
     )
 }
 

@@ -58,6 +58,10 @@ _BOOT_DQN_CHOICES = MappingProxyType(
     {**_Q_NETWORK_CHOICES, "mask_prob": (0.8, 0.9, 1.0), "noise_scale": (0.0, 0.05, 0.1), "n_ensemble": (8, 16, 20)}
 )
 
+_ACTOR_CRITIC_CHOICES = MappingProxyType(
+    {"width": (64, 128, 256), "depth": (2, 4), "max_sequence_length": (16, 32, 64, 128), "td_lambda": (0.7, 0.8, 0.9)}
+)
+
 #: Agent name -> ``{field: values}``, the deep agents' ``tune.choice`` spaces of agents.md §7 (uniform over values).
 CHOICE_SPACES: Mapping[str, Mapping[str, tuple[float, ...]]] = MappingProxyType(
     {
@@ -65,6 +69,11 @@ CHOICE_SPACES: Mapping[str, Mapping[str, tuple[float, ...]]] = MappingProxyType(
         "dqn_continuous": _DQN_CHOICES,
         "boot_dqn_episodic": _BOOT_DQN_CHOICES,
         "boot_dqn_continuous": _BOOT_DQN_CHOICES,
+        **{
+            f"{name}_{setting}": _ACTOR_CRITIC_CHOICES
+            for name in ("actor_critic", "actor_critic_rnn")
+            for setting in ("episodic", "continuous")
+        },
     }
 )
 

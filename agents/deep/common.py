@@ -17,10 +17,11 @@ from jaxmdp.agent_interface import MDPSpec
 __all__ = ["observation_table", "observation_shape", "cast_hparams", "check_whole", "adam", "adam_step", "on_table"]
 
 
-def observation_table(spec: MDPSpec, agent_name: str) -> jax.Array:
+def observation_table(spec: MDPSpec, agent_name: str, episodic: bool | None = None) -> jax.Array:
     """The noiseless emission table of the spec, ``[S, *obs]`` (continuous) or ``[H, S, *obs]`` (episodic).
 
-    Raises ``ValueError`` for a plain MDP (no table): a deep agent observes emissions, not state indices.
+    Raises ``ValueError`` for a plain MDP (no table: a deep agent observes emissions, not state indices), for a
+    table of the wrong shape, and, when ``episodic`` is given, for an MDP of the other setting.
     """
     table = spec.observations
     if table is None:
@@ -28,11 +29,16 @@ def observation_table(spec: MDPSpec, agent_name: str) -> jax.Array:
             f"{agent_name} is a deep agent: it needs a BlockMDP or an emission table; pass "
             "jaxmdp.block_mdp(mdp, 'state_info') instead of a plain MDP"
         )
+    if episodic is not None and spec.episodic != episodic:
+        kind = "episodic" if episodic else "continuous"
+        raise ValueError(f"{agent_name} is {kind}; the MDP is not (use the other setting's agent)")
     lead = 2 if spec.episodic else 1
     expected = (spec.H, spec.n_states) if spec.episodic else (spec.n_states,)
     if table.ndim <= lead or tuple(table.shape[:lead]) != expected:
+        want = "[H, S, *obs]" if spec.episodic else "[S, *obs]"
         raise ValueError(
-            f"{agent_name}: the emission table must have shape {expected + ('*obs',)} for this MDP; got {table.shape}"
+            f"{agent_name}: the emission table must have shape {want} = {expected + ('*obs',)} for this MDP; "
+            f"got {table.shape}"
         )
     return table
 
