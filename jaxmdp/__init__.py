@@ -11,6 +11,7 @@ _xla_cpu.disable_ynn_fusion()
 
 from jaxmdp import dynamic_programming  # noqa: E402
 from jaxmdp.communication import CommunicationClass, communication_class
+from jaxmdp.blockmdp import BlockMDP, EMISSION_KINDS, NOISE_KINDS, block_mdp, emission_table, observe
 from jaxmdp.batching import pad, permute_states, size_buckets, stack, state_permutation, unstack
 from jaxmdp.env import EnvState, reset, sample_action, step
 from jaxmdp.mdp_families import Beta, PointMass
@@ -51,4 +52,10 @@ __all__ = [
     "random_value",
     "Beta",
     "PointMass",
+    "BlockMDP",
+    "block_mdp",
+    "emission_table",
+    "observe",
+    "EMISSION_KINDS",
+    "NOISE_KINDS",
 ]
