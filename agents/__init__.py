@@ -1,4 +1,5 @@
-"""Tabular agents as pure functions over pytrees (paper §3.3; docs/agents.md).
+"""Agents as pure functions over pytrees (paper §3.3; docs/agents.md): the tabular agents and the deep agents of
+:mod:`agents.deep` (which observe a BlockMDP's emissions).
 
 ``AGENTS`` maps each agent's name to its :class:`jaxmdp.experiment.agent_interface.Agent`; :func:`get` looks one up.
 """
@@ -7,6 +8,10 @@ from __future__ import annotations
 
 import difflib
 
+from agents.deep.actor_critic import ACTOR_CRITIC_CONTINUOUS, ACTOR_CRITIC_EPISODIC
+from agents.deep.actor_critic_rnn import ACTOR_CRITIC_RNN_CONTINUOUS, ACTOR_CRITIC_RNN_EPISODIC
+from agents.deep.boot_dqn import BOOT_DQN_CONTINUOUS, BOOT_DQN_EPISODIC
+from agents.deep.dqn import DQN_CONTINUOUS, DQN_EPISODIC
 from agents.psrl_continuous import PSRL_CONTINUOUS
 from agents.psrl_episodic import PSRL_EPISODIC
 from agents.q_learning_continuous import Q_LEARNING_CONTINUOUS
@@ -25,6 +30,14 @@ AGENTS: dict[str, Agent] = {
         PSRL_EPISODIC,
         PSRL_CONTINUOUS,
         UCRL2,
+        DQN_EPISODIC,
+        DQN_CONTINUOUS,
+        BOOT_DQN_EPISODIC,
+        BOOT_DQN_CONTINUOUS,
+        ACTOR_CRITIC_EPISODIC,
+        ACTOR_CRITIC_CONTINUOUS,
+        ACTOR_CRITIC_RNN_EPISODIC,
+        ACTOR_CRITIC_RNN_CONTINUOUS,
     )
 }
 

@@ -1,13 +1,17 @@
-"""Hyperparameter search spaces of the tabular agents and random-search candidates (paper App. D, App. F).
+"""Hyperparameter search spaces of the agents and random-search candidates (paper App. D, App. F).
 
 Each space is the reference's (docs/agents.md, "Search space" of every agent): independent uniform ranges over
-the named numeric fields of the agent's hyperparameter pytree; every other field keeps its default. Candidates are
-drawn with ``jax.random`` from an explicit key (same key, same candidates) and are returned as one stacked pytree,
-so a whole search runs as one lockstep grid (:func:`jaxmdp.experiment.runner.grid`).
+the named numeric fields of a tabular agent's hyperparameter pytree (:data:`SEARCH_SPACES`), or, for the deep
+agents, uniform choices among listed values (:data:`CHOICE_SPACES`, the reference's ``tune.choice``); every other
+field keeps its default. Candidates are drawn with ``jax.random`` from an explicit key (same key, same candidates)
+and are returned as one stacked pytree, so a whole search runs as one lockstep grid (:func:`jaxmdp.experiment.runner.grid`).
+A deep agent's space also varies static sizes (network width and depth, batch size, ensemble size), which shape
+arrays: its candidates form one grid per distinct static configuration (:func:`sample_candidate_groups`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from types import MappingProxyType
 from typing import Any
@@ -18,7 +22,7 @@ import numpy as np
 from jaxmdp._checks import check_int
 from jaxmdp.experiment.agent_interface import Agent
 
-__all__ = ["SEARCH_SPACES", "search_space", "sample_candidates"]
+__all__ = ["SEARCH_SPACES", "CHOICE_SPACES", "search_space", "sample_candidates", "sample_candidate_groups"]
 
 #: Agent name -> ``{field: (low, high)}``, uniform ranges of docs/agents.md.
 SEARCH_SPACES: Mapping[str, Mapping[str, tuple[float, float]]] = MappingProxyType(
@@ -43,31 +47,110 @@ SEARCH_SPACES: Mapping[str, Mapping[str, tuple[float, float]]] = MappingProxyTyp
     }
 )
 
+_Q_NETWORK_CHOICES = {
+    "network_width": (64, 128, 256),
+    "network_depth": (2, 4),
+    "batch_size": (32, 64, 128),
+    "sgd_period": (1, 4, 8),
+    "target_update_period": (4, 16, 32),
+}
+_DQN_CHOICES = MappingProxyType({**_Q_NETWORK_CHOICES, "epsilon": (0.01, 0.05, 0.1)})
+_BOOT_DQN_CHOICES = MappingProxyType(
+    {**_Q_NETWORK_CHOICES, "mask_prob": (0.8, 0.9, 1.0), "noise_scale": (0.0, 0.05, 0.1), "n_ensemble": (8, 16, 20)}
+)
 
-def search_space(agent: Agent | str) -> Mapping[str, tuple[float, float]]:
-    """The search space of ``agent`` (an :class:`Agent` or its name); ``ValueError`` if it has none."""
+_ACTOR_CRITIC_CHOICES = MappingProxyType(
+    {"width": (64, 128, 256), "depth": (2, 4), "max_sequence_length": (16, 32, 64, 128), "td_lambda": (0.7, 0.8, 0.9)}
+)
+
+#: Agent name -> ``{field: values}``, the deep agents' ``tune.choice`` spaces of agents.md §7 (uniform over values).
+CHOICE_SPACES: Mapping[str, Mapping[str, tuple[float, ...]]] = MappingProxyType(
+    {
+        "dqn_episodic": _DQN_CHOICES,
+        "dqn_continuous": _DQN_CHOICES,
+        "boot_dqn_episodic": _BOOT_DQN_CHOICES,
+        "boot_dqn_continuous": _BOOT_DQN_CHOICES,
+        **{
+            f"{name}_{setting}": _ACTOR_CRITIC_CHOICES
+            for name in ("actor_critic", "actor_critic_rnn")
+            for setting in ("episodic", "continuous")
+        },
+    }
+)
+
+
+def search_space(agent: Agent | str) -> Mapping[str, tuple[float, ...]]:
+    """The search space of ``agent`` (an :class:`Agent` or its name): ``{field: (low, high)}`` (uniform range) or,
+    for a deep agent, ``{field: values}`` (uniform choice); ``ValueError`` if it has none."""
     name = agent if isinstance(agent, str) else agent.name
-    if name not in SEARCH_SPACES:
-        raise ValueError(f"agent {name!r} has no search space; agents with one: {', '.join(SEARCH_SPACES)}")
-    return SEARCH_SPACES[name]
+    for spaces in (SEARCH_SPACES, CHOICE_SPACES):
+        if name in spaces:
+            return spaces[name]
+    raise ValueError(
+        f"agent {name!r} has no search space; agents with one: {', '.join([*SEARCH_SPACES, *CHOICE_SPACES])}"
+    )
+
+
+def _static_fields(hparams: Any) -> set[str]:
+    return {f.name for f in dataclasses.fields(hparams) if f.metadata.get("pytree_node", True) is False}
+
+
+def _draw(agent: Agent, key: jax.Array, n: int, include_default: bool) -> dict[str, np.ndarray]:
+    """``{field: [n] values}`` for every field of the agent's space (see :func:`sample_candidates`)."""
+    n = check_int("n", n)
+    name = agent.name
+    default = agent.default_hparams
+    draws = {}
+    for j, (field, domain) in enumerate(search_space(agent).items()):
+        u = np.asarray(jax.random.uniform(jax.random.fold_in(key, j), (n,)), np.float64)
+        if name in CHOICE_SPACES:
+            choices = np.asarray(domain)
+            values = choices[np.minimum((u * len(choices)).astype(np.int64), len(choices) - 1)]
+        else:
+            low, high = domain
+            values = low + (high - low) * u
+        if include_default:
+            values[0] = getattr(default, field)
+        draws[field] = values
+    return draws
 
 
 def sample_candidates(agent: Agent, key: jax.Array, n: int, *, include_default: bool = True) -> Any:
     """``n`` hyperparameter sets, stacked along a leading axis (numpy leaves).
 
-    Field ``f`` of candidate ``i`` is ``low_f + (high_f - low_f) u`` with ``u = uniform(fold_in(key, f's index))[i]``;
-    fields outside the search space keep their defaults. With ``include_default`` candidate 0 is the agent's
-    default set (the benchmark's tuned values), so a search never does worse than the defaults on its objective.
+    Field ``f`` of candidate ``i`` is ``low_f + (high_f - low_f) u`` (a range) or ``values_f[floor(len u)]`` (a
+    choice) with ``u = uniform(fold_in(key, f's index))[i]``; fields outside the search space keep their defaults.
+    With ``include_default`` candidate 0 is the agent's default set (the benchmark's tuned values), so a search
+    never does worse than the defaults on its objective. A space that varies static fields raises ``ValueError``:
+    use :func:`sample_candidate_groups`.
     """
-    n = check_int("n", n)
-    space = search_space(agent)
+    static = sorted(_static_fields(agent.default_hparams) & set(search_space(agent)))
+    if static:
+        raise ValueError(
+            f"the search space of {agent.name!r} varies static fields ({', '.join(static)}), which shape arrays: "
+            "its candidates need one grid per configuration; use sample_candidate_groups"
+        )
+    return _stacked(agent.default_hparams, _draw(agent, key, n, include_default), np.arange(n))
+
+
+def _stacked(default: Any, draws: dict[str, np.ndarray], index: np.ndarray) -> Any:
+    stacked = jax.tree.map(lambda x: np.repeat(np.asarray(x)[None], len(index), axis=0), default)
+    return stacked.replace(**{field: values[index] for field, values in draws.items()})
+
+
+def sample_candidate_groups(
+    agent: Agent, key: jax.Array, n: int, *, include_default: bool = True
+) -> list[tuple[np.ndarray, Any]]:
+    """The ``n`` candidates of :func:`sample_candidates` (same draws), grouped by their static fields: a list of
+    ``(candidate indices, stacked hyperparameters)``, one per distinct static configuration, in order of first
+    appearance; each group runs as one grid (one compiled program)."""
     default = agent.default_hparams
-    updates = {}
-    for j, (field, (low, high)) in enumerate(space.items()):
-        u = np.asarray(jax.random.uniform(jax.random.fold_in(key, j), (n,)), np.float64)
-        values = low + (high - low) * u
-        if include_default:
-            values[0] = float(getattr(default, field))
-        updates[field] = values
-    stacked = jax.tree.map(lambda x: np.repeat(np.asarray(x)[None], n, axis=0), default)
-    return stacked.replace(**updates)
+    draws = _draw(agent, key, n, include_default)
+    static = [f for f in draws if f in _static_fields(default)]
+    configs = [tuple(int(draws[f][i]) for f in static) for i in range(n)]
+    groups = []
+    for config in dict.fromkeys(configs):
+        index = np.asarray([i for i in range(n) if configs[i] == config])
+        traced = {f: v for f, v in draws.items() if f not in static}
+        groups.append((index, _stacked(default.replace(**dict(zip(static, config))), traced, index)))
+    return groups

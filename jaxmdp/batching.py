@@ -24,6 +24,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxmdp._checks import check_int
+from jaxmdp.blockmdp.block_mdp import BlockMDP
+from jaxmdp.blockmdp.stacking import check_stackable, stack_blocks, unstack_blocks
 from jaxmdp.mdp import MDP, MDPInfo
 
 __all__ = ["stack", "unstack", "pad", "size_buckets", "permute_states", "state_permutation"]
@@ -81,15 +83,19 @@ def pad(mdp: MDP, n_states: int, n_actions: int, n_successors: int, H: int | Non
     return mdp.replace(H=H if mdp.episodic else None, **{k: jnp.asarray(v) for k, v in arrays.items()})
 
 
-def stack(mdps: Sequence[MDP]) -> MDP:
+def stack(mdps: Sequence[MDP] | Sequence[BlockMDP]) -> MDP | BlockMDP:
     """Pad MDPs to common ``S``, ``A``, ``K`` (and ``H``) and stack them along a new leading batch axis.
 
     All members must be episodic or all continuous, with the same dtype. The result's ``info.members`` holds the
     members' metadata; ``jax.vmap`` over the result runs them in lockstep. Host side (numpy), one transfer per field.
+    BlockMDPs stack likewise (:mod:`jaxmdp.blockmdp.stacking`: same emission, noise and observation shape).
     """
     mdps = list(mdps)
     if not mdps:
         raise ValueError("mdps must contain at least one MDP")
+    if any(isinstance(m, BlockMDP) for m in mdps):
+        blocks = check_stackable(mdps)
+        return stack_blocks(blocks, stack([b.mdp for b in blocks]))
     if any(m.T.ndim != 3 for m in mdps):
         raise ValueError("stack expects unbatched MDPs")
     if len({m.episodic for m in mdps}) != 1:
@@ -151,8 +157,10 @@ def size_buckets(mdps: Sequence[MDP], n_buckets: int) -> list[list[int]]:
     return groups[::-1]
 
 
-def unstack(batch: MDP) -> list[MDP]:
+def unstack(batch: MDP | BlockMDP) -> list[MDP] | list[BlockMDP]:
     """Split a stacked batch back into its members, removing the padding (inverse of :func:`stack`; host side)."""
+    if isinstance(batch, BlockMDP):
+        return unstack_blocks(batch, unstack(batch.mdp))
     if batch.T.ndim != 4:
         raise ValueError("unstack expects a batch with one leading axis")
     arrays = {k: np.asarray(getattr(batch, k)) for k in _ARRAY_FIELDS}

@@ -10,6 +10,13 @@ reference). Continuous MDPs never terminate and ``h`` counts steps since the res
 
 Rewards are drawn from the transition's distribution (``Beta`` or point mass, see :class:`~jaxmdp.MDP`). Everything
 is jittable and vmaps over keys, states and stacked MDPs.
+
+BlockMDPs (:class:`jaxmdp.BlockMDP`): ``reset`` and ``step`` take one wherever they take an MDP and return its
+observations (emission-table row plus a noise draw from ``noise_key(key)``) instead of state indices, with the same
+state trajectory, rewards and flags as the underlying MDP for the same keys. ``info["final_observation"]`` is then
+the observation of the state reached (the very sample returned when the episode goes on; all zeros past an
+episode's end, as the reference), ``info["final_state"]`` that state's index and ``info["state"]`` the index of the
+returned observation's state.
 """
 
 from __future__ import annotations
@@ -20,6 +27,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from jaxmdp.blockmdp.block_mdp import BlockMDP, noise_key, observe
 from jaxmdp.mdp import MDP
 from jaxmdp.sampling.beta_sampling import sample_beta
 
@@ -46,6 +54,7 @@ def _next_from_uniform(u: jax.Array, mdp: MDP, state: jax.Array, action: jax.Arr
 
 def sample_action(key: jax.Array, mdp: MDP) -> jax.Array:
     """A uniformly random valid action. Uses one uniform draw, so padding an MDP does not change the draw."""
+    mdp = mdp.mdp if isinstance(mdp, BlockMDP) else mdp
     n_valid = jnp.sum(mdp.action_mask)
     a = jnp.floor(jax.random.uniform(key, dtype=jnp.float32) * n_valid).astype(jnp.int32)
     return jnp.minimum(a, n_valid - 1)
@@ -81,20 +90,29 @@ def sample_reward(
     return jnp.where(stochastic, draw, mean)
 
 
-def reset(key: jax.Array, mdp: MDP) -> tuple[jax.Array, EnvState]:
+def reset(key: jax.Array, mdp: MDP | BlockMDP) -> tuple[jax.Array, EnvState]:
     """Start an episode: ``s0 ~ P0``, ``h = 0``. Returns ``(obs, state)``."""
+    if isinstance(mdp, BlockMDP):
+        _, state = reset(key, mdp.mdp)
+        return observe(noise_key(key), mdp, state.state, state.h), state
     s0 = _start_from_uniform(jax.random.uniform(key, dtype=mdp.dtype), mdp)
     return s0, EnvState(state=s0, h=jnp.zeros((), jnp.int32))
 
 
 def step(
-    key: jax.Array, state: EnvState, action: jax.Array, mdp: MDP
+    key: jax.Array, state: EnvState, action: jax.Array, mdp: MDP | BlockMDP
 ) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, jax.Array, dict[str, Any]]:
     """Take ``action``: returns ``(obs, state, reward, terminated, truncated, info)`` with auto-reset.
 
     ``info`` holds ``final_observation`` (the state reached by this action, before any reset) and ``discount``
-    (0 on termination, else 1).
+    (0 on termination, else 1); for a BlockMDP see the module docstring.
     """
+    if isinstance(mdp, BlockMDP):
+        _, new_state, reward, terminated, truncated, info = step(key, state, action, mdp.mdp)
+        obs = observe(noise_key(key), mdp, new_state.state, new_state.h)
+        final = jnp.where(terminated, jnp.zeros_like(obs), obs)
+        info = {**info, "final_observation": final, "final_state": info["final_observation"], "state": new_state.state}
+        return obs, new_state, reward, terminated, truncated, info
     # One key for the reward and two uniforms for the next and reset states: fewer PRNG calls than three splits.
     k_reward, k_uniform = jax.random.split(key)
     u_next, u_reset = jax.random.uniform(k_uniform, (2,), dtype=mdp.dtype)

@@ -35,13 +35,17 @@ def _select(mask, new, old):
     return jax.tree.map(lambda n, o: jnp.where(mask.reshape(mask.shape + (1,) * (n.ndim - 1)), n, o), new, old)
 
 
-def make_runner(agent: Agent, n_steps: int, trace: bool = False, plan_chunk: int | None = None):
+def make_runner(
+    agent: Agent, n_steps: int, trace: bool = False, plan_chunk: int | None = None, member_hparams: bool = False
+):
     """``run(keys[B], mdp, hparams, emissions=None) -> RunResult`` (jitted) for ``n_steps`` interaction steps.
 
     ``mdp`` is one MDP for every member, or a stacked batch of ``B`` MDPs (member ``i`` faces MDP ``i``).
     ``emissions`` (one MDP only): a noiseless emission table, ``[S, *obs]`` (continuous) or ``[H, S, *obs]``
     (episodic); the agent then observes the table row of the state (and of the in-episode step), not its index, and
     its spec carries the table (the protocol of ``Agent.observation == "emission"``).
+    ``member_hparams``: ``hparams`` is stacked, one set per member (a grid over seeds and hyperparameters), instead
+    of one set for the whole batch.
     ``plan_chunk``: if given, planning gathers the members that need it into sub-batches of this size (a
     ``while_loop`` over chunks) instead of planning for the whole batch; results are the same, the cost of a plan
     step then scales with the number of members that plan rather than with ``B``.
@@ -74,7 +78,7 @@ def make_runner(agent: Agent, n_steps: int, trace: bool = False, plan_chunk: int
             return emissions[h, s] if mdp.episodic else emissions[s]
 
         k = jax.vmap(lambda key: jax.random.split(key, 4))(keys)
-        states = jax.vmap(agent.init, (0, m, None))(k[:, 0], spec, hparams)
+        states = jax.vmap(agent.init, (0, m, 0 if member_hparams else None))(k[:, 0], spec, hparams)
         states = jax.vmap(agent.plan)(k[:, 1], states)
         obs, env = jax.vmap(jaxmdp.reset, (0, m))(k[:, 2], mdp)
         obs = jax.vmap(observe)(obs, env.h)
