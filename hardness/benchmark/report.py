@@ -18,8 +18,8 @@ Written by :func:`write_report` (called at the end of :func:`hardness.benchmark.
 * ``curves_<set>.png/.pdf``: the cumulative regret of every agent (mean over seeds) against the steps, one panel per
   MDP, with the random agent as baseline (its own runs when it was run, else the uniform policy's exact expected
   regret);
-* ``hardness_<set>.png/.pdf``: the MDPs placed by diameter and environmental value norm (paper variant, mean over
-  the first five seeds as the reference's helper does, benchmark.md §4), one panel per learning agent, coloured by its
+* ``hardness_<set>.png/.pdf``: the MDPs placed by diameter and environmental value norm (the reference's variant,
+  :data:`MEASURE_VARIANT`, mean over the first five seeds as the reference's helper does, benchmark.md §4), one panel per learning agent, coloured by its
   mean per-step normalised regret (§3.3, Figure 2); the measures are cached in ``measures.csv``.
 
 Figures are drawn on :class:`matplotlib.figure.Figure` objects (no pyplot, no global backend change).
@@ -44,6 +44,9 @@ __all__ = ["Summary", "summarize", "markdown_table", "latex_table", "write_repor
 
 #: Seeds whose hardness measures are averaged (the reference's helper averages seeds 0-4).
 MEASURE_SEEDS = 5
+#: The measures' variant: the reference's procedures (``hardness`` ``variant="colosseum"``), whose numbers place the
+#: MDPs where the paper's figures do (its episodic diameter differs most from the exact one).
+MEASURE_VARIANT = "colosseum"
 _SHORT = {"MiniGridEmpty": "MG-Empty", "MiniGridRooms": "MG-Rooms"}
 
 
@@ -244,6 +247,11 @@ def _curves(s: Summary, set_name: str) -> dict[tuple[str, str], dict[str, np.nda
     return {k: {n: np.asarray(v) for n, v in d.items()} for k, d in out.items()}
 
 
+def _from_origin(d: dict[str, np.ndarray], column: str) -> tuple[np.ndarray, np.ndarray]:
+    """Steps and the mean over seeds of ``column``, starting from ``(0, 0)`` (no regret before the first step)."""
+    return np.concatenate([[0], d["steps"]]), np.concatenate([[0.0], d[column].mean(axis=0)])
+
+
 def curves_figure(s: Summary, set_name: str) -> Any:
     """Cumulative regret against steps, one panel per MDP (module docstring)."""
     from matplotlib.figure import Figure
@@ -261,14 +269,14 @@ def curves_figure(s: Summary, set_name: str) -> Any:
         for a in learners:
             d = data.get((label, a))
             if d is not None:
-                ax.plot(d["steps"], d["cumulative_regret"].mean(axis=0), label=a)
+                ax.plot(*_from_origin(d, "cumulative_regret"), label=a)
         d = data.get((label, random_agent)) if random_agent else None
         if d is not None:
-            ax.plot(d["steps"], d["cumulative_regret"].mean(axis=0), "k--", label=f"{random_agent}")
+            ax.plot(*_from_origin(d, "cumulative_regret"), "k--", label=f"{random_agent}")
         else:
             d = next((data[(label, a)] for a in agents if (label, a) in data), None)
             if d is not None:
-                ax.plot(d["steps"], d["random_cumulative_regret"].mean(axis=0), "k:", label="uniform policy (exact)")
+                ax.plot(*_from_origin(d, "random_cumulative_regret"), "k:", label="uniform policy (exact)")
         ax.set_title(display[label], fontsize=9)
         ax.tick_params(labelsize=7)
         ax.grid(alpha=0.3)
@@ -295,13 +303,13 @@ def hardness_measures(s: Summary, set_name: str) -> dict[str, tuple[float, float
     if missing:
         import hardness
 
-        m = hardness.measures_many([i.build(seed) for i, seed in missing])
+        m = hardness.measures_many([i.build(seed) for i, seed in missing], variant=MEASURE_VARIANT)
         for k, (i, seed) in enumerate(missing):
             cached[(set_name, i.label, seed)] = (float(m.diameter.value[k]), float(m.value_norm.value[k]))
         tmp = path.with_name(path.name + ".tmp")
         with tmp.open("w", newline="") as f:
             w = csv.writer(f)
-            w.writerow(["set", "mdp", "seed", "diameter", "value_norm"])
+            w.writerow(["set", "mdp", "seed", "diameter", "value_norm"])  # variant: MEASURE_VARIANT
             w.writerows([k[0], k[1], k[2], f"{v[0]:.9g}", f"{v[1]:.9g}"] for k, v in sorted(cached.items()))
         os.replace(tmp, path)
     return {i.label: tuple(np.mean([cached[(set_name, i.label, seed)] for seed in seeds], axis=0)) for i in found}
@@ -326,7 +334,7 @@ def hardness_figure(s: Summary, set_name: str) -> Any:
                         linewidths=0.4)
         ax.scatter(x[~ok], y[~ok], facecolors="none", edgecolors="0.6", s=36)
         ax.set_title(a, fontsize=9)
-        ax.set_xlabel("Diameter", fontsize=8)
+        ax.set_xlabel(f"Diameter ({MEASURE_VARIANT})", fontsize=8)
         ax.grid(alpha=0.3)
         ax.tick_params(labelsize=7)
     axes[0].set_ylabel("Environmental value norm", fontsize=8)
