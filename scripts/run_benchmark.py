@@ -27,13 +27,6 @@ from pathlib import Path  # noqa: E402
 from hardness.benchmark import run, sets  # noqa: E402
 
 
-def _positive(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer; got {text}")
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--settings", nargs="+", default=None, metavar="SET",
@@ -42,16 +35,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="agents by registry name (default: every tabular agent of each set's type)")
     p.add_argument("--mdps", nargs="+", default=None, metavar="MDP",
                    help="keep only these MDPs of the sets: labels (RiverSwim/prms_0) or families (default: all)")
-    p.add_argument("--seeds", type=_positive, default=None, help="number of seeds 0..N-1 (default 20; --quick 2)")
-    p.add_argument("--steps", type=_positive, default=None, help="steps per run (default 500000; --quick "
+    p.add_argument("--seeds", type=int, default=None, help="number of seeds 0..N-1 (default 20; --quick 2)")
+    p.add_argument("--steps", type=int, default=None, help="steps per run (default 500000; --quick "
                    f"{run.QUICK['n_steps']})")
-    p.add_argument("--log-period", type=_positive, default=None,
+    p.add_argument("--log-period", type=int, default=None,
                    help="steps between indicator logs (default 100; --quick: 1000 episodic, 500 continuous)")
     p.add_argument("--hparams", default="tuned",
                    help="tuned (hardness/benchmark/tuned_hparams.json), reference (the reference's cached values) "
                         "or a tuned-file path (default %(default)s)")
-    p.add_argument("--buckets", type=_positive, default=None, help="size buckets per set (default 4; --quick 1)")
-    p.add_argument("--max-members", type=_positive, default=None, help="members per runner call (default: a bucket)")
+    p.add_argument("--buckets", type=int, default=None, help="size buckets per set (default 4; --quick 1)")
+    p.add_argument("--max-members", type=int, default=None, help="members per runner call (default: a bucket)")
     p.add_argument("--emission", default=None, help="BlockMDP emission for deep agents (e.g. StateInfo)")
     p.add_argument("--quick", action="store_true", help="the quick-test sets, 2 seeds, few steps")
     p.add_argument("--out", type=Path, required=True, help="output folder (reused to resume)")
@@ -64,7 +57,7 @@ def config_from_args(args: argparse.Namespace) -> run.RunConfig:
     base = dict(run.QUICK) if args.quick else dict(sets=sets.SETTINGS)
     given = dict(sets=tuple(args.settings) if args.settings else None,
                  agents=tuple(args.agents) if args.agents else None,
-                 seeds=tuple(range(args.seeds)) if args.seeds else None, n_steps=args.steps,
+                 seeds=tuple(range(args.seeds)) if args.seeds is not None else None, n_steps=args.steps,
                  n_buckets=args.buckets, max_members=args.max_members, emission=args.emission,
                  only=tuple(args.mdps) if args.mdps else None)
     config = {**base, **{k: v for k, v in given.items() if v is not None}, "hparams": args.hparams}
