@@ -77,7 +77,7 @@ BATCH_FIELDS = (
 )
 #: The reference's quick-test protocol (benchmark.md §2: 2 seeds, indicators every 1000 / 500 steps); the steps are
 #: fewer than its 50 000 so that ``--quick`` takes a few minutes on two CPU cores.
-QUICK = dict(sets=sets.QUICK_SETS, seeds=(0, 1), n_steps=5_000, n_buckets=1,
+QUICK = dict(sets=sets.QUICK_SETS, seeds=(0, 1), n_steps=1_000, n_buckets=1,
              log_periods={"episodic quick test": 1000, "continuous quick test": 500})
 
 
