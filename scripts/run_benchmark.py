@@ -32,7 +32,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--settings", nargs="+", default=None, metavar="SET",
                    help=f"benchmark sets (default: the four settings); one of: {', '.join(sets.SET_NAMES)}")
     p.add_argument("--agents", nargs="+", default=None,
-                   help="agents by registry name (default: every tabular agent of each set's type)")
+                   help="agents by registry name (default: every tabular agent of each set's type; --quick: all but "
+                        "psrl_continuous)")
     p.add_argument("--mdps", nargs="+", default=None, metavar="MDP",
                    help="keep only these MDPs of the sets: labels (RiverSwim/prms_0) or families (default: all)")
     p.add_argument("--seeds", type=int, default=None, help="number of seeds 0..N-1 (default 20; --quick 2)")
