@@ -1,0 +1,376 @@
+"""The benchmark report (paper §3.3 Table 2, App. G Tables 9-12 and Figures 6-10) from a run's output folder.
+
+Written by :func:`write_report` (called at the end of :func:`hardness.benchmark.run.run_benchmark`, or by
+``scripts/benchmark_report.py DIR``) into the folder:
+
+* ``report.md`` and ``report.tex``, per set:
+
+  - the Table 2-style table: one row per MDP (numbered ``Family (k)`` within its family, as the paper), one column per
+    agent with the mean ± standard deviation over seeds (``ddof = 1``) of the per-step normalised cumulative regret
+    (final ``normalized_cumulative_regret / steps``, App. E), the lowest mean of the learning agents in bold (ties at
+    the printed precision too; the random agent is a baseline, never bold), the paper's Table 2 number of the agent
+    beside it where the paper has one, and the seeds completed; an *Average* row: mean ± standard deviation
+    (``ddof = 0``) over the MDPs of the per-MDP means, Table 2's rule;
+  - the App. G-style table: one row per (MDP, agent): normalised cumulative reward, expected reward and regret, the
+    paper's regret, steps per second of one member (``n_steps`` over its batch's lockstep run time) and completed
+    seeds, ours and the paper's (whose runs were cut off after ten minutes);
+
+* ``curves_<set>.png/.pdf``: the cumulative regret of every agent (mean over seeds) against the steps, one panel per
+  MDP, with the random agent as baseline (its own runs when it was run, else the uniform policy's exact expected
+  regret);
+* ``hardness_<set>.png/.pdf``: the MDPs placed by diameter and environmental value norm (the reference's variant,
+  :data:`MEASURE_VARIANT`, mean over the first five seeds as the reference's helper does, benchmark.md §4), one panel per learning agent, coloured by its
+  mean per-step normalised regret (§3.3, Figure 2); the measures are cached in ``measures.csv``.
+
+Figures are drawn on :class:`matplotlib.figure.Figure` objects (no pyplot, no global backend change).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+from collections import defaultdict
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hardness.benchmark import published, sets
+
+__all__ = ["Summary", "summarize", "markdown_table", "latex_table", "write_report"]
+
+#: Seeds whose hardness measures are averaged (the reference's helper averages seeds 0-4).
+MEASURE_SEEDS = 5
+#: The measures' variant: the reference's procedures (``hardness`` ``variant="colosseum"``), whose numbers place the
+#: MDPs where the paper's figures do (its episodic diameter differs most from the exact one).
+MEASURE_VARIANT = "colosseum"
+_SHORT = {"MiniGridEmpty": "MG-Empty", "MiniGridRooms": "MG-Rooms"}
+
+
+def _display_labels(labels: Sequence[str]) -> dict[str, str]:
+    """``Family/scope`` -> ``Family (k)``, ``k`` counting within the family in order (the paper's numbering)."""
+    count: dict[str, int] = defaultdict(int)
+    out = {}
+    for label in labels:
+        family = label.split("/")[0]
+        count[family] += 1
+        out[label] = f"{_SHORT.get(family, family)} ({count[family]})"
+    return out
+
+
+class Summary:
+    """Per set, the per-(MDP, agent) scores of a run folder's ``members.csv`` and ``batches.csv``.
+
+    Attributes:
+      settings: the run's ``plan.json`` settings.
+      scores: ``{(set, mdp, agent): {field: [value per seed]}}``.
+      rates: ``{(set, mdp, agent): member steps per second}`` (the rate of the member's batch).
+    """
+
+    def __init__(self, out: Path):
+        self.out = Path(out)
+        plan = json.loads((self.out / "plan.json").read_text())
+        self.settings: dict[str, Any] = plan["settings"]
+        self.batches: list[dict] = plan["batches"]
+        self.scores: dict[tuple[str, str, str], dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
+        batch_rate = {}
+        if (self.out / "batches.csv").exists():
+            with (self.out / "batches.csv").open(newline="") as f:
+                batch_rate = {r["batch"]: float(r["member_steps_per_s"]) for r in csv.DictReader(f)}
+        self.rates: dict[tuple[str, str, str], float] = {}
+        with (self.out / "members.csv").open(newline="") as f:
+            for r in csv.DictReader(f):
+                key = (r["set"], r["mdp"], r["agent"])
+                for field in ("normalized_regret_per_step", "normalized_cumulative_reward",
+                              "normalized_cumulative_expected_reward", "random_normalized_regret_per_step"):
+                    self.scores[key][field].append(float(r[field]))
+                self.rates[key] = batch_rate.get(r["batch"], math.nan)
+
+    @property
+    def n_seeds(self) -> int:
+        return len(self.settings["seeds"])
+
+    @property
+    def n_steps(self) -> int:
+        return int(self.settings["n_steps"])
+
+    def labels(self, set_name: str) -> list[str]:
+        """The set's MDPs that the run holds, in the set's order."""
+        planned = {label for b in self.batches if b["set_name"] == set_name for label, _ in b["members"]}
+        return [i.label for i in sets.instances(set_name) if i.label in planned]
+
+    def agents(self, set_name: str) -> list[str]:
+        return list(self.settings["agents"][set_name])
+
+    def cell(self, set_name: str, mdp: str, agent: str, field: str = "normalized_regret_per_step"):
+        """``(mean, std, completed seeds)`` of ``field``; ``None`` when no seed has finished."""
+        values = self.scores.get((set_name, mdp, agent), {}).get(field)
+        if not values:
+            return None
+        x = np.asarray(values, np.float64)
+        return float(x.mean()), float(x.std(ddof=1)) if x.size > 1 else 0.0, int(x.size)
+
+
+def summarize(out: str | os.PathLike) -> Summary:
+    """The :class:`Summary` of a run folder."""
+    return Summary(Path(out))
+
+
+def _is_learning(agent: str) -> bool:
+    return not agent.startswith("random")
+
+
+def _fmt(mean: float, std: float, digits: int, bold: bool, latex: bool) -> str:
+    m = f"{mean:.{digits}f}"
+    if latex:
+        return f"$\\mathbf{{{m}}} \\pm {std:.{digits}f}$" if bold else f"${m} \\pm {std:.{digits}f}$"
+    return f"**{m}** ± {std:.{digits}f}" if bold else f"{m} ± {std:.{digits}f}"
+
+
+def _table2_rows(s: Summary, set_name: str, latex: bool) -> tuple[list[str], list[list[str]]]:
+    """Header and rows of the Table 2-style table (module docstring)."""
+    agents = s.agents(set_name)
+    paper_agents = [a for a in agents if a in published.TABLE2.get(set_name, {})]
+    header = ["MDP"] + agents + [f"{a} (paper)" for a in paper_agents] + ["seeds"]
+    display = _display_labels([i.label for i in sets.instances(set_name)])
+    rows, means = [], defaultdict(list)
+    for label in s.labels(set_name):
+        cells = {a: s.cell(set_name, label, a) for a in agents}
+        learned = [round(c[0], 3) for a, c in cells.items() if c is not None and _is_learning(a)]
+        best = min(learned) if learned else None
+        row = [display[label]]
+        for a in agents:
+            c = cells[a]
+            if c is None:
+                row.append("")
+                continue
+            means[a].append(c[0])
+            row.append(_fmt(c[0], c[1], 3, _is_learning(a) and round(c[0], 3) == best, latex))
+        for a in paper_agents:
+            p = published.table2(set_name, a, label)
+            row.append(_fmt(p[0], p[1], 2, False, latex) if p else "")
+        done = [c[2] for c in cells.values() if c is not None]
+        row.append(f"{min(done) if len(done) == len(agents) else 0}/{s.n_seeds}")
+        rows.append(row)
+    avg = ["*Average*" if not latex else "\\textit{Average}"]
+    for a in agents:
+        x = np.asarray(means[a])
+        avg.append(_fmt(float(x.mean()), float(x.std()), 3, False, latex) if x.size else "")
+    for a in paper_agents:
+        p = published.TABLE2_AVERAGE[set_name][a]
+        avg.append(_fmt(p[0], p[1], 2, False, latex))
+    avg.append("")
+    rows.append(avg)
+    return header, rows
+
+
+def _appendix_rows(s: Summary, set_name: str, latex: bool) -> tuple[list[str], list[list[str]]]:
+    """Header and rows of the App. G-style table (module docstring)."""
+    header = ["MDP", "agent", "norm. cum. reward", "norm. cum. expected reward", "norm. cum. regret",
+              "regret (paper)", "steps/s", "completed seeds", "completed (paper)"]
+    display = _display_labels([i.label for i in sets.instances(set_name)])
+    rows = []
+    for label in s.labels(set_name):
+        for k, a in enumerate(s.agents(set_name)):
+            regret = s.cell(set_name, label, a)
+            if regret is None:
+                continue
+            fields = [s.cell(set_name, label, a, f) for f in ("normalized_cumulative_reward",
+                                                               "normalized_cumulative_expected_reward")]
+            fields = [(c[0] / s.n_steps, c[1] / s.n_steps) for c in fields]
+            p = published.appendix_g(set_name, a, label)
+            rows.append([display[label] if k == 0 else "", a]
+                        + [_fmt(m, sd, 3, False, latex) for m, sd in fields]
+                        + [_fmt(regret[0], regret[1], 3, False, latex),
+                           _fmt(*p.regret, 2, False, latex) if p else "",
+                           f"{s.rates[(set_name, label, a)]:,.0f}",
+                           f"{regret[2]}/{s.n_seeds}", f"{p.completed}/20" if p else ""])
+    return header, rows
+
+
+def _markdown(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    return lines + ["| " + " | ".join(r) + " |" for r in rows]
+
+
+def _latex(header: Sequence[str], rows: Sequence[Sequence[str]], caption: str) -> list[str]:
+    esc = lambda t: t.replace("_", "\\_").replace("#", "\\#")  # noqa: E731
+    lines = ["\\begin{table}[htb]", "\\centering", f"\\caption{{{esc(caption)}}}",
+             "\\resizebox{\\textwidth}{!}{%", "\\begin{tabular}{l" + "r" * (len(header) - 1) + "}", "\\toprule",
+             " & ".join(esc(h) for h in header) + " \\\\", "\\midrule"]
+    lines += [" & ".join(esc(c) if "$" not in c else c for c in r) + " \\\\" for r in rows]
+    return lines + ["\\bottomrule", "\\end{tabular}}", "\\end{table}", ""]
+
+
+def markdown_table(s: Summary, set_name: str) -> str:
+    """The Table 2-style table of ``set_name`` in Markdown."""
+    return "\n".join(_markdown(*_table2_rows(s, set_name, latex=False)))
+
+
+def latex_table(s: Summary, set_name: str) -> str:
+    """The Table 2-style table of ``set_name`` in LaTeX (booktabs)."""
+    caption = f"Per-step normalised cumulative regret, {set_name} ({s.n_steps:,} steps, {s.n_seeds} seeds)."
+    return "\n".join(_latex(*_table2_rows(s, set_name, latex=True), caption))
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Figures
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def _save(fig: Any, stem: Path) -> list[Path]:
+    paths = [stem.with_suffix(".png"), stem.with_suffix(".pdf")]
+    for p in paths:
+        fig.savefig(p, dpi=120)
+    return paths
+
+
+def _curves(s: Summary, set_name: str) -> dict[tuple[str, str], dict[str, np.ndarray]]:
+    """``{(mdp, agent): {"steps": [R], "cumulative_regret": [seeds, R], "random_cumulative_regret": [seeds, R]}}``."""
+    out: dict[tuple[str, str], dict[str, list]] = defaultdict(lambda: defaultdict(list))
+    for b in s.batches:
+        if b["set_name"] != set_name:
+            continue
+        saved = s.out / "runs" / f"{b['id']}.json"
+        npz = s.out / "runs" / f"{b['id']}.curves.npz"
+        if not (saved.exists() and npz.exists()) or json.loads(saved.read_text()).get("key") != b["key"]:
+            continue
+        with np.load(npz) as z:
+            for i, (label, _) in enumerate(b["members"]):
+                d = out[(label, b["agent"])]
+                d["steps"] = z["steps"]
+                d["cumulative_regret"].append(z["cumulative_regret"][:, i])
+                d["random_cumulative_regret"].append(z["random_cumulative_regret"][:, i])
+    return {k: {n: np.asarray(v) for n, v in d.items()} for k, d in out.items()}
+
+
+def _from_origin(d: dict[str, np.ndarray], column: str) -> tuple[np.ndarray, np.ndarray]:
+    """Steps and the mean over seeds of ``column``, starting from ``(0, 0)`` (no regret before the first step)."""
+    return np.concatenate([[0], d["steps"]]), np.concatenate([[0.0], d[column].mean(axis=0)])
+
+
+def curves_figure(s: Summary, set_name: str) -> Any:
+    """Cumulative regret against steps, one panel per MDP (module docstring)."""
+    from matplotlib.figure import Figure
+
+    labels, agents = s.labels(set_name), s.agents(set_name)
+    data = _curves(s, set_name)
+    display = _display_labels([i.label for i in sets.instances(set_name)])
+    ncols = min(5, len(labels))
+    nrows = -(-len(labels) // ncols)
+    fig = Figure(figsize=(3.0 * ncols, 2.4 * nrows + 0.6), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False)).ravel()
+    learners = [a for a in agents if _is_learning(a)]
+    random_agent = next((a for a in agents if not _is_learning(a)), None)
+    for ax, label in zip(axes, labels):
+        for a in learners:
+            d = data.get((label, a))
+            if d is not None:
+                ax.plot(*_from_origin(d, "cumulative_regret"), label=a)
+        d = data.get((label, random_agent)) if random_agent else None
+        if d is not None:
+            ax.plot(*_from_origin(d, "cumulative_regret"), "k--", label=f"{random_agent}")
+        else:
+            d = next((data[(label, a)] for a in agents if (label, a) in data), None)
+            if d is not None:
+                ax.plot(*_from_origin(d, "random_cumulative_regret"), "k:", label="uniform policy (exact)")
+        ax.set_title(display[label], fontsize=9)
+        ax.tick_params(labelsize=7)
+        ax.grid(alpha=0.3)
+    for ax in axes[len(labels):]:
+        ax.set_visible(False)
+    handles, names = axes[0].get_legend_handles_labels()
+    fig.legend(handles, names, loc="outside lower center", ncols=len(names), fontsize=8)
+    fig.suptitle(f"Cumulative regret, {set_name} (mean over {s.n_seeds} seeds)", fontsize=10)
+    return fig
+
+
+def hardness_measures(s: Summary, set_name: str) -> dict[str, tuple[float, float]]:
+    """``{mdp: (diameter, value norm)}``, the mean over the run's first :data:`MEASURE_SEEDS` seeds, from
+    ``measures.csv`` or computed (:func:`hardness.measures_many`) and cached there."""
+    path = s.out / "measures.csv"
+    seeds = [int(x) for x in s.settings["seeds"][:MEASURE_SEEDS]]
+    cached: dict[tuple[str, str, int], tuple[float, float]] = {}
+    if path.exists():
+        with path.open(newline="") as f:
+            for r in csv.DictReader(f):
+                cached[(r["set"], r["mdp"], int(r["seed"]))] = (float(r["diameter"]), float(r["value_norm"]))
+    found = [i for i in sets.instances(set_name) if i.label in set(s.labels(set_name))]
+    missing = [(i, seed) for i in found for seed in seeds if (set_name, i.label, seed) not in cached]
+    if missing:
+        import hardness
+
+        m = hardness.measures_many([i.build(seed) for i, seed in missing], variant=MEASURE_VARIANT)
+        for k, (i, seed) in enumerate(missing):
+            cached[(set_name, i.label, seed)] = (float(m.diameter.value[k]), float(m.value_norm.value[k]))
+        tmp = path.with_name(path.name + ".tmp")
+        with tmp.open("w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(["set", "mdp", "seed", "diameter", "value_norm"])  # variant: MEASURE_VARIANT
+            w.writerows([k[0], k[1], k[2], f"{v[0]:.9g}", f"{v[1]:.9g}"] for k, v in sorted(cached.items()))
+        os.replace(tmp, path)
+    return {i.label: tuple(np.mean([cached[(set_name, i.label, seed)] for seed in seeds], axis=0)) for i in found}
+
+
+def hardness_figure(s: Summary, set_name: str) -> Any:
+    """Diameter x value norm of every MDP, coloured by each learning agent's mean regret (§3.3, Figure 2)."""
+    from matplotlib.figure import Figure
+
+    measures = hardness_measures(s, set_name)
+    learners = [a for a in s.agents(set_name) if _is_learning(a)] or s.agents(set_name)
+    fig = Figure(figsize=(3.6 * len(learners) + 0.8, 3.4), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(1, len(learners), squeeze=False)).ravel()
+    labels = s.labels(set_name)
+    x = np.array([measures[lab][0] for lab in labels])
+    y = np.array([measures[lab][1] for lab in labels])
+    sc = None
+    for ax, a in zip(axes, learners):
+        c = np.array([(s.cell(set_name, lab, a) or (math.nan,))[0] for lab in labels])
+        ok = np.isfinite(c)
+        sc = ax.scatter(x[ok], y[ok], c=c[ok], cmap="viridis", vmin=0.0, vmax=1.0, s=36, edgecolors="k",
+                        linewidths=0.4)
+        ax.scatter(x[~ok], y[~ok], facecolors="none", edgecolors="0.6", s=36)
+        ax.set_title(a, fontsize=9)
+        ax.set_xlabel(f"Diameter ({MEASURE_VARIANT})", fontsize=8)
+        ax.grid(alpha=0.3)
+        ax.tick_params(labelsize=7)
+    axes[0].set_ylabel("Environmental value norm", fontsize=8)
+    if sc is not None:
+        fig.colorbar(sc, ax=list(axes), label="normalised regret per step")
+    fig.suptitle(f"Hardness and regret, {set_name}", fontsize=10)
+    return fig
+
+
+def write_report(out: str | os.PathLike) -> list[Path]:
+    """Write ``report.md``, ``report.tex`` and the figures into the run folder ``out`` (module docstring); returns
+    the files written."""
+    s = summarize(out)
+    written = []
+    md = [
+        "# Benchmark report",
+        "",
+        f"{s.n_steps:,} steps per run, seeds {', '.join(map(str, s.settings['seeds']))}, indicators every "
+        f"{', '.join(f'{v} ({k})' for k, v in s.settings['log_periods'].items())} steps, hyperparameters: "
+        f"{s.settings['hparams_source']}. Every run completed its steps (no wall-clock cut-off). Score: final "
+        "`normalized_cumulative_regret` / steps (App. E), mean ± std over seeds; bold: the lowest learning agent per "
+        "row; *(paper)*: the paper's Table 2 (500 000 steps, 20 seeds, runs cut off after 10 minutes).",
+        "",
+    ]
+    tex = []
+    for set_name in s.settings["sets"]:
+        stem = s.out / sets.canonical_name(set_name).replace(" ", "_")
+        curves = _save(curves_figure(s, set_name), stem.with_name(f"curves_{stem.name}"))
+        hard = _save(hardness_figure(s, set_name), stem.with_name(f"hardness_{stem.name}"))
+        written += curves + hard
+        md += [f"## {set_name}", "", markdown_table(s, set_name), "", "### Per MDP and agent (App. G)", ""]
+        md += _markdown(*_appendix_rows(s, set_name, latex=False))
+        md += ["", f"![cumulative regret]({curves[0].name})", "", f"![hardness and regret]({hard[0].name})", ""]
+        tex.append(latex_table(s, set_name))
+        caption = f"Final performance indicators, {set_name}."
+        tex.append("\n".join(_latex(*_appendix_rows(s, set_name, latex=True), caption)))
+    (s.out / "report.md").write_text("\n".join(md) + "\n")
+    (s.out / "report.tex").write_text("\n".join(tex) + "\n")
+    return [s.out / "report.md", s.out / "report.tex"] + written

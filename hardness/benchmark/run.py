@@ -1,0 +1,437 @@
+"""The benchmark run (paper §3.3, App. G): every (MDP, agent, seed) of the chosen sets to completion, resumable.
+
+Protocol (benchmark.md §2): every MDP of a set is run with every agent of the set's type for every seed; the same
+integer seed builds the MDP and seeds the agent; indicators are logged every ``log_period`` steps; the score is the
+final ``normalized_cumulative_regret`` divided by the steps. Unlike the reference, learning never stops: every run
+completes its ``n_steps`` and the time it took is recorded (the reference stops learning after ten minutes of wall
+clock).
+
+Batches: the MDPs of a set are split into size buckets (:func:`jaxmdp.size_buckets` on each MDP's seed-0 instance, all
+seeds of an MDP in its bucket), and one batch is one agent on one bucket, at most ``max_members`` members (the
+buckets' members split in order otherwise): one lockstep runner call (:func:`jaxmdp.runner.run`) in which no member
+pays for a larger bucket's padding. Identical instances (seed-independent families) are stored once per batch.
+
+Output folder:
+
+* ``plan.json``: the settings and the batches (reused, without building any MDP, when the settings are unchanged);
+* ``runs/<batch>.csv``: the runner's per-record CSV of a batch (``member, mdp, hparams, seed`` and the reference's
+  columns), written as it runs; ``runs/<batch>.ckpt.npz`` its checkpoint while it runs;
+  ``runs/<batch>.json``: a finished batch's final values per member; ``runs/<batch>.curves.npz`` its curves;
+* ``members.csv``: one row per finished (set, MDP, agent, seed): :data:`MEMBER_FIELDS`; rewritten after every batch
+  in a fixed order, so an interrupted and resumed run ends with the same file byte for byte;
+* ``batches.csv``: one row per finished batch: its members, compile and run seconds and step rates (timings cannot
+  be reproduced byte for byte, so they live here rather than in ``members.csv``);
+* the report (:mod:`hardness.benchmark.report`) once every batch has finished.
+
+Resuming: a finished batch (its ``.json`` holds the same batch key: set, agent, members, steps, periods,
+hyperparameters) is never run again; an interrupted one continues from its checkpoint. Results do not depend on where
+a run was interrupted (the runner's keys are folded with the step index).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import hashlib
+import json
+import os
+import sys
+import time
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import agents as agent_registry
+import jaxmdp
+from hardness.benchmark import hparams as hp_sources
+from hardness.benchmark import sets
+from jaxmdp import runner
+from jaxmdp.experiment import records
+from jaxmdp.mdp import MDP
+
+__all__ = [
+    "MEMBER_FIELDS",
+    "BATCH_FIELDS",
+    "QUICK",
+    "RunConfig",
+    "Batch",
+    "RunSummary",
+    "default_agents",
+    "quick_config",
+    "plan",
+    "run_benchmark",
+]
+
+#: Columns of ``members.csv``.
+MEMBER_FIELDS = (
+    "set", "mdp", "family", "agent", "seed", "steps", "cumulative_regret", "normalized_cumulative_regret",
+    "normalized_regret_per_step", "normalized_cumulative_reward", "normalized_cumulative_expected_reward",
+    "random_normalized_regret_per_step", "batch",
+)
+#: Columns of ``batches.csv``. ``member_steps_per_s``: steps of one member per second of the lockstep loop
+#: (``n_steps / run_s``); ``agent_steps_per_s``: summed over the batch's members.
+BATCH_FIELDS = (
+    "batch", "set", "agent", "members", "mdps", "max_states", "compile_s", "run_s", "member_steps_per_s",
+    "agent_steps_per_s",
+)
+#: The reference's quick-test protocol (benchmark.md §2: 2 seeds, indicators every 1000 / 500 steps); the steps are
+#: fewer than its 50 000 so that ``--quick`` takes a few minutes on two CPU cores, and PSRL continuous is left out:
+#: its optimistic planning (up to 60 sampled kernels per pair on the set's 160 padded states) alone took over
+#: 7 minutes for 1000 steps there (``--agents psrl_continuous`` runs it).
+QUICK = dict(sets=sets.QUICK_SETS, seeds=(0, 1), n_steps=1_000, n_buckets=1,
+             agents=("q_learning_episodic", "psrl_episodic", "random_episodic", "q_learning_continuous", "ucrl2",
+                     "random_continuous"),
+             log_periods={"episodic quick test": 1000, "continuous quick test": 500})
+
+
+@dataclasses.dataclass(frozen=True)
+class RunConfig:
+    """What to run.
+
+    Attributes:
+      sets: names of :mod:`hardness.benchmark.sets` sets.
+      agents: registry names; ``None``: :func:`default_agents` of each set. Each agent runs on the sets of its type.
+      seeds, n_steps: seeds (each builds the MDP and seeds the agent) and steps of every run.
+      log_period: steps between indicator logs, unless ``log_periods`` names the set.
+      hparams: ``"tuned"``, ``"reference"`` or a tuned-file path (:func:`hardness.benchmark.hparams.hparams_for`).
+      n_buckets: size buckets per set; max_members: members per runner call (``None``: a whole bucket).
+      n_records: records per member in the per-record CSVs and curves.
+      emission: a BlockMDP emission for deep agents (``None``: tabular agents on the states).
+      only: keep only the MDPs with these labels (``"RiverSwim/prms_0"``) or families (``None``: every MDP).
+    """
+
+    sets: tuple[str, ...]
+    agents: tuple[str, ...] | None = None
+    seeds: tuple[int, ...] = tuple(range(20))
+    n_steps: int = 500_000
+    log_period: int = 100
+    log_periods: Mapping[str, int] = dataclasses.field(default_factory=dict)
+    hparams: str = "tuned"
+    n_buckets: int = 4
+    max_members: int | None = None
+    n_records: int = 100
+    emission: str | None = None
+    only: tuple[str, ...] | None = None
+
+    def period(self, set_name: str) -> int:
+        return int(self.log_periods.get(set_name, self.log_period))
+
+
+@dataclasses.dataclass(frozen=True)
+class Batch:
+    """One runner call: ``agent`` on ``members`` (``(MDP label, seed)``) of ``set_name``; ``key`` hashes everything
+    its results depend on."""
+
+    id: str
+    key: str
+    set_name: str
+    agent: str
+    members: tuple[tuple[str, int], ...]
+
+
+@dataclasses.dataclass
+class RunSummary:
+    """What a call did: batches run (or continued), batches already finished, whether every batch is finished."""
+
+    ran: list[str]
+    reused: list[str]
+    finished: bool
+    out: Path
+
+
+def default_agents(set_name: str) -> list[str]:
+    """Every registered tabular agent of the set's type, the learning agents first (registry order), the random
+    agent last."""
+    episodic = sets.is_episodic(set_name)
+    names = [n for n, a in agent_registry.AGENTS.items() if a.episodic == episodic and a.observation != "emission"]
+    return [n for n in names if not n.startswith("random")] + [n for n in names if n.startswith("random")]
+
+
+def quick_config(**overrides: Any) -> RunConfig:
+    """The ``--quick`` settings (:data:`QUICK`), with ``overrides``."""
+    return RunConfig(**{**QUICK, **overrides})
+
+
+def _agents_of(config: RunConfig, set_name: str) -> list[str]:
+    episodic = sets.is_episodic(set_name)
+    if config.agents is None:
+        return default_agents(set_name)
+    return [n for n in config.agents if agent_registry.get(n).episodic == episodic]
+
+
+def _check(config: RunConfig) -> list[str]:
+    """Validate ``config``; returns the canonical set names."""
+    names = [sets.canonical_name(s) for s in config.sets]
+    if not names:
+        raise ValueError("sets must name at least one benchmark set")
+    for name in config.agents or ():
+        agent = agent_registry.get(name)
+        if not any(sets.is_episodic(s) == agent.episodic for s in names):
+            raise ValueError(f"agent {name!r} is {'episodic' if agent.episodic else 'continuous'} but no set of "
+                             f"{names} is; choose a set of its type")
+        if agent.observation == "emission" and config.emission is None:
+            raise ValueError(f"agent {name!r} observes emissions: pass --emission (e.g. StateInfo)")
+        if agent.observation == "state" and config.emission is not None:
+            raise ValueError(f"agent {name!r} is tabular; --emission is for agents that observe emissions")
+    if config.emission is not None:
+        emission_wrapper(config.emission)
+    if not config.seeds or any(int(s) < 0 for s in config.seeds) or len(set(config.seeds)) != len(config.seeds):
+        raise ValueError(f"seeds must be distinct non-negative integers; got {config.seeds}")
+    for field in ("n_steps", "log_period", "n_buckets", "n_records"):
+        value = getattr(config, field)
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise ValueError(f"{field} must be a positive integer; got {value!r}")
+    if config.max_members is not None and config.max_members < 1:
+        raise ValueError(f"max_members must be a positive integer or None; got {config.max_members!r}")
+    return names
+
+
+def emission_wrapper(emission: str) -> Callable[[MDP], Any]:
+    """The map from a built MDP to its BlockMDP with ``emission`` (``StateInfo`` in the paper's non-tabular
+    benchmark): the hook through which deep agents run on the same sets. ``ValueError`` until jaxmdp has BlockMDPs."""
+    try:
+        from jaxmdp import block_mdp  # type: ignore[attr-defined]  # the BlockMDP issue's module
+    except ImportError:
+        raise ValueError(
+            f"emission={emission!r}: deep agents need the BlockMDP support (jaxmdp.block_mdp), which this version of "
+            "jaxmdp does not have yet; run the tabular agents without --emission"
+        ) from None
+    return lambda mdp: block_mdp.with_emission(mdp, emission)
+
+
+def _hparams_repr(hp: Any) -> dict[str, str]:
+    return {f.name: repr(np.asarray(getattr(hp, f.name)).tolist()) for f in dataclasses.fields(hp)}
+
+
+def _settings(config: RunConfig, names: Sequence[str]) -> dict[str, Any]:
+    """Everything a plan depends on (JSON), the agents' resolved hyperparameters included."""
+    agents_by_set = {s: _agents_of(config, s) for s in names}
+    all_agents = list(dict.fromkeys(a for s in names for a in agents_by_set[s]))
+    return dict(
+        sets=list(names), agents=agents_by_set, seeds=[int(s) for s in config.seeds], n_steps=int(config.n_steps),
+        log_periods={s: config.period(s) for s in names}, hparams_source=str(config.hparams),
+        hparams={a: _hparams_repr(hp_sources.hparams_for(a, config.hparams)) for a in all_agents},
+        n_buckets=int(config.n_buckets), max_members=config.max_members, n_records=int(config.n_records),
+        emission=config.emission, variant="paper", only=list(config.only) if config.only else None,
+    )
+
+
+def _slug(text: str) -> str:
+    return text.replace(" ", "_").replace("/", "-")
+
+
+def plan(config: RunConfig, out: str | os.PathLike | None = None) -> tuple[dict[str, Any], list[Batch]]:
+    """``(settings, batches)`` of ``config`` (module docstring). With ``out``, a ``plan.json`` of the same settings
+    there is reused (no MDP is built) and a new plan is written there."""
+    names = _check(config)
+    settings = _settings(config, names)
+    path = Path(out) / "plan.json" if out is not None else None
+    if path is not None and path.exists():
+        saved = json.loads(path.read_text())
+        if saved.get("settings") == settings:
+            batches = [Batch(b["id"], b["key"], b["set_name"], b["agent"], tuple(map(tuple, b["members"])))
+                       for b in saved["batches"]]
+            return settings, batches
+    batches = []
+    for set_name in names:
+        found = [i for i in sets.instances(set_name) if not config.only or {i.label, i.family} & set(config.only)]
+        if not found:
+            raise ValueError(f"only={list(config.only or ())} keeps no MDP of the {set_name!r} set")
+        sizes = [inst.build(config.seeds[0]) for inst in found]
+        groups = [sorted(g) for g in jaxmdp.size_buckets(sizes, config.n_buckets)]
+        for agent in settings["agents"][set_name]:
+            for b, group in enumerate(groups):
+                members = [(found[i].label, int(s)) for i in group for s in config.seeds]
+                step = config.max_members or len(members)
+                parts = [members[k : k + step] for k in range(0, len(members), step)]
+                for p, part in enumerate(parts):
+                    bid = f"{_slug(set_name)}.{agent}.b{b}" + (f".p{p}" if len(parts) > 1 else "")
+                    key = {k: settings[k] for k in ("n_steps", "n_records", "emission", "variant")}
+                    key.update(set=set_name, agent=agent, members=part, log_period=settings["log_periods"][set_name],
+                               hparams=settings["hparams"][agent])
+                    digest = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:16]
+                    batches.append(Batch(bid, digest, set_name, agent, tuple(part)))
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        data = {"settings": settings, "batches": [dataclasses.asdict(b) for b in batches]}
+        _write_atomic(path, json.dumps(data, indent=1) + "\n")
+    return settings, batches
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def _finished(run_dir: Path, batch: Batch) -> dict | None:
+    path = run_dir / f"{batch.id}.json"
+    if path.exists():
+        saved = json.loads(path.read_text())
+        if saved.get("key") == batch.key:
+            return saved
+    return None
+
+
+def _content_hash(m: MDP) -> str:
+    h = hashlib.sha256()
+    for x in (m.T, m.R, m.P0, m.reward_mean, m.reward_conc):
+        h.update(np.ascontiguousarray(np.asarray(x)).tobytes())
+    return h.hexdigest()
+
+
+def _grid(batch: Batch, config: RunConfig, hp: Any, agent_name: str) -> runner.Grid:
+    """The batch's members: each distinct instance once, labelled by its MDP label (and seed where it matters)."""
+    by_label = {i.label: i for i in sets.instances(batch.set_name)}
+    wrap = emission_wrapper(config.emission) if config.emission is not None else None
+    distinct: list[MDP] = []
+    labels: list[str] = []
+    index: dict[str, int] = {}
+    mdp_index = []
+    for label, seed in batch.members:
+        m = by_label[label].build(seed)
+        h = _content_hash(m)
+        if h not in index:
+            index[h] = len(distinct)
+            distinct.append(m)
+            labels.append(f"{label}@{seed}")
+        mdp_index.append(index[h])
+    fitted = hp_sources.fit_static_sizes(agent_name, [hp], distinct)[0]
+    seeds = [s for _, s in batch.members]
+    hparams = runner.stack_hparams([fitted] * len(seeds))
+    mdps = [wrap(m) for m in distinct] if wrap is not None else distinct
+    g = runner.grid(mdps, hparams, runner.seed_keys(seeds), mdp_index=mdp_index,
+                    hparams_index=[0] * len(seeds), seeds=seeds)
+    return dataclasses.replace(g, mdp_labels=tuple(labels))
+
+
+def _finals(batch: Batch, result: runner.RunResult) -> list[dict[str, Any]]:
+    n = float(result.n_steps)
+    cols = {c: result.column(c)[-1] for c in (
+        "cumulative_regret", "normalized_cumulative_regret", "normalized_cumulative_reward",
+        "normalized_cumulative_expected_reward", "random_normalized_cumulative_regret")}
+    family = {i.label: i.family for i in sets.instances(batch.set_name)}
+    out = []
+    for b, (label, seed) in enumerate(batch.members):
+        out.append(dict(
+            mdp=label, family=family[label], seed=int(seed), steps=int(result.steps[-1]),
+            cumulative_regret=float(cols["cumulative_regret"][b]),
+            normalized_cumulative_regret=float(cols["normalized_cumulative_regret"][b]),
+            normalized_regret_per_step=float(cols["normalized_cumulative_regret"][b] / n),
+            normalized_cumulative_reward=float(cols["normalized_cumulative_reward"][b]),
+            normalized_cumulative_expected_reward=float(cols["normalized_cumulative_expected_reward"][b]),
+            random_normalized_regret_per_step=float(cols["random_normalized_cumulative_regret"][b] / n),
+        ))
+    return out
+
+
+def _run_batch(batch: Batch, config: RunConfig, run_dir: Path, stop_after_chunks: int | None) -> bool:
+    """Run (or continue from its checkpoint) one batch, stopping after ``stop_after_chunks`` runner chunks if given;
+    returns whether it finished."""
+    agent = agent_registry.get(batch.agent)
+    g = _grid(batch, config, hp_sources.hparams_for(batch.agent, config.hparams), batch.agent)
+    period = config.period(batch.set_name)
+    # One runner call per batch: each call recomputes the members' indicator constants, which is not free.
+    result = runner.run(agent, g, config.n_steps, log_period=period, n_records=config.n_records,
+                        csv_path=run_dir / f"{batch.id}.csv", checkpoint_path=run_dir / f"{batch.id}.ckpt.npz",
+                        stop_after_chunks=stop_after_chunks)
+    done = int(result.steps[-1]) if result.steps.size else 0
+    if done < config.n_steps:
+        return False
+    compile_s = result.compile_s
+    states = int(np.asarray(g.mdps.state_mask).sum(axis=1).max())
+    record = dict(
+        key=batch.key, batch=batch.id, set=batch.set_name, agent=batch.agent, n_steps=config.n_steps,
+        members=_finals(batch, result), n_members=g.n_members, n_mdps=int(g.mdps.T.shape[0]), max_states=states,
+        compile_s=compile_s, run_s=result.run_s,
+    )
+    curves = {c: result.column(c).astype(np.float32) for c in ("cumulative_regret", "random_cumulative_regret")}
+    tmp = run_dir / f"{batch.id}.curves.tmp.npz"
+    np.savez(tmp, steps=result.steps, **curves)
+    os.replace(tmp, run_dir / f"{batch.id}.curves.npz")
+    _write_atomic(run_dir / f"{batch.id}.json", json.dumps(record) + "\n")
+    (run_dir / f"{batch.id}.ckpt.npz").unlink(missing_ok=True)
+    return True
+
+
+def _write_csv(path: Path, header: Sequence[str], rows: Sequence[Sequence[Any]]) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    with tmp.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        w.writerows(records.format_row(list(r)) for r in rows)
+    os.replace(tmp, path)
+
+
+def write_tables(out: Path, settings: dict, batches: Sequence[Batch]) -> int:
+    """Rewrite ``members.csv`` and ``batches.csv`` from the finished batches, in the plan's order (sets, MDPs of a
+    set in their order, agents, seeds); returns the number of member rows."""
+    run_dir = out / "runs"
+    order = {s: {i.label: k for k, i in enumerate(sets.instances(s))} for s in settings["sets"]}
+    rows, brows = [], []
+    for batch in batches:
+        saved = _finished(run_dir, batch)
+        if saved is None:
+            continue
+        agents = settings["agents"][batch.set_name]
+        for m in saved["members"]:
+            sort = (settings["sets"].index(batch.set_name), order[batch.set_name][m["mdp"]],
+                    agents.index(batch.agent), m["seed"])
+            rows.append((sort, [batch.set_name, m["mdp"], m["family"], batch.agent, m["seed"], m["steps"]]
+                         + [m[f] for f in MEMBER_FIELDS[6:-1]] + [batch.id]))
+        run_s = saved["run_s"]
+        brows.append([batch.id, batch.set_name, batch.agent, saved["n_members"], saved["n_mdps"], saved["max_states"],
+                      round(saved["compile_s"], 2), round(run_s, 2), saved["n_steps"] / run_s,
+                      saved["n_steps"] * saved["n_members"] / run_s])
+    rows.sort(key=lambda r: r[0])
+    _write_csv(out / "members.csv", MEMBER_FIELDS, [r for _, r in rows])
+    _write_csv(out / "batches.csv", BATCH_FIELDS, brows)
+    return len(rows)
+
+
+def run_benchmark(
+    config: RunConfig,
+    out: str | os.PathLike,
+    *,
+    progress: bool = True,
+    report: bool = True,
+    stop_at: tuple[int, int] | None = None,
+) -> RunSummary:
+    """Run every batch of ``config`` that is not finished in ``out`` (module docstring), then write the report.
+
+    ``stop_at = (b, c)`` interrupts deterministically (for tests): after ``b`` batches of this call have finished, run
+    ``c`` runner chunks of the next one and stop; the next call continues from there.
+    """
+    out = Path(out)
+    (out / "runs").mkdir(parents=True, exist_ok=True)
+    settings, batches = plan(config, out)
+    todo = [b for b in batches if _finished(out / "runs", b) is None]
+    reused = [b.id for b in batches if b not in todo]
+    ran: list[str] = []
+    finished = True
+    if todo:
+        from tqdm import tqdm
+
+        total = sum(len(b.members) for b in todo) * config.n_steps
+        with tqdm(total=total, unit="step", unit_scale=True, disable=not progress, file=sys.stderr,
+                  desc="benchmark (member-steps)") as bar:
+            for k, batch in enumerate(todo):
+                bar.set_postfix_str(f"{batch.id}: {len(batch.members)} members")
+                ran.append(batch.id)
+                chunks = stop_at[1] if stop_at is not None and k == stop_at[0] else None
+                if not _run_batch(batch, config, out / "runs", chunks):
+                    finished = False
+                    break
+                bar.update(len(batch.members) * config.n_steps)
+                write_tables(out, settings, batches)
+    n_rows = write_tables(out, settings, batches)
+    if finished and report and (ran or not (out / "report.md").exists()):
+        from hardness.benchmark import report as report_module
+
+        t0 = time.perf_counter()
+        report_module.write_report(out)
+        if progress:
+            print(f"report written to {out} ({n_rows} members, {time.perf_counter() - t0:.0f} s)", file=sys.stderr)
+    return RunSummary(ran=ran, reused=reused, finished=finished, out=out)

@@ -1,0 +1,81 @@
+"""Run the Colosseum benchmark (paper §3.3, App. G) to completion and write its tables and figures.
+
+Every (MDP, agent, seed) of the chosen sets runs all its steps (no wall-clock cut-off) in lockstep batches grouped by
+size; results are written as each batch finishes, and running again on the same folder continues where it stopped
+(finished batches are never redone; the final ``members.csv`` is the same byte for byte). See
+:mod:`hardness.benchmark.run` for the output folder and :mod:`hardness.benchmark.report` for the report.
+
+    python scripts/run_benchmark.py --quick --out results/benchmark_quick       # the quick-test sets, a few minutes
+    python scripts/run_benchmark.py --settings episodic_ergodic --seeds 20 --steps 500000 --out results/benchmark
+    python scripts/run_benchmark.py --settings continuous_ergodic --agents ucrl2 --hparams reference --out DIR
+"""
+
+from __future__ import annotations
+
+import os
+
+if __name__ == "__main__" and "xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
+    # One lockstep loop per core: the runner shards the members over the host devices (set before JAX starts).
+    os.environ["XLA_FLAGS"] = (
+        os.environ.get("XLA_FLAGS", "") + f" --xla_force_host_platform_device_count={os.cpu_count() or 1}"
+    ).strip()
+
+import argparse  # noqa: E402
+import sys  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from hardness.benchmark import run, sets  # noqa: E402
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--settings", nargs="+", default=None, metavar="SET",
+                   help=f"benchmark sets (default: the four settings); one of: {', '.join(sets.SET_NAMES)}")
+    p.add_argument("--agents", nargs="+", default=None,
+                   help="agents by registry name (default: every tabular agent of each set's type; --quick: all but "
+                        "psrl_continuous)")
+    p.add_argument("--mdps", nargs="+", default=None, metavar="MDP",
+                   help="keep only these MDPs of the sets: labels (RiverSwim/prms_0) or families (default: all)")
+    p.add_argument("--seeds", type=int, default=None, help="number of seeds 0..N-1 (default 20; --quick 2)")
+    p.add_argument("--steps", type=int, default=None, help="steps per run (default 500000; --quick "
+                   f"{run.QUICK['n_steps']})")
+    p.add_argument("--log-period", type=int, default=None,
+                   help="steps between indicator logs (default 100; --quick: 1000 episodic, 500 continuous)")
+    p.add_argument("--hparams", default="tuned",
+                   help="tuned (hardness/benchmark/tuned_hparams.json), reference (the reference's cached values) "
+                        "or a tuned-file path (default %(default)s)")
+    p.add_argument("--buckets", type=int, default=None, help="size buckets per set (default 4; --quick 1)")
+    p.add_argument("--max-members", type=int, default=None, help="members per runner call (default: a bucket)")
+    p.add_argument("--emission", default=None, help="BlockMDP emission for deep agents (e.g. StateInfo)")
+    p.add_argument("--quick", action="store_true", help="the quick-test sets, 2 seeds, few steps")
+    p.add_argument("--out", type=Path, required=True, help="output folder (reused to resume)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    return p
+
+
+def config_from_args(args: argparse.Namespace) -> run.RunConfig:
+    """The run's settings: ``--quick`` defaults (or the benchmark's), overridden by the options given."""
+    base = dict(run.QUICK) if args.quick else dict(sets=sets.SETTINGS)
+    given = dict(sets=tuple(args.settings) if args.settings else None,
+                 agents=tuple(args.agents) if args.agents else None,
+                 seeds=tuple(range(args.seeds)) if args.seeds is not None else None, n_steps=args.steps,
+                 n_buckets=args.buckets, max_members=args.max_members, emission=args.emission,
+                 only=tuple(args.mdps) if args.mdps else None)
+    config = {**base, **{k: v for k, v in given.items() if v is not None}, "hparams": args.hparams}
+    if args.log_period is not None:
+        config.update(log_period=args.log_period, log_periods={})
+    return run.RunConfig(**config)
+
+
+def main(argv: list[str] | None = None) -> run.RunSummary:
+    args = build_parser().parse_args(argv)
+    try:
+        config = config_from_args(args)
+        return run.run_benchmark(config, args.out, progress=not args.quiet)
+    except ValueError as err:
+        raise SystemExit(f"run_benchmark: {err}") from None
+
+
+if __name__ == "__main__":
+    main()
+    sys.exit(0)

@@ -1,0 +1,163 @@
+"""The benchmark run (resumable, byte-identical after an interruption) and its report (Table 2-style tables, figures).
+
+The run tests use a tiny version: two MDPs of the episodic quick-test set (RiverSwim 5 and DeepSea 10, two size
+buckets), two cheap agents, two seeds, 200 steps.
+"""
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from hardness.benchmark import published, report, run, sets
+
+TINY = dict(sets=("episodic quick test",), agents=("q_learning_episodic", "random_episodic"), seeds=(0, 1),
+            n_steps=200, log_period=50, n_buckets=2, hparams="reference", only=("RiverSwim", "DeepSea"))
+
+
+@pytest.fixture(scope="module")
+def full_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("full")
+    summary = run.run_benchmark(run.RunConfig(**TINY), out, progress=False)
+    return out, summary
+
+
+def test_full_run_writes_members_batches_and_runner_csvs(full_run):
+    out, summary = full_run
+    assert summary.finished and len(summary.ran) == 4 and not summary.reused  # 2 agents x 2 buckets
+    with (out / "members.csv").open(newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert list(rows[0]) == list(run.MEMBER_FIELDS)
+    # set order, then MDP order in the set (DeepSea before RiverSwim), agents as given, seeds.
+    assert [(r["mdp"], r["agent"], r["seed"]) for r in rows] == [
+        (m, a, s) for m in ("DeepSea/prms_0", "RiverSwim/prms_0") for a in TINY["agents"] for s in ("0", "1")]
+    for r in rows:
+        assert int(r["steps"]) == 200
+        assert float(r["normalized_regret_per_step"]) == pytest.approx(float(r["normalized_cumulative_regret"]) / 200)
+        if r["agent"] == "random_episodic":  # the random agent's regret is the uniform policy's, exactly
+            assert float(r["normalized_regret_per_step"]) == pytest.approx(
+                float(r["random_normalized_regret_per_step"]), rel=1e-5)
+    with (out / "batches.csv").open(newline="") as f:
+        batches = list(csv.DictReader(f))
+    assert len(batches) == 4 and all(float(b["run_s"]) > 0 for b in batches)
+    for b in summary.ran:  # the runner's CSV: every member's 4 records (200 steps / 50)
+        with (out / "runs" / f"{b}.csv").open(newline="") as f:
+            recs = list(csv.DictReader(f))
+        assert sorted({int(r["steps"]) for r in recs}) == [50, 100, 150, 200]
+        assert len(recs) == 4 * len({r["member"] for r in recs})
+        assert not (out / "runs" / f"{b}.ckpt.npz").exists()
+
+
+def test_second_run_finishes_at_once_without_building_anything(full_run, monkeypatch):
+    out, _ = full_run
+    before = (out / "members.csv").read_bytes()
+
+    def no_build(self, seed):
+        raise AssertionError("a finished run must not build MDPs")
+
+    monkeypatch.setattr(sets.Instance, "build", no_build)
+    summary = run.run_benchmark(run.RunConfig(**TINY), out, progress=False)
+    assert summary.finished and summary.ran == [] and len(summary.reused) == 4
+    assert (out / "members.csv").read_bytes() == before
+
+
+def test_interrupted_and_resumed_run_gives_the_same_members_csv(full_run, tmp_path):
+    out, _ = full_run
+    # 4 runner chunks per batch (50 steps each): stop after 2 chunks of the second batch, then after one more.
+    first = run.run_benchmark(run.RunConfig(**TINY), tmp_path, progress=False, stop_at=(1, 2))
+    assert not first.finished and len(first.ran) == 2
+    assert (tmp_path / "runs" / f"{first.ran[1]}.ckpt.npz").exists()
+    with (tmp_path / "members.csv").open(newline="") as f:
+        assert len(list(csv.DictReader(f))) == 2  # the first batch: RiverSwim (the small bucket), two seeds
+    second = run.run_benchmark(run.RunConfig(**TINY), tmp_path, progress=False, stop_at=(0, 1))
+    assert not second.finished and second.ran == [first.ran[1]]
+    third = run.run_benchmark(run.RunConfig(**TINY), tmp_path, progress=False)
+    assert third.finished
+    assert (tmp_path / "members.csv").read_bytes() == (out / "members.csv").read_bytes()
+    b = first.ran[1]  # the interrupted batch's runner CSV has each record once
+    with (tmp_path / "runs" / f"{b}.csv").open(newline="") as f, (out / "runs" / f"{b}.csv").open(newline="") as g:
+        resumed, straight = list(csv.reader(f)), list(csv.reader(g))
+    assert len(resumed) == len(straight)
+    cut = straight[0].index("steps_per_second")
+    assert [r[:cut] for r in resumed] == [r[:cut] for r in straight]
+
+
+def test_report_files_and_table(full_run):
+    out, _ = full_run
+    for stem in ("curves_episodic_quick_test", "hardness_episodic_quick_test"):
+        assert (out / f"{stem}.png").stat().st_size > 1000 and (out / f"{stem}.pdf").stat().st_size > 1000
+    md = (out / "report.md").read_text()
+    table = [line for line in md.splitlines() if line.startswith("| ")]
+    assert table[0] == "| MDP | q_learning_episodic | random_episodic | seeds |"
+    assert [r.split(" | ")[0] for r in table[1:4]] == ["| DeepSea (1)", "| RiverSwim (1)", "| *Average*"]
+    assert all("**" in r.split(" | ")[1] for r in table[1:3])  # the only learning agent is the row's best
+    assert "\\begin{tabular}" in (out / "report.tex").read_text()
+    with (out / "measures.csv").open(newline="") as f:
+        measures = list(csv.DictReader(f))
+    assert len(measures) == 4 and all(float(m["diameter"]) > 0 for m in measures)
+
+
+def _fake_run(out, rows, agents):
+    """A run folder holding only ``plan.json`` and ``members.csv`` (what the tables read)."""
+    labels = sorted({r[0] for r in rows})
+    settings = dict(sets=["episodic ergodic"], agents={"episodic ergodic": agents}, seeds=[0, 1], n_steps=100,
+                    log_periods={"episodic ergodic": 100}, hparams_source="reference")
+    batches = [dict(id=f"b{a}", key="k", set_name="episodic ergodic", agent=a,
+                    members=[[lab, s] for lab in labels for s in (0, 1)]) for a in agents]
+    (out / "plan.json").write_text(json.dumps(dict(settings=settings, batches=batches)))
+    with (out / "members.csv").open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(run.MEMBER_FIELDS)
+        for label, agent, seed, score in rows:
+            w.writerow(["episodic ergodic", label, label.split("/")[0], agent, seed, 100, 0, score * 100, score, 0, 0,
+                        1, f"b{agent}"])
+
+
+def test_table2_bold_on_row_minimum_average_row_and_paper_columns(tmp_path):
+    agents = ["q_learning_episodic", "psrl_episodic", "random_episodic"]
+    scores = {  # per (MDP, agent): the two seeds' per-step regrets
+        ("DeepSea/prms_0", "q_learning_episodic"): (0.2, 0.4), ("DeepSea/prms_0", "psrl_episodic"): (0.1, 0.1),
+        ("DeepSea/prms_0", "random_episodic"): (0.0, 0.0),  # the random agent is never bold
+        ("Taxi/prms_1", "q_learning_episodic"): (0.5, 0.5), ("Taxi/prms_1", "psrl_episodic"): (0.6, 0.8),
+        ("Taxi/prms_1", "random_episodic"): (0.9, 0.9),
+    }
+    _fake_run(tmp_path, [(m, a, s, x) for (m, a), xs in scores.items() for s, x in enumerate(xs)], agents)
+    lines = report.markdown_table(report.summarize(tmp_path), "episodic ergodic").splitlines()
+    assert lines[0] == ("| MDP | q_learning_episodic | psrl_episodic | random_episodic | q_learning_episodic (paper) "
+                        "| psrl_episodic (paper) | seeds |")
+    cells = [line.strip("| ").split(" | ") for line in lines[2:]]
+    assert [c[0] for c in cells] == ["DeepSea (1)", "Taxi (2)", "*Average*"]
+    std = np.std([0.2, 0.4], ddof=1)
+    assert cells[0][1:4] == [f"0.300 ± {std:.3f}", "**0.100** ± 0.000", "0.000 ± 0.000"]
+    assert cells[1][1:3] == [f"**0.500** ± 0.000", f"0.700 ± {np.std([0.6, 0.8], ddof=1):.3f}"]
+    assert cells[0][4:6] == ["0.64 ± 0.00", "0.01 ± 0.00"] and cells[1][4:6] == ["0.56 ± 0.02", "0.05 ± 0.00"]
+    assert cells[0][6] == "2/2"
+    # Average: mean and population std over the MDPs of the per-MDP means (Table 2's rule).
+    assert cells[2][1] == f"{np.mean([0.3, 0.5]):.3f} ± {np.std([0.3, 0.5]):.3f}"
+    assert cells[2][4:6] == ["0.81 ± 0.24", "0.30 ± 0.33"]
+    tex = report.latex_table(report.summarize(tmp_path), "episodic ergodic")
+    assert "$\\mathbf{0.100} \\pm 0.000$" in tex and "q\\_learning\\_episodic" in tex
+
+
+def test_published_average_rows_are_the_mean_and_std_of_the_rows():
+    for setting, by_agent in published.TABLE2.items():
+        assert list(by_agent) != [] and all(len(rows) == 20 for rows in by_agent.values())
+        assert set(next(iter(by_agent.values()))) == {i.label for i in sets.instances(setting)}
+        for agent, rows in by_agent.items():
+            means = np.array([m for m, _ in rows.values()])
+            m, s = published.TABLE2_AVERAGE[setting][agent]
+            assert abs(means.mean() - m) <= 0.005 and abs(means.std() - s) <= 0.005
+            for label, (mean, _) in rows.items():
+                assert published.appendix_g(setting, agent, label).regret[0] == mean
+
+
+def test_bad_configs_raise_clear_errors(tmp_path):
+    with pytest.raises(ValueError, match="unknown benchmark set"):
+        run.run_benchmark(run.RunConfig(sets=("episodic quick tst",)), tmp_path)
+    with pytest.raises(ValueError, match="no set of"):
+        run.plan(run.RunConfig(sets=("episodic quick test",), agents=("ucrl2",)))
+    with pytest.raises(ValueError, match="deep agents need the BlockMDP support"):
+        run.plan(run.RunConfig(sets=("episodic quick test",), agents=(), emission="StateInfo"))
+    with pytest.raises(ValueError, match="keeps no MDP"):
+        run.plan(run.RunConfig(sets=("episodic quick test",), only=("Nowhere",), hparams="reference"))

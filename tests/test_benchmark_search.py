@@ -1,0 +1,124 @@
+"""The benchmark's random search (App. F; benchmark.md §7, agents.md §8): reference-style candidates, batched
+evaluation with a known best candidate, selection and the tuned file's provenance."""
+
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from flax import struct
+
+import jaxmdp
+from hardness.benchmark import hparams, search
+from jaxmdp.agent_interface import Agent
+
+
+def test_reference_candidates_use_seeds_sigma_plus_i_and_four_decimals():
+    space = {"c_1": (0.001, 1.1), "c_2": (0.001, 1.1), "min_at": (0.001, 0.2)}
+    got = hparams.reference_candidates("q_learning_episodic", 3, seed=42)
+    for i, cand in enumerate(got):
+        rng = np.random.RandomState(42 + i)  # the reference seeds numpy's generator with sigma + i
+        expected = {f: round(rng.uniform(lo, hi), 4) for f, (lo, hi) in space.items()}
+        assert cand == expected
+        assert list(cand) == list(space)  # drawn in the space's order
+    assert hparams.reference_candidates("q_learning_episodic", 1, seed=43)[0] == got[1]
+
+
+class EpsHParams(struct.PyTreeNode):
+    eps: float | jax.Array = 0.5
+
+
+class EpsState(struct.PyTreeNode):
+    eps: jax.Array
+    action_mask: jax.Array
+    n_states: int = struct.field(pytree_node=False)
+
+
+def _policy(state):
+    """Action 0 with probability ``1 - eps``, else uniform over the valid actions."""
+    w = state.action_mask / jnp.sum(state.action_mask)
+    row = state.eps * w + (1 - state.eps) * (jnp.arange(w.shape[0]) == 0)
+    return jnp.broadcast_to(row, (state.n_states, w.shape[0]))
+
+
+def _act(key, state, obs, h):
+    return jax.random.choice(key, state.action_mask.shape[0], p=_policy(state)[0]).astype(jnp.int32)
+
+
+EPS_AGENT = Agent(
+    name="eps_greedy_toy", episodic=False, default_hparams=EpsHParams(),
+    init=lambda key, spec, hp: EpsState(eps=jnp.asarray(hp.eps, jnp.float32), action_mask=spec.action_mask,
+                                        n_states=spec.n_states),
+    act=_act, update=lambda state, tr: state, policy=_policy,
+)
+
+
+def _pays_for_action_0(S: int) -> jaxmdp.MDP:
+    """Every state pays 1 for action 0 and 0 for action 1; uniform transitions. Gains: optimal 1, worst 0."""
+    T = np.full((S, 2, S), 1.0 / S)
+    mean = np.zeros((S, 2, S))
+    mean[:, 0] = 1.0
+    return jaxmdp.custom_mdp(T, P0=np.full(S, 1.0 / S), reward_mean=mean)
+
+
+def test_search_finds_the_known_best_candidate_across_buckets():
+    # The normalised regret per step of eps is exactly eps / 2 on both MDPs, so the final normalised cumulative
+    # regret is n_steps * eps / 2 and the smallest eps wins.
+    values = hparams.reference_candidates(EPS_AGENT, 5, seed=3, space={"eps": (0.0, 1.0)})
+    candidates = [EPS_AGENT.default_hparams.replace(eps=v["eps"]) for v in values]
+    mdps = [_pays_for_action_0(1), _pays_for_action_0(1), _pays_for_action_0(4)]
+    n = 400
+    scores, run_s, _ = search.evaluate(EPS_AGENT, candidates, mdps, [0, 1, 0], n, log_period=50, n_buckets=2)
+    eps = np.array([v["eps"] for v in values])
+    np.testing.assert_allclose(scores, np.broadcast_to(n * eps[:, None] / 2, (5, 3)), rtol=1e-5)
+    assert search.select(scores) == int(np.argmin(eps))
+    assert run_s > 0
+
+
+def test_select_rejects_bad_scores_and_breaks_ties_by_order():
+    assert search.select(np.array([[1.0, 3.0], [2.0, 2.0], [0.5, 3.5]])) == 0
+    with pytest.raises(ValueError, match="finite"):
+        search.select(np.array([[np.nan]]))
+
+
+class _FakeResult:
+    def __init__(self, final):
+        self.final, self.run_s, self.compile_s = final, 1.0, 0.5
+
+    def column(self, name):
+        assert name == "normalized_cumulative_regret"
+        return self.final[None]
+
+
+def test_search_pipeline_with_a_fake_runner_and_the_tuned_file(tmp_path):
+    # A fake runner scores each member by |c_1 - 0.5|: the winner is the candidate whose c_1 is closest to 0.5.
+    calls = []
+
+    def fake_run(agent, grid, n_steps, **kw):
+        calls.append((grid.n_members, n_steps, kw["log_period"]))
+        return _FakeResult(np.abs(np.asarray(grid.hparams.c_1, np.float64) - 0.5))
+
+    budget = search.Budget(n_steps=1000, n_candidates=4, n_per_family=1, n_seeds=2, max_states=150)
+    res = search.search("q_learning_episodic", budget, run=fake_run)
+    assert res.labels == ["sample_0", "sample_1", "sample_2", "sample_3", "reference"]
+    c1 = np.array([v["c_1"] for v in res.values])
+    assert res.best == int(np.argmin(np.abs(c1 - 0.5)))
+    assert res.scores.shape == (5, 2 * (7 - len(res.left_out)))
+    assert sum(n for n, _, _ in calls) == res.scores.size and all(c[1:] == (1000, 100) for c in calls)
+    assert res.left_out  # Taxi (240 states) is above max_states=150
+    entry = search.provenance(res, budget, note="test")
+    assert entry["values"] == res.values[res.best] and entry["budget"]["reduced"]
+    assert entry["budget"]["seeds"] == [0, 1]
+    assert len(entry["commit"]) == 40 or entry["commit"] == "unknown"
+    path = tmp_path / "tuned.json"
+    search.write_tuned(path, {"ucrl2": {"values": {"alpha_p": 1.0, "alpha_r": 0.5}}})
+    search.write_tuned(path, {"q_learning_episodic": entry})
+    data = json.loads(path.read_text())
+    assert set(data["agents"]) == {"ucrl2", "q_learning_episodic"}
+    hp = hparams.hparams_for("q_learning_episodic", path)
+    assert float(hp.c_1) == entry["values"]["c_1"]
+    assert float(hparams.hparams_for("ucrl2", path).alpha_r) == 0.5
+    with pytest.raises(ValueError, match="no values for 'psrl_episodic'"):
+        hparams.hparams_for("psrl_episodic", path)
+    assert hparams.hparams_for("random_episodic", path) == hparams.hparams_for("random_episodic", "reference")
