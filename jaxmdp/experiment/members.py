@@ -17,6 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxmdp.batching import stack
+from jaxmdp.blockmdp.block_mdp import BlockMDP
 from jaxmdp.mdp import MDP
 
 __all__ = ["Grid", "grid", "product", "seed_keys", "stack_hparams"]
@@ -62,20 +63,26 @@ def _as_stacked(mdps: MDP | Sequence[MDP]) -> tuple[MDP, tuple[str, ...]]:
     return stacked, labels
 
 
-def _stack_with_labels(mdps: MDP | Sequence[MDP]) -> tuple[MDP, tuple[str, ...]]:
-    if isinstance(mdps, MDP):
-        if mdps.T.ndim == 3:
+def _stack_with_labels(mdps: MDP | BlockMDP | Sequence[MDP | BlockMDP]) -> tuple[MDP, tuple[str, ...]]:
+    if isinstance(mdps, (MDP, BlockMDP)):
+        T = dynamics(mdps).T
+        if T.ndim == 3:
             mdps = [mdps]
-        elif mdps.T.ndim == 4:
-            labels = tuple(_label(m) for m in mdps.info.members) or tuple(f"mdp{i}" for i in range(mdps.T.shape[0]))
+        elif T.ndim == 4:
+            labels = tuple(_label(m) for m in mdps.info.members) or tuple(f"mdp{i}" for i in range(T.shape[0]))
             return mdps.strip(), labels
         else:
             raise ValueError(f"mdps must be an MDP, a stacked batch of MDPs or a sequence of MDPs; T has shape "
-                             f"{mdps.T.shape}")
+                             f"{T.shape}")
     mdps = list(mdps)
-    if not mdps or not all(isinstance(m, MDP) for m in mdps):
-        raise ValueError("mdps must be a non-empty sequence of MDPs")
+    if not mdps or not (all(isinstance(m, MDP) for m in mdps) or all(isinstance(m, BlockMDP) for m in mdps)):
+        raise ValueError("mdps must be a non-empty sequence of MDPs, or of BlockMDPs (jaxmdp.block_mdp)")
     return stack(mdps).strip(), tuple(_label(m.info) for m in mdps)
+
+
+def dynamics(mdps: MDP | BlockMDP) -> MDP:
+    """The MDP whose dynamics the members face: ``mdps`` itself, or the MDP under a BlockMDP's emissions."""
+    return mdps.mdp if isinstance(mdps, BlockMDP) else mdps
 
 
 def _label(info: Any) -> str:
@@ -125,7 +132,7 @@ def grid(
       hparams_index, seeds: labels written to the output (default ``arange(B)`` and ``-1``).
     """
     stacked, labels = _as_stacked(mdps)
-    M = stacked.T.shape[0]
+    M = dynamics(stacked).T.shape[0]
     leaves = jax.tree.leaves(hparams)
     sizes = {np.shape(x)[0] if np.ndim(x) else None for x in leaves}
     if None in sizes or len(sizes) > 1:
@@ -171,7 +178,7 @@ def product(
     hyperparameters share their random numbers (common random numbers make comparisons sharper).
     """
     stacked, labels = _as_stacked(mdps)
-    M = stacked.T.shape[0]
+    M = dynamics(stacked).T.shape[0]
     hparams = list(hparams)
     seeds = [int(s) for s in seeds]
     if not hparams:

@@ -57,7 +57,8 @@ from jaxmdp.experiment.indicators import (
     instant_from_values,
     policy_values,
 )
-from jaxmdp.experiment.members import Grid, grid, product, seed_keys, stack_hparams
+from jaxmdp.blockmdp.block_mdp import BlockMDP
+from jaxmdp.experiment.members import Grid, dynamics, grid, product, seed_keys, stack_hparams
 from jaxmdp.experiment.records import MEMBER_COLUMNS, RunResult, append_rows, csv_rows, record_steps, truncate_csv
 from jaxmdp.mdp import MDP
 
@@ -96,6 +97,7 @@ class Carry(struct.PyTreeNode):
     last_log: jax.Array
     key_data: jax.Array  # [B, 4, 2]
     env_state: env.EnvState
+    observation: jax.Array  # [B, ...] what each agent acts on next: the state, or a BlockMDP's (noisy) observation
     episode_start: jax.Array  # start state of the episode the next action belongs to
     last_start: jax.Array  # start state of the episode of the last action taken
     agent_state: Any
@@ -113,9 +115,10 @@ class Schedule(struct.PyTreeNode):
     record_period: jax.Array
 
 
-def _member(mdps: MDP, i: jax.Array) -> MDP:
-    """Member ``i``'s MDP. A grid of a single distinct MDP skips the gather (an unbatched MDP under ``vmap``)."""
-    if mdps.T.shape[0] == 1:
+def _member(mdps: MDP | BlockMDP, i: jax.Array) -> MDP | BlockMDP:
+    """Member ``i``'s MDP (or BlockMDP). A grid of a single distinct MDP skips the gather (an unbatched MDP under
+    ``vmap``)."""
+    if dynamics(mdps).T.shape[0] == 1:
         return jax.tree.map(lambda x: x[0], mdps)
     return jax.tree.map(lambda x: x[i], mdps)
 
@@ -134,7 +137,9 @@ _MAX_CACHED_PROGRAMS = 32
 
 @functools.lru_cache(maxsize=_MAX_CACHED_PROGRAMS)
 def _init_program(agent: Agent) -> Callable:
-    def init(mdps: MDP, mdp_index: jax.Array, hparams: Any, key_data: jax.Array, n_steps: jax.Array) -> Carry:
+    def init(
+        mdps: MDP | BlockMDP, mdp_index: jax.Array, hparams: Any, key_data: jax.Array, n_steps: jax.Array
+    ) -> Carry:
         sub = jax.vmap(lambda k: jax.random.key_data(jax.random.split(jax.random.wrap_key_data(k), _N_SUBKEYS)))(
             key_data
         )
@@ -152,18 +157,20 @@ def _init_program(agent: Agent) -> Callable:
         obs, env_state, state = jax.vmap(one)(mdp_index, hparams, init_key(0), init_key(1), init_key(2))
         B = mdp_index.shape[0]
         policy = jax.eval_shape(jax.vmap(agent.policy), state)
+        dyn = dynamics(mdps)
         return Carry(
             t=jnp.zeros((), jnp.int32),
             last_log=jnp.zeros((), jnp.int32),
             key_data=sub,
             env_state=env_state,
-            episode_start=obs,
-            last_start=obs,
+            observation=obs,
+            episode_start=env_state.state,
+            last_start=env_state.state,
             agent_state=state,
-            reward=Sums.zeros((B,), mdps.dtype),
-            logged=Sums.zeros((B, 3), mdps.dtype),
+            reward=Sums.zeros((B,), dyn.dtype),
+            logged=Sums.zeros((B, 3), dyn.dtype),
             policy_cache=jnp.full(policy.shape, jnp.nan, policy.dtype),
-            value_cache=jnp.zeros((B, mdps.n_states), mdps.dtype),
+            value_cache=jnp.zeros((B, dyn.n_states), dyn.dtype),
         )
 
     return jax.jit(init)
@@ -181,9 +188,12 @@ def _chunk_program(
     have no Beta reward anywhere (static ``MDP.stochastic_rewards``) compiles no reward draw.
     """
 
-    def chunk(carry: Carry, mdps: MDP, mdp_index: jax.Array, consts: IndicatorConstants, sched: Schedule, n):
+    def chunk(
+        carry: Carry, mdps: MDP | BlockMDP, mdp_index: jax.Array, consts: IndicatorConstants, sched: Schedule, n
+    ):
         B = mdp_index.shape[0]
-        dtype = mdps.dtype
+        dyn = dynamics(mdps)  # the indicators evaluate policies on the states' dynamics
+        dtype = dyn.dtype
 
         def plan_step(c: Carry) -> Carry:
             needs = jax.vmap(agent.needs_plan)(c.agent_state)
@@ -197,9 +207,11 @@ def _chunk_program(
         def interact(c: Carry) -> Carry:
             k_env, k_act = _keys(c.key_data, 0, c.t), _keys(c.key_data, 1, c.t)
 
-            def one(i, ke, ka, env_state, state):
+            def one(i, ke, ka, env_state, obs, state):
+                # obs: the state index, or for a BlockMDP the observation sample that step() returned last (so
+                # the transition's next_obs is the very sample the agent acts on next, not a second noise draw).
                 m = _member(mdps, i)
-                obs, h = env_state.state, env_state.h
+                h = env_state.h
                 action = agent.act(ka, state, obs, h)
                 obs2, env_state2, reward, terminated, _, info = env.step(ke, env_state, action, m)
                 tr = Transition(
@@ -209,14 +221,15 @@ def _chunk_program(
                 return obs2, env_state2, agent.update(state, tr), reward, terminated
 
             obs2, env_state, state, reward, terminated = jax.vmap(one)(
-                mdp_index, k_env, k_act, c.env_state, c.agent_state
+                mdp_index, k_env, k_act, c.env_state, c.observation, c.agent_state
             )
             return c.replace(
                 t=c.t + 1,
                 env_state=env_state,
+                observation=obs2,
                 agent_state=state,
                 last_start=c.episode_start,
-                episode_start=jnp.where(terminated, obs2, c.episode_start),
+                episode_start=jnp.where(terminated, env_state.state, c.episode_start),
                 reward=c.reward.add(reward.astype(dtype)),
             )
 
@@ -228,11 +241,11 @@ def _chunk_program(
             changed = jnp.any((policy != c.policy_cache).reshape(B, -1), axis=1)
 
             def evaluate(cache):
-                values = jax.vmap(lambda i, p: policy_values(_member(mdps, i), p))(mdp_index, policy)
+                values = jax.vmap(lambda i, p: policy_values(_member(dyn, i), p))(mdp_index, policy)
                 return jnp.where(changed[:, None], values.astype(dtype), cache)
 
             values = jax.lax.cond(jnp.any(changed), evaluate, lambda cache: cache, c.value_cache)
-            inst = jax.vmap(lambda i, k, v, s, s0: instant_from_values(_member(mdps, i), k, v, s, s0, variant))(
+            inst = jax.vmap(lambda i, k, v, s, s0: instant_from_values(_member(dyn, i), k, v, s, s0, variant))(
                 mdp_index, consts, values, c.env_state.state, c.last_start
             )
             c = c.replace(policy_cache=policy, value_cache=values)
@@ -280,7 +293,7 @@ def _chunk_program(
 
 @functools.lru_cache(maxsize=len(VARIANTS))
 def _constants_program(variant: Variant) -> Callable:
-    return jax.jit(jax.vmap(lambda m: indicator_constants(m, variant)))
+    return jax.jit(jax.vmap(lambda m: indicator_constants(dynamics(m), variant)))
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -311,6 +324,18 @@ def _validate(agent: Agent, g: Grid, variant: str) -> None:
             f"agent {agent.name!r} is {kind(agent.episodic)} but the MDPs are {kind(g.episodic)}; use a "
             f"{kind(g.episodic)} agent"
         )
+    block = isinstance(g.mdps, BlockMDP)
+    if agent.observation == "state" and block:
+        raise ValueError(
+            f"agent {agent.name!r} is tabular: it observes state indices and cannot act on a BlockMDP's emissions "
+            "(as in the reference); pass the plain MDPs (block.mdp), or use a deep agent"
+        )
+    if agent.observation == "emission" and not block:
+        raise ValueError(
+            f"agent {agent.name!r} is a deep agent: it observes emissions, not state indices; build its grid from "
+            "BlockMDPs, e.g. runner.product([jaxmdp.block_mdp(mdp, 'state_info')], ...) (any emission kind of "
+            "jaxmdp.EMISSION_KINDS)"
+        )
     agent.check_hparams(g.hparams)
 
 
@@ -323,7 +348,8 @@ def _check_shapes(agent: Agent, g: Grid, n_steps: int) -> None:
     try:
         state = jax.eval_shape(agent.init, key, spec_of(m, n_steps), hp)
         policy = jax.eval_shape(agent.policy, state)
-        action = jax.eval_shape(agent.act, key, state, jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32))
+        obs, _ = jax.eval_shape(env.reset, key, m)
+        action = jax.eval_shape(agent.act, key, state, obs, jnp.zeros((), jnp.int32))
     except (TypeError, ValueError, IndexError) as err:
         raise ValueError(f"agent {agent.name!r} does not fit MDPs with S={S}, A={A}, H={H}: {err}") from err
     allowed = [(H, S, A), (S, A)] if H is not None else [(S, A)]
@@ -461,7 +487,7 @@ def _start_or_resume(
         csv_file.parent.mkdir(parents=True, exist_ok=True)
         truncate_csv(csv_file, -1)
     steps_done = np.zeros((0,), np.int64)
-    values_done = np.zeros((0, n_members, len(AGENT_COLUMNS)), np.dtype(program.mdps.dtype))
+    values_done = np.zeros((0, n_members, len(AGENT_COLUMNS)), np.dtype(dynamics(program.mdps).dtype))
     return _Progress(carry, steps_done, values_done, 0.0)
 
 
