@@ -12,7 +12,13 @@ The CPU backend runs one lockstep loop per device, so the script exposes one hos
 (``XLA_FLAGS=--xla_force_host_platform_device_count``) unless ``XLA_FLAGS`` already sets it; the runner shards the
 members over them. Writes ``results/bench_agents.md`` and ``results/bench_agents.csv``.
 
-Usage: ``python scripts/bench_agents.py [--quick] [--steps N] [--seeds 1,64,1024] [--agents a,b] [--repeats R]``.
+Deep agents (``agent.observation == "emission"``) run on the ``state_info`` BlockMDP of RiverSwim at ``--deep-seeds``
+(1, 16, 64), and beside DQN the script times the baseline a user would otherwise pick: bsuite's own JAX DQN
+(``bsuite.baselines.jax.dqn``, one seed, its per-step Python loop) on the same MDP and observations with the same
+network, batch, replay and periods (``pip install -e ".[bench]"``; skipped with a note when bsuite is missing).
+
+Usage: ``python scripts/bench_agents.py [--quick] [--steps N] [--seeds 1,64,1024] [--deep-seeds 1,16,64]
+[--agents a,b] [--repeats R]``.
 """
 
 from __future__ import annotations
@@ -88,6 +94,86 @@ def measure(agent, mdp, seeds: int, steps: int, repeats: int, log_period: int = 
     }
 
 
+# ---------------------------------------------------------------------------------------------------------------
+# The baseline a user would otherwise pick: bsuite's own JAX DQN (bsuite/baselines/jax/dqn), one seed, its per-step
+# Python loop, on the same MDP and emission table, with the same network sizes, batch and replay settings.
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def bsuite_dqn_steps_per_s(mdp, table, hparams, steps: int, seed: int = 0) -> dict | None:
+    """Steps per second of bsuite's JAX DQN agent on ``mdp`` observed through ``table`` (noiseless emission rows);
+    ``None`` when bsuite, dm-haiku or rlax are not installed (``pip install -e ".[bench]"``)."""
+    try:
+        import dm_env
+        import haiku as hk
+        import optax
+        from bsuite.baselines.jax.dqn.agent import DQN
+        from dm_env import specs
+    except ImportError:
+        return None
+    import numpy as np
+
+    T = np.asarray(mdp.T, np.float64)
+    T /= T.sum(-1, keepdims=True)  # float32 rows, renormalised for numpy's sampler
+    R = np.asarray(mdp.reward_mean, np.float64)  # mean reward of each transition [S, A, S']
+    P0 = np.asarray(mdp.P0, np.float64)
+    P0 /= P0.sum()
+    table = np.asarray(table, np.float32)
+    episodic, H = mdp.episodic, int(mdp.horizon) if mdp.episodic else 0
+
+    class TabularEnv(dm_env.Environment):
+        """The MDP as a dm_env environment with numpy sampling (cheap next to the agent's per-step cost)."""
+
+        def __init__(self):
+            self.rng = np.random.default_rng(seed)
+
+        def _obs(self):
+            return table[self.h, self.s] if episodic else table[self.s]
+
+        def reset(self):
+            self.s, self.h = int(self.rng.choice(len(P0), p=P0)), 0
+            return dm_env.restart(self._obs())
+
+        def step(self, action):
+            s2 = int(self.rng.choice(T.shape[2], p=T[self.s, action]))
+            r, self.s, self.h = float(R[self.s, action, s2]), s2, self.h + 1
+            if episodic and self.h >= H:
+                return dm_env.termination(r, np.zeros_like(table[0, 0]))  # past the end: all zeros, as the reference
+            return dm_env.transition(r, self._obs())
+
+        def observation_spec(self):
+            return specs.Array(table.shape[2:] if episodic else table.shape[1:], np.float32)
+
+        def action_spec(self):
+            return specs.DiscreteArray(T.shape[1])
+
+    env = TabularEnv()
+    width, depth = int(hparams.network_width), int(hparams.network_depth)
+
+    def network(x):
+        return hk.nets.MLP([width] * depth + [T.shape[1]])(hk.Flatten()(x))
+
+    np.random.seed(seed)  # bsuite's agent draws its exploration from numpy's global generator
+    agent = DQN(
+        obs_spec=env.observation_spec(), action_spec=env.action_spec(), network=network,
+        optimizer=optax.adam(float(hparams.learning_rate)), batch_size=int(hparams.batch_size),
+        epsilon=float(hparams.epsilon), rng=hk.PRNGSequence(seed), discount=float(hparams.discount),
+        replay_capacity=int(hparams.replay_capacity), min_replay_size=int(hparams.min_replay),
+        sgd_period=int(hparams.sgd_period), target_update_period=int(hparams.target_update_period),
+    )
+    ts = env.reset()
+    warm = min(steps // 4, 1000)  # past min_replay so every timed step includes its SGD, after jit compilation
+    t0 = None
+    for i in range(steps + warm):
+        if i == warm:
+            t0 = time.perf_counter()
+        a = agent.select_action(ts)
+        new_ts = env.step(a)
+        agent.update(ts, a, new_ts)
+        ts = env.reset() if new_ts.last() else new_ts
+    return {"steps_per_s": steps / (time.perf_counter() - t0)}
+
+
 def fmt_rate(x: float) -> str:
     return f"{x / 1e6:.2f} M" if x >= 1e6 else f"{x / 1e3:.1f} k"
 
@@ -96,6 +182,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--steps", type=int, default=20_000, help="steps per seed (the reference timed 20 000)")
     ap.add_argument("--seeds", default="1,64,1024")
+    ap.add_argument("--deep-seeds", default="1,16,64", help="seed counts of the deep agents")
+    ap.add_argument("--bsuite-steps", type=int, default=3_000, help="timed steps of bsuite's DQN loop")
     ap.add_argument("--agents", default=",".join(agents.AGENTS))
     ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument("--quick", action="store_true", help="4 000 steps, 1 repeat")
@@ -106,6 +194,7 @@ def main() -> None:
     if args.quick:
         args.steps, args.repeats = 4_000, 1
     seed_counts = [int(s) for s in args.seeds.split(",")]
+    deep_seed_counts = [int(s) for s in args.deep_seeds.split(",")]
     names = [n for n in args.agents.split(",") if n]
     families = [f for f in ("RiverSwim", "Taxi", "MiniGridEmpty") if f in jaxmdp.families()]
     load0 = os.getloadavg()
@@ -114,10 +203,21 @@ def main() -> None:
     rows, profile = [], []
     for name in names:
         agent = agents.get(name)
-        for family in families:
+        deep = agent.observation == "emission"
+        for family in ("RiverSwim",) if deep else families:
             mdp = jaxmdp.make(family, episodic=agent.episodic, seed=0, **BENCH_MDPS[(family, agent.episodic)])
+            if deep:
+                mdp = jaxmdp.block_mdp(mdp, "state_info")
+                if name.startswith("dqn"):
+                    base = bsuite_dqn_steps_per_s(mdp.mdp, mdp.emissions, agent.default_hparams, args.bsuite_steps)
+                    print(f"bsuite JAX DQN {family}: " + ("not installed" if base is None else
+                                                          f"{fmt_rate(base['steps_per_s'])} steps/s"), flush=True)
+                    if base is not None:
+                        rows.append(dict(agent=f"bsuite_jax_dqn ({'episodic' if agent.episodic else 'continuous'})",
+                                         mdp=family, S=mdp.n_states, seeds=1, skipped=False, compile_s=float("nan"),
+                                         cpu_ns_per_step=float("nan"), regret=float("nan"), **base))
             predicted = None
-            for seeds in seed_counts:
+            for seeds in deep_seed_counts if deep else seed_counts:
                 if predicted is not None and predicted * seeds > args.max_seconds:
                     print(f"{name} {family} {seeds} seeds: skipped (predicted {predicted * seeds:.0f} s)",
                           flush=True)
@@ -128,9 +228,9 @@ def main() -> None:
                 rows.append(dict(agent=name, mdp=family, S=mdp.n_states, seeds=seeds, skipped=False, **m))
                 print(f"{name:24s} {family:14s} seeds={seeds:5d} {fmt_rate(m['steps_per_s'])} agent-steps/s "
                       f"(compile {m['compile_s']:.1f} s, {m['cpu_ns_per_step']:.0f} CPU-ns/step)", flush=True)
-        # Profile at the largest seed count on RiverSwim: environment, agent, indicators.
+        # Profile at the largest seed count on RiverSwim: environment, agent, indicators (tabular agents).
         seeds = seed_counts[-1]
-        if not any(r["agent"] == name and r["seeds"] == seeds and not r["skipped"] for r in rows):
+        if deep or not any(r["agent"] == name and r["seeds"] == seeds and not r["skipped"] for r in rows):
             continue
         mdp = jaxmdp.make("RiverSwim", episodic=agent.episodic, seed=0, **BENCH_MDPS[("RiverSwim", agent.episodic)])
         random_agent = agents.get("random_episodic" if agent.episodic else "random_continuous")
@@ -190,6 +290,18 @@ def write(out: Path, rows: list[dict], profile: list[dict], args, load0, elapsed
             cells.append("-" if r is None else "skipped" if r["skipped"] else
                          f"{fmt_rate(r['steps_per_s'])} ({r['compile_s']:.1f} s)")
         lines.append(f"| {agent} | {mdp} | {S} | " + " | ".join(cells) + f" | {REFERENCE.get((agent, mdp), '-')} |")
+    baselines = [r for r in rows if r["agent"].startswith("bsuite_jax_dqn")]
+    if baselines:
+        lines += ["", "Deep agents against bsuite's own JAX DQN (one seed, per-step Python loop, same MDP, observations, "
+                  "network, batch and replay): our agent-steps/s summed over seeds divided by bsuite's steps/s.", "",
+                  "| agent | seeds | ours | bsuite JAX DQN | ratio |", "|---|---|---|---|---|"]
+        for base in baselines:
+            setting = "episodic" if "episodic" in base["agent"] else "continuous"
+            for r in rows:
+                if r["agent"].endswith(setting) and "dqn" in r["agent"] and not r["agent"].startswith("bsuite") \
+                        and not r.get("skipped"):
+                    lines.append(f"| {r['agent']} | {r['seeds']} | {fmt_rate(r['steps_per_s'])} | "
+                                 f"{fmt_rate(base['steps_per_s'])} | {r['steps_per_s'] / base['steps_per_s']:.1f}x |")
     if profile:
         lines += [
             "",
