@@ -23,6 +23,24 @@ def shared_dir() -> Path | None:
     return None
 
 
+def missing_reference_error(environ: dict, shared: Path | None) -> str | None:
+    """Why the suite must not run: in CI (``CI=true``) the reference data is required, so that the parity tests
+    cannot turn themselves into skips; ``None`` when it may run."""
+    if shared is None and environ.get("CI", "").lower() == "true":
+        return ("CI=true but the reference data is missing: the parity tests need ../shared/reference/colosseum "
+                "(or $JAXMDP_SHARED pointing to a folder holding reference/colosseum/index.json)")
+    return None
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    shared = shared_dir()
+    error = missing_reference_error(dict(os.environ), shared)
+    if error is not None:
+        pytest.exit(error, returncode=1)
+    if shared is None:
+        print("note: ../shared/reference is absent; the parity tests are skipped (in CI this is an error)")
+
+
 def reference_index() -> list[dict]:
     """Entries of ``reference/colosseum/index.json`` (empty when the shared folder is absent)."""
     root = shared_dir()

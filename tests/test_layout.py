@@ -96,3 +96,4 @@ def test_compiled_program_caches_are_bounded():
 
     for cache in (runner._init_program, runner._chunk_program, runner._constants_program):
         assert cache.cache_info().maxsize is not None
+
