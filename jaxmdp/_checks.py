@@ -50,9 +50,13 @@ def check_range(
     """Raise ``ValueError`` unless every entry of ``value`` is finite and in the interval from ``low`` to ``high``
     (closed unless ``low_open``/``high_open``).
 
-    ``value`` may be a scalar or an array (a hyperparameter grid); the first offending entry is reported.
+    ``value`` may be a scalar or an array (a hyperparameter grid) of numbers (a string is refused, not parsed); the
+    first offending entry is reported.
     """
-    x = np.asarray(value, dtype=np.float64)
+    raw = np.asarray(value)
+    if raw.dtype.kind not in "biuf":
+        raise ValueError(f"{name} must be a number; got {value!r}")
+    x = raw.astype(np.float64)
     ok = np.isfinite(x)
     ok &= (x > low) if low_open else (x >= low)
     ok &= (x < high) if high_open else (x <= high)
