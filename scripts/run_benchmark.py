@@ -8,6 +8,7 @@ size; results are written as each batch finishes, and running again on the same 
     python scripts/run_benchmark.py --quick --out results/benchmark_quick       # the quick-test sets, a few minutes
     python scripts/run_benchmark.py --settings episodic_ergodic --seeds 20 --steps 500000 --out results/benchmark
     python scripts/run_benchmark.py --settings continuous_ergodic --agents ucrl2 --hparams reference --out DIR
+    python scripts/run_benchmark.py --quick --emission StateInfo --agents dqn_episodic random_episodic --out DIR
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"benchmark sets (default: the four settings); one of: {', '.join(sets.SET_NAMES)}")
     p.add_argument("--agents", nargs="+", default=None,
                    help="agents by registry name (default: every tabular agent of each set's type; --quick: all but "
-                        "psrl_continuous)")
+                        "psrl_continuous; with --emission: every deep agent of the set's type and the random agent)")
     p.add_argument("--mdps", nargs="+", default=None, metavar="MDP",
                    help="keep only these MDPs of the sets: labels (RiverSwim/prms_0) or families (default: all)")
     p.add_argument("--seeds", type=int, default=None, help="number of seeds 0..N-1 (default 20; --quick 2)")
@@ -46,7 +47,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "or a tuned-file path (default %(default)s)")
     p.add_argument("--buckets", type=int, default=None, help="size buckets per set (default 4; --quick 1)")
     p.add_argument("--max-members", type=int, default=None, help="members per runner call (default: a bucket)")
-    p.add_argument("--emission", default=None, help="BlockMDP emission for deep agents (e.g. StateInfo)")
+    p.add_argument("--emission", default=None,
+                   help="observe the MDPs through this emission map, for the deep agents: state_info (the reference's "
+                        "StateInfo), one_hot (OneHotEncoding), image, tensor, linear_optimal, linear_random (default: "
+                        "the states, tabular agents); with it the default agents are the deep agents and the random "
+                        "agent")
     p.add_argument("--quick", action="store_true", help="the quick-test sets, 2 seeds, few steps")
     p.add_argument("--out", type=Path, required=True, help="output folder (reused to resume)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -56,6 +61,8 @@ def build_parser() -> argparse.ArgumentParser:
 def config_from_args(args: argparse.Namespace) -> run.RunConfig:
     """The run's settings: ``--quick`` defaults (or the benchmark's), overridden by the options given."""
     base = dict(run.QUICK) if args.quick else dict(sets=sets.SETTINGS)
+    if args.emission is not None:
+        base.pop("agents", None)  # --quick's agents are tabular; with an emission: the deep agents and random
     given = dict(sets=tuple(args.settings) if args.settings else None,
                  agents=tuple(args.agents) if args.agents else None,
                  seeds=tuple(range(args.seeds)) if args.seeds is not None else None, n_steps=args.steps,

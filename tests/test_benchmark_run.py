@@ -1,15 +1,18 @@
 """The benchmark run (resumable, byte-identical after an interruption) and its report (Table 2-style tables, figures).
 
 The run tests use a tiny version: two MDPs of the episodic quick-test set (RiverSwim 5 and DeepSea 10, two size
-buckets), two cheap agents, two seeds, 200 steps.
+buckets), two cheap agents, two seeds, 200 steps. The deep run: RiverSwim 5 through the ``StateInfo`` emission, DQN
+and the random agent, two seeds, 200 steps.
 """
 
 import csv
 import json
 
+import jax
 import numpy as np
 import pytest
 
+import jaxmdp
 from hardness.benchmark import published, report, run, sets
 
 TINY = dict(sets=("episodic quick test",), agents=("q_learning_episodic", "random_episodic"), seeds=(0, 1),
@@ -157,7 +160,52 @@ def test_bad_configs_raise_clear_errors(tmp_path):
         run.run_benchmark(run.RunConfig(sets=("episodic quick tst",)), tmp_path)
     with pytest.raises(ValueError, match="no set of"):
         run.plan(run.RunConfig(sets=("episodic quick test",), agents=("ucrl2",)))
-    with pytest.raises(ValueError, match="deep agents need the BlockMDP support"):
-        run.plan(run.RunConfig(sets=("episodic quick test",), agents=(), emission="StateInfo"))
+    with pytest.raises(ValueError, match="unknown emission 'StateInf'; did you mean 'StateInfo'"):
+        run.plan(run.RunConfig(sets=("episodic quick test",), emission="StateInf"))
+    with pytest.raises(ValueError, match="observes emissions: pass --emission"):
+        run.plan(run.RunConfig(sets=("episodic quick test",), agents=("dqn_episodic",)))
+    with pytest.raises(ValueError, match="is tabular"):
+        run.plan(run.RunConfig(sets=("episodic quick test",), agents=("q_learning_episodic",), emission="one_hot"))
     with pytest.raises(ValueError, match="keeps no MDP"):
         run.plan(run.RunConfig(sets=("episodic quick test",), only=("Nowhere",), hparams="reference"))
+
+
+DEEP = dict(sets=("episodic quick test",), agents=("dqn_episodic", "random_episodic"), seeds=(0, 1), n_steps=200,
+            log_period=50, n_buckets=1, only=("RiverSwim",), emission="StateInfo")
+
+
+def test_deep_agents_run_on_the_state_info_block_mdps(full_run, tmp_path):
+    summary = run.run_benchmark(run.RunConfig(**DEEP), tmp_path, progress=False, report=False)
+    assert summary.finished and len(summary.ran) == 2
+    plan = json.loads((tmp_path / "plan.json").read_text())
+    assert plan["settings"]["emission"] == "state_info"  # the reference's class name, canonicalised
+    # The deep agents have no tuned values (agents.md §7): "tuned" (the default) gives their defaults.
+    assert plan["settings"]["hparams"]["dqn_episodic"] == run._hparams_repr(run.agent_registry.get(
+        "dqn_episodic").default_hparams)
+    with (tmp_path / "members.csv").open(newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [(r["agent"], r["seed"]) for r in rows] == [(a, s) for a in DEEP["agents"] for s in ("0", "1")]
+    # The random agent ignores its observations: on the BlockMDP its records are the tabular run's, bit for bit.
+    with (full_run[0] / "members.csv").open(newline="") as f:
+        tabular = {(r["agent"], r["seed"]): r for r in csv.DictReader(f) if r["mdp"] == "RiverSwim/prms_0"}
+    for r in rows:
+        if r["agent"] == "random_episodic":
+            assert {k: v for k, v in r.items() if k != "batch"} == {
+                k: v for k, v in tabular["random_episodic", r["seed"]].items() if k != "batch"}
+        else:
+            assert 0 <= float(r["normalized_regret_per_step"]) <= 1.5
+    # The same plan under the kind's own name: the same batches, so a run with either name resumes the other.
+    again = run.run_benchmark(run.RunConfig(**{**DEEP, "emission": "state_info"}), tmp_path, progress=False,
+                              report=False)
+    assert again.ran == [] and len(again.reused) == 2
+
+
+def test_emission_names_and_keys():
+    assert {run.canonical_emission(n) for n in run.REFERENCE_EMISSIONS} == set(jaxmdp.EMISSION_KINDS)
+    assert all(run.canonical_emission(k) == k for k in jaxmdp.EMISSION_KINDS)
+    mdp = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=5)
+    a, b, c = (run.to_block_mdp(mdp, "StateLinearRandom", s) for s in (3, 3, 4))
+    np.testing.assert_array_equal(a.emissions, b.emissions)  # the member's seed fixes the features
+    assert not np.allclose(a.emissions, c.emissions)
+    direct = jaxmdp.block_mdp(mdp, "linear_random", key=jax.random.fold_in(jax.random.key(3), run.EMISSION_STREAM))
+    np.testing.assert_array_equal(a.emissions, direct.emissions)

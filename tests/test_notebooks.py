@@ -23,14 +23,16 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 NOTEBOOK_DIR = ROOT / "notebooks"
-NAMES = ("01_mdps_and_hardness", "02_agents_and_regret")
+NAMES = ("01_mdps_and_hardness", "02_agents_and_regret", "03_blockmdps_and_deep_agents")
 TIMEOUT_S = 600
 #: Source lines replaced before a notebook runs in the test: ``(full size, small)``. Each must occur exactly once, so
 #: a notebook edit that renames a parameter fails here instead of silently running at full size. 02's runs are
 #: step-bound (12 members x 20 000 steps, twice, plus the resumed run); 2 000 steps still make 20 chunks, so the
-#: interruption after 5 chunks and the resume are exercised the same way.
+#: interruption after 5 chunks and the resume are exercised the same way. 03's three runs (DQN, Q-learning, random,
+#: 4 seeds each) keep their checks at 2 000 steps (the random agent's exact baseline, the tabular agent's refusal).
 SMALL = {
     "02_agents_and_regret": [("N_STEPS = 20_000\n", "N_STEPS = 2_000\n")],
+    "03_blockmdps_and_deep_agents": [("N_STEPS = 20_000\n", "N_STEPS = 2_000\n")],
 }
 
 

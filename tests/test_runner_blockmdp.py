@@ -17,7 +17,7 @@ from flax import struct
 import agents
 import jaxmdp
 from jaxmdp.experiment import runner
-from jaxmdp.experiment.agent_interface import Agent
+from jaxmdp.experiment.agent_interface import Agent, spec_of
 
 N_STEPS = 300
 
@@ -114,3 +114,17 @@ def test_agents_of_the_wrong_kind_are_refused(mdps):
     dqn = agents.get("dqn_continuous")
     with pytest.raises(ValueError, match=r"deep agent.*jaxmdp.block_mdp\(mdp, 'state_info'\)"):
         runner.run(dqn, runner.product([mdp], [dqn.default_hparams], seeds=[0]), 10)
+
+
+@pytest.mark.parametrize("episodic", [False, True])
+def test_deep_agent_states_hold_no_typed_keys(mdps, episodic):
+    """The runner returns (and checkpoints) agent states as NumPy arrays, which typed PRNG keys cannot become: an
+    agent that keeps a key keeps its ``key_data`` (BootDQN did not, and failed at the end of every run)."""
+    block = jaxmdp.block_mdp(mdps[episodic], "state_info")
+    spec = spec_of(block, 100)
+    for name, agent in agents.AGENTS.items():
+        if agent.episodic != episodic:
+            continue
+        shapes = jax.eval_shape(agent.init, jax.random.key(0), spec, agent.default_hparams)
+        typed = [x for x in jax.tree.leaves(shapes) if jax.dtypes.issubdtype(x.dtype, jax.dtypes.prng_key)]
+        assert not typed, name

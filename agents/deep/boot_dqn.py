@@ -113,11 +113,12 @@ class BootReplayItem(ReplayItem):
 
 class BootDQNState(QState):
     """:class:`agents.deep.dqn.QState` (parameters with a leading head axis ``K``) with the prior parameters, the
-    active head and the key of the per-transition draws."""
+    active head and the key of the per-transition draws, as raw key data (``jax.random.key_data``: the runner hands
+    the agent state back, and checkpoints it, as NumPy arrays, which typed keys cannot become)."""
 
     prior_params: Any
     active_head: jax.Array
-    key: jax.Array
+    key_data: jax.Array
 
 
 def ensemble_q(state: BootDQNState, params: Any, obs: jax.Array) -> jax.Array:
@@ -159,7 +160,7 @@ def init(key: jax.Array, spec: MDPSpec, hparams: BootDQNHParams) -> BootDQNState
         steps=jnp.zeros((), jnp.int32),
         sgd_steps=jnp.zeros((), jnp.int32),
         active_head=jax.random.randint(k_head, (), 0, K),
-        key=k_draws,
+        key_data=jax.random.key_data(k_draws),
         observations=table,
         action_mask=spec.action_mask,
         hparams=cast_hparams(hparams),
@@ -186,7 +187,8 @@ def update(state: BootDQNState, tr: Transition) -> BootDQNState:
     with probability ``switch_prob`` (continuous)."""
     hp = state.hparams
     K = hp.n_ensemble
-    k_mask, k_noise, k_switch, k_head = jax.random.split(jax.random.fold_in(state.key, state.steps), 4)
+    key = jax.random.fold_in(jax.random.wrap_key_data(state.key_data), state.steps)
+    k_mask, k_noise, k_switch, k_head = jax.random.split(key, 4)
     item = item_of(tr, state.observations, state.episodic)
     item = BootReplayItem(
         **vars(item),

@@ -11,7 +11,8 @@
   agent's search space in order as ``uniform(low, high)`` and rounds it to 4 decimals.
 
 Agents without a search space (the random agents) have no tunable hyperparameters: every source gives their
-defaults.
+defaults. The deep agents have search spaces but the reference ships no tuned values for them (agents.md §7): unless
+the shipped file holds some, ``"tuned"`` gives their defaults too (bsuite's own, as ``"reference"``).
 """
 
 from __future__ import annotations
@@ -89,6 +90,8 @@ def hparams_for(name: str, source: str | os.PathLike = "tuned") -> Any:
         return agent.default_hparams
     path = TUNED_FILE if str(source) == "tuned" else Path(source)
     tuned = load_tuned(path)
+    if name not in tuned and str(source) == "tuned" and agent.observation == "emission":
+        return agent.default_hparams  # deep agents: no tuned values shipped (module docstring)
     if name not in tuned:
         raise ValueError(
             f"hparams file {path} has no values for {name!r} (it has {sorted(tuned)}); tune it with "

@@ -11,6 +11,12 @@ seeds of an MDP in its bucket), and one batch is one agent on one bucket, at mos
 buckets' members split in order otherwise): one lockstep runner call (:func:`jaxmdp.runner.run`) in which no member
 pays for a larger bucket's padding. Identical instances (seed-independent families) are stored once per batch.
 
+Deep agents (paper §3.1, App. G): with ``emission`` every MDP is wrapped as a noiseless BlockMDP
+(:func:`to_block_mdp`; the non-tabular benchmark's choice is ``StateInfo``), the default agents are the deep agents
+of each set's type and the random agent (the baseline), and a bucket whose MDPs emit observations of different shapes
+(``state_info`` of RiverSwim has one field, of DeepSea two) is split into one batch per shape. The linear emissions'
+random features come from :func:`emission_key` of the member's seed.
+
 Output folder:
 
 * ``plan.json``: the settings and the batches (reused, without building any MDP, when the settings are unchanged);
@@ -32,15 +38,17 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import difflib
 import hashlib
 import json
 import os
 import sys
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+import jax
 import numpy as np
 
 import agents as agent_registry
@@ -49,6 +57,7 @@ from hardness.benchmark import hparams as hp_sources
 from hardness.benchmark import sets
 from jaxmdp import runner
 from jaxmdp.experiment import records
+from jaxmdp.experiment.members import dynamics
 from jaxmdp.mdp import MDP
 
 __all__ = [
@@ -98,7 +107,9 @@ class RunConfig:
       hparams: ``"tuned"``, ``"reference"`` or a tuned-file path (:func:`hardness.benchmark.hparams.hparams_for`).
       n_buckets: size buckets per set; max_members: members per runner call (``None``: a whole bucket).
       n_records: records per member in the per-record CSVs and curves.
-      emission: a BlockMDP emission for deep agents (``None``: tabular agents on the states).
+      emission: the emission through which the agents observe the MDPs (:func:`to_block_mdp`: a kind of
+        :data:`jaxmdp.EMISSION_KINDS` or a reference class name such as ``"StateInfo"``); the deep agents need one,
+        the tabular agents refuse one, the random agent runs either way (``None``: the agents observe the states).
       only: keep only the MDPs with these labels (``"RiverSwim/prms_0"``) or families (``None``: every MDP).
     """
 
@@ -141,11 +152,13 @@ class RunSummary:
     out: Path
 
 
-def default_agents(set_name: str) -> list[str]:
-    """Every registered tabular agent of the set's type, the learning agents first (registry order), the random
-    agent last."""
+def default_agents(set_name: str, emission: str | None = None) -> list[str]:
+    """Every registered agent of the set's type that observes what the run hands out (without ``emission``: the
+    tabular agents; with one: the deep agents), the learning agents first (registry order), the random agent (which
+    runs on both, the baseline) last."""
     episodic = sets.is_episodic(set_name)
-    names = [n for n, a in agent_registry.AGENTS.items() if a.episodic == episodic and a.observation != "emission"]
+    wanted = ("state", "any") if emission is None else ("emission", "any")
+    names = [n for n, a in agent_registry.AGENTS.items() if a.episodic == episodic and a.observation in wanted]
     return [n for n in names if not n.startswith("random")] + [n for n in names if n.startswith("random")]
 
 
@@ -157,7 +170,7 @@ def quick_config(**overrides: Any) -> RunConfig:
 def _agents_of(config: RunConfig, set_name: str) -> list[str]:
     episodic = sets.is_episodic(set_name)
     if config.agents is None:
-        return default_agents(set_name)
+        return default_agents(set_name, config.emission)
     return [n for n in config.agents if agent_registry.get(n).episodic == episodic]
 
 
@@ -166,6 +179,8 @@ def _check(config: RunConfig) -> list[str]:
     names = [sets.canonical_name(s) for s in config.sets]
     if not names:
         raise ValueError("sets must name at least one benchmark set")
+    if config.emission is not None:
+        canonical_emission(config.emission)
     for name in config.agents or ():
         agent = agent_registry.get(name)
         if not any(sets.is_episodic(s) == agent.episodic for s in names):
@@ -175,8 +190,6 @@ def _check(config: RunConfig) -> list[str]:
             raise ValueError(f"agent {name!r} observes emissions: pass --emission (e.g. StateInfo)")
         if agent.observation == "state" and config.emission is not None:
             raise ValueError(f"agent {name!r} is tabular; --emission is for agents that observe emissions")
-    if config.emission is not None:
-        emission_wrapper(config.emission)
     if not config.seeds or any(int(s) < 0 for s in config.seeds) or len(set(config.seeds)) != len(config.seeds):
         raise ValueError(f"seeds must be distinct non-negative integers; got {config.seeds}")
     for field in ("n_steps", "log_period", "n_buckets", "n_records"):
@@ -188,17 +201,43 @@ def _check(config: RunConfig) -> list[str]:
     return names
 
 
-def emission_wrapper(emission: str) -> Callable[[MDP], Any]:
-    """The map from a built MDP to its BlockMDP with ``emission`` (``StateInfo`` in the paper's non-tabular
-    benchmark): the hook through which deep agents run on the same sets. ``ValueError`` until jaxmdp has BlockMDPs."""
-    try:
-        from jaxmdp import block_mdp  # type: ignore[attr-defined]  # the BlockMDP issue's module
-    except ImportError:
-        raise ValueError(
-            f"emission={emission!r}: deep agents need the BlockMDP support (jaxmdp.block_mdp), which this version of "
-            "jaxmdp does not have yet; run the tabular agents without --emission"
-        ) from None
-    return lambda mdp: block_mdp.with_emission(mdp, emission)
+#: The reference's emission-map class names (benchmark.md §5) and the kinds of :func:`jaxmdp.block_mdp` they are.
+REFERENCE_EMISSIONS = {
+    "StateInfo": "state_info", "OneHotEncoding": "one_hot", "ImageEncoding": "image", "TensorEncoding": "tensor",
+    "StateLinearOptimal": "linear_optimal", "StateLinearRandom": "linear_random",
+}
+#: Emission kinds whose features are random: their key is derived from the member's seed (:func:`emission_key`).
+KEYED_EMISSIONS = ("linear_optimal", "linear_random")
+#: ``fold_in`` constant of the emission key's stream (ASCII "emis"), apart from the agent's ``jax.random.key(seed)``.
+EMISSION_STREAM = 0x656D6973
+
+
+def canonical_emission(emission: str) -> str:
+    """The :data:`jaxmdp.EMISSION_KINDS` name of ``emission``: a kind name (``"state_info"``) or a reference class
+    name (``"StateInfo"``, :data:`REFERENCE_EMISSIONS`); ``ValueError`` listing the closest names otherwise."""
+    name = REFERENCE_EMISSIONS.get(emission, emission)
+    if name in jaxmdp.EMISSION_KINDS:
+        return name
+    known = list(jaxmdp.EMISSION_KINDS) + list(REFERENCE_EMISSIONS)
+    close = difflib.get_close_matches(str(emission), known, n=3, cutoff=0.4)
+    hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
+    raise ValueError(f"unknown emission {emission!r}{hint} Known: {', '.join(map(repr, known))}")
+
+
+def emission_key(seed: int) -> jax.Array:
+    """The key of a keyed emission (:data:`KEYED_EMISSIONS`) for the member of seed ``seed``:
+    ``fold_in(jax.random.key(seed), EMISSION_STREAM)``, so the same seed gives the same features on every run and
+    the features' stream is not the agent's (whose key is ``jax.random.key(seed)``)."""
+    return jax.random.fold_in(jax.random.key(int(seed)), EMISSION_STREAM)
+
+
+def to_block_mdp(mdp: MDP, emission: str, seed: int) -> jaxmdp.BlockMDP:
+    """``mdp`` seen through ``emission`` (a kind or reference class name; no noise, as the reference's benchmark,
+    benchmark.md §6): :func:`jaxmdp.block_mdp`, with :func:`emission_key` of ``seed`` for the linear kinds. This is
+    how the deep agents run on the benchmark's sets (the paper's non-tabular benchmark uses ``StateInfo``)."""
+    kind = canonical_emission(emission)
+    key = emission_key(seed) if kind in KEYED_EMISSIONS else None
+    return jaxmdp.block_mdp(mdp, kind, key=key)
 
 
 def _hparams_repr(hp: Any) -> dict[str, str]:
@@ -214,7 +253,8 @@ def _settings(config: RunConfig, names: Sequence[str]) -> dict[str, Any]:
         log_periods={s: config.period(s) for s in names}, hparams_source=str(config.hparams),
         hparams={a: _hparams_repr(hp_sources.hparams_for(a, config.hparams)) for a in all_agents},
         n_buckets=int(config.n_buckets), max_members=config.max_members, n_records=int(config.n_records),
-        emission=config.emission, variant="paper", only=list(config.only) if config.only else None,
+        emission=None if config.emission is None else canonical_emission(config.emission), variant="paper",
+        only=list(config.only) if config.only else None,
     )
 
 
@@ -240,14 +280,16 @@ def plan(config: RunConfig, out: str | os.PathLike | None = None) -> tuple[dict[
         if not found:
             raise ValueError(f"only={list(config.only or ())} keeps no MDP of the {set_name!r} set")
         sizes = [inst.build(config.seeds[0]) for inst in found]
-        groups = [sorted(g) for g in jaxmdp.size_buckets(sizes, config.n_buckets)]
+        groups = [(f"b{b}", sorted(g)) for b, g in enumerate(jaxmdp.size_buckets(sizes, config.n_buckets))]
+        if settings["emission"] is not None:
+            groups = _split_by_observation(groups, sizes, settings["emission"], config.seeds[0])
         for agent in settings["agents"][set_name]:
-            for b, group in enumerate(groups):
+            for gid, group in groups:
                 members = [(found[i].label, int(s)) for i in group for s in config.seeds]
                 step = config.max_members or len(members)
                 parts = [members[k : k + step] for k in range(0, len(members), step)]
                 for p, part in enumerate(parts):
-                    bid = f"{_slug(set_name)}.{agent}.b{b}" + (f".p{p}" if len(parts) > 1 else "")
+                    bid = f"{_slug(set_name)}.{agent}.{gid}" + (f".p{p}" if len(parts) > 1 else "")
                     key = {k: settings[k] for k in ("n_steps", "n_records", "emission", "variant")}
                     key.update(set=set_name, agent=agent, members=part, log_period=settings["log_periods"][set_name],
                                hparams=settings["hparams"][agent])
@@ -258,6 +300,23 @@ def plan(config: RunConfig, out: str | os.PathLike | None = None) -> tuple[dict[
         data = {"settings": settings, "batches": [dataclasses.asdict(b) for b in batches]}
         _write_atomic(path, json.dumps(data, indent=1) + "\n")
     return settings, batches
+
+
+def _split_by_observation(
+    groups: list[tuple[str, list[int]]], mdps: Sequence[MDP], emission: str, seed: int
+) -> list[tuple[str, list[int]]]:
+    """Split every size bucket into groups of one observation shape (BlockMDPs of different shapes cannot share a
+    runner call; noiseless one-hot members can, padded), named ``b<k>.o<j>`` when a bucket splits."""
+    if emission == "one_hot":
+        return groups
+    out = []
+    for gid, group in groups:
+        shapes: dict[tuple[int, ...], list[int]] = {}
+        for i in group:
+            shapes.setdefault(to_block_mdp(mdps[i], emission, seed).obs_shape, []).append(i)
+        parts = list(shapes.values())
+        out += [(gid if len(parts) == 1 else f"{gid}.o{j}", part) for j, part in enumerate(parts)]
+    return out
 
 
 def _write_atomic(path: Path, text: str) -> None:
@@ -285,23 +344,25 @@ def _content_hash(m: MDP) -> str:
 def _grid(batch: Batch, config: RunConfig, hp: Any, agent_name: str) -> runner.Grid:
     """The batch's members: each distinct instance once, labelled by its MDP label (and seed where it matters)."""
     by_label = {i.label: i for i in sets.instances(batch.set_name)}
-    wrap = emission_wrapper(config.emission) if config.emission is not None else None
+    emission = None if config.emission is None else canonical_emission(config.emission)
     distinct: list[MDP] = []
     labels: list[str] = []
-    index: dict[str, int] = {}
+    index: dict[tuple[str, int], int] = {}
     mdp_index = []
+    emission_seeds = []  # the seed whose emission key a distinct member's features come from
     for label, seed in batch.members:
         m = by_label[label].build(seed)
-        h = _content_hash(m)
+        h = (_content_hash(m), seed if emission in KEYED_EMISSIONS else 0)  # keyed features differ per seed
         if h not in index:
             index[h] = len(distinct)
             distinct.append(m)
             labels.append(f"{label}@{seed}")
+            emission_seeds.append(seed)
         mdp_index.append(index[h])
     fitted = hp_sources.fit_static_sizes(agent_name, [hp], distinct)[0]
     seeds = [s for _, s in batch.members]
     hparams = runner.stack_hparams([fitted] * len(seeds))
-    mdps = [wrap(m) for m in distinct] if wrap is not None else distinct
+    mdps = distinct if emission is None else [to_block_mdp(m, emission, s) for m, s in zip(distinct, emission_seeds)]
     g = runner.grid(mdps, hparams, runner.seed_keys(seeds), mdp_index=mdp_index,
                     hparams_index=[0] * len(seeds), seeds=seeds)
     return dataclasses.replace(g, mdp_labels=tuple(labels))
@@ -341,10 +402,11 @@ def _run_batch(batch: Batch, config: RunConfig, run_dir: Path, stop_after_chunks
     if done < config.n_steps:
         return False
     compile_s = result.compile_s
-    states = int(np.asarray(g.mdps.state_mask).sum(axis=1).max())
+    mdps = dynamics(g.mdps)  # a BlockMDP batch's MDPs
+    states = int(np.asarray(mdps.state_mask).sum(axis=1).max())
     record = dict(
         key=batch.key, batch=batch.id, set=batch.set_name, agent=batch.agent, n_steps=config.n_steps,
-        members=_finals(batch, result), n_members=g.n_members, n_mdps=int(g.mdps.T.shape[0]), max_states=states,
+        members=_finals(batch, result), n_members=g.n_members, n_mdps=int(mdps.T.shape[0]), max_states=states,
         compile_s=compile_s, run_s=result.run_s,
     )
     curves = {c: result.column(c).astype(np.float32) for c in ("cumulative_regret", "random_cumulative_regret")}
