@@ -298,8 +298,7 @@ def write(out: Path, rows: list[dict], profile: list[dict], args, load0, elapsed
         for base in baselines:
             setting = "episodic" if "episodic" in base["agent"] else "continuous"
             for r in rows:
-                if r["agent"].endswith(setting) and "dqn" in r["agent"] and not r["agent"].startswith("bsuite") \
-                        and not r.get("skipped"):
+                if r["agent"] == f"dqn_{setting}" and not r.get("skipped"):
                     lines.append(f"| {r['agent']} | {r['seeds']} | {fmt_rate(r['steps_per_s'])} | "
                                  f"{fmt_rate(base['steps_per_s'])} | {r['steps_per_s'] / base['steps_per_s']:.1f}x |")
     if profile:
