@@ -7,7 +7,8 @@ Padding rules (so that one compiled program serves a grid and no trajectory can 
 * padded **actions** of a real state are copies of action 0 (same transitions and rewards), so maxima and minima over
   actions are unchanged; ``action_mask`` is False there and every average or sum over actions (random policy, gap
   sums, ``p_rand``) uses the mask;
-* successor lists are padded with zero-probability self entries;
+* successor lists are padded with zero-probability self entries (their reward slots hold the row's own
+  ``reward_mean[s, a, s]``), start lists by repeating the last start (:func:`jaxmdp.mdp.start_lists`);
 * time: the static ``H`` becomes the largest horizon and each member keeps its own traced ``horizon``.
 
 Padding costs work: every member of a stack pays for the largest one. :func:`size_buckets` splits a heterogeneous
@@ -26,15 +27,32 @@ import numpy as np
 from jaxmdp._checks import check_int
 from jaxmdp.blockmdp.block_mdp import BlockMDP
 from jaxmdp.blockmdp.stacking import check_stackable, stack_blocks, unstack_blocks
-from jaxmdp.mdp import MDP, MDPInfo
+from jaxmdp.mdp import MDP, MDPInfo, start_lists
 
 __all__ = ["stack", "unstack", "pad", "size_buckets", "permute_states", "state_permutation"]
 
 # The traced leaves of an MDP.
-_ARRAY_FIELDS = ("T", "R", "P0", "reward_mean", "reward_conc", "succ", "succ_p", "state_mask", "action_mask", "horizon")
+_ARRAY_FIELDS = (
+    "T",
+    "R",
+    "P0",
+    "reward_mean",
+    "reward_conc",
+    "succ",
+    "succ_p",
+    "succ_reward_mean",
+    "succ_reward_conc",
+    "start",
+    "start_cdf",
+    "state_mask",
+    "action_mask",
+    "horizon",
+)
 
 
-def _pad_host(mdp: MDP, n_states: int, n_actions: int, n_successors: int, H: int | None) -> dict[str, np.ndarray]:
+def _pad_host(
+    mdp: MDP, n_states: int, n_actions: int, n_successors: int, H: int | None, n_starts: int
+) -> dict[str, np.ndarray]:
     """The padded arrays of one MDP as numpy arrays (host side: padding is pure data movement, and eager ``jnp``
     ops on members of different shapes would compile a fresh XLA program for every op and member)."""
     if mdp.T.ndim != 3:
@@ -42,6 +60,8 @@ def _pad_host(mdp: MDP, n_states: int, n_actions: int, n_successors: int, H: int
     S, A, K = mdp.succ.shape
     if n_states < S or n_actions < A or n_successors < K:
         raise ValueError(f"cannot pad (S, A, K) = {(S, A, K)} down to {(n_states, n_actions, n_successors)}")
+    if n_starts < mdp.max_starts:
+        raise ValueError(f"cannot pad the start list of length {mdp.max_starts} down to {n_starts}")
     if mdp.episodic and (H is None or H < mdp.H):
         raise ValueError(f"H must be at least the MDP's horizon {mdp.H}; got {H}")
     dt = np.dtype(mdp.dtype)
@@ -63,23 +83,39 @@ def _pad_host(mdp: MDP, n_states: int, n_actions: int, n_successors: int, H: int
     succ_p = np.zeros((n_states, n_actions, n_successors), dt)
     succ_p[:S, :, :K] = np.asarray(mdp.succ_p)[:, acts]
     succ_p[S:, :, 0] = 1.0
+
+    reward_mean, reward_conc = dense(mdp.reward_mean), dense(mdp.reward_conc)
+    slot_mean, slot_conc = (np.take_along_axis(x, succ, axis=-1) for x in (reward_mean, reward_conc))
+
+    def pad_starts(x):
+        x = np.asarray(x)
+        return np.concatenate([x, np.full(n_starts - x.size, x[-1], x.dtype)])
+
     return dict(
         T=T,
         R=R,
         P0=np.pad(np.asarray(mdp.P0), (0, n_states - S)),
-        reward_mean=dense(mdp.reward_mean),
-        reward_conc=dense(mdp.reward_conc),
+        reward_mean=reward_mean,
+        reward_conc=reward_conc,
         succ=succ,
         succ_p=succ_p,
+        succ_reward_mean=slot_mean,
+        succ_reward_conc=slot_conc,
+        start=pad_starts(mdp.start),
+        start_cdf=pad_starts(mdp.start_cdf),
         state_mask=np.pad(np.asarray(mdp.state_mask), (0, n_states - S)),
         action_mask=np.pad(np.asarray(mdp.action_mask), (0, n_actions - A)),
         horizon=np.asarray(mdp.horizon),
     )
 
 
-def pad(mdp: MDP, n_states: int, n_actions: int, n_successors: int, H: int | None = None) -> MDP:
-    """Pad one (unbatched) MDP to ``n_states``, ``n_actions``, ``n_successors`` and time length ``H`` (host side)."""
-    arrays = _pad_host(mdp, n_states, n_actions, n_successors, H)
+def pad(
+    mdp: MDP, n_states: int, n_actions: int, n_successors: int, H: int | None = None, n_starts: int | None = None
+) -> MDP:
+    """Pad one (unbatched) MDP to ``n_states``, ``n_actions``, ``n_successors``, time length ``H`` and start-list
+    length ``n_starts`` (default: unchanged), host side."""
+    n_starts = mdp.max_starts if n_starts is None else n_starts
+    arrays = _pad_host(mdp, n_states, n_actions, n_successors, H, n_starts)
     return mdp.replace(H=H if mdp.episodic else None, **{k: jnp.asarray(v) for k, v in arrays.items()})
 
 
@@ -106,7 +142,8 @@ def stack(mdps: Sequence[MDP] | Sequence[BlockMDP]) -> MDP | BlockMDP:
     A = max(m.n_actions for m in mdps)
     K = max(m.max_successors for m in mdps)
     H = max(m.H for m in mdps) if mdps[0].episodic else None
-    padded = [_pad_host(m, S, A, K, H) for m in mdps]
+    K0 = max(m.max_starts for m in mdps)
+    padded = [_pad_host(m, S, A, K, H, K0) for m in mdps]
     arrays = {k: jnp.asarray(np.stack([p[k] for p in padded])) for k in padded[0]}
     return MDP(
         **arrays,
@@ -175,6 +212,7 @@ def unstack(batch: MDP | BlockMDP) -> list[MDP] | list[BlockMDP]:
         K = int(np.max(np.nonzero(keep_k)[0]) + 1) if keep_k.any() else 1
         T = m["T"][:S, :A, :S]
         conc = m["reward_conc"][:S, :A, :S]
+        K0 = int(np.sum(m["P0"][:S] > 0))
         member = dict(
             T=T,
             R=m["R"][:S, :A],
@@ -183,6 +221,10 @@ def unstack(batch: MDP | BlockMDP) -> list[MDP] | list[BlockMDP]:
             reward_conc=conc,
             succ=m["succ"][:S, :A, :K],
             succ_p=m["succ_p"][:S, :A, :K],
+            succ_reward_mean=m["succ_reward_mean"][:S, :A, :K],
+            succ_reward_conc=m["succ_reward_conc"][:S, :A, :K],
+            start=m["start"][:K0],
+            start_cdf=m["start_cdf"][:K0],
             state_mask=m["state_mask"][:S],
             action_mask=m["action_mask"][:A],
             horizon=m["horizon"],
@@ -208,6 +250,7 @@ def permute_states(mdp: MDP, perm: Sequence[int] | np.ndarray) -> MDP:
     info = mdp.info
     if info.node_labels:
         info = _permute_info(info, perm)
+    start, start_cdf = start_lists(np.asarray(mdp.P0)[perm], mdp.max_starts)
     return mdp.replace(
         T=mdp.T[perm][:, :, perm],
         R=mdp.R[perm],
@@ -216,6 +259,10 @@ def permute_states(mdp: MDP, perm: Sequence[int] | np.ndarray) -> MDP:
         reward_conc=mdp.reward_conc[perm][:, :, perm],
         succ=jnp.asarray(inv, mdp.succ.dtype)[mdp.succ[perm]],
         succ_p=mdp.succ_p[perm],
+        succ_reward_mean=mdp.succ_reward_mean[perm],
+        succ_reward_conc=mdp.succ_reward_conc[perm],
+        start=jnp.asarray(start),
+        start_cdf=jnp.asarray(start_cdf),
         state_mask=mdp.state_mask[perm],
         info=info,
     )

@@ -25,6 +25,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
 
 from jaxmdp.blockmdp.block_mdp import BlockMDP, noise_key, observe
@@ -41,15 +42,37 @@ class EnvState(struct.PyTreeNode):
     h: jax.Array
 
 
+# Start lists up to this length are searched by comparing every entry (vectorises best); longer ones by an unrolled
+# binary search (O(log K0) gathers).
+_COMPARE_ALL_STARTS = 32
+
+
 def _start_from_uniform(u: jax.Array, mdp: MDP) -> jax.Array:
-    cdf = jnp.cumsum(mdp.P0)
-    return jnp.minimum(jnp.sum(cdf <= u * cdf[-1]), mdp.n_states - 1).astype(jnp.int32)
+    """Inverse CDF over the sparse start list: ``start[j]`` for the first ``j`` with ``u * total < start_cdf[j]``."""
+    if mdp.max_starts == 1:  # static: one start state, nothing to draw
+        return mdp.start[0]
+    cdf = mdp.start_cdf
+    method = "compare_all" if mdp.max_starts <= _COMPARE_ALL_STARTS else "scan_unrolled"
+    j = jnp.searchsorted(cdf, u * cdf[-1], side="right", method=method)
+    return mdp.start[jnp.minimum(j, mdp.max_starts - 1)]
 
 
-def _next_from_uniform(u: jax.Array, mdp: MDP, state: jax.Array, action: jax.Array) -> jax.Array:
+def _slot_from_uniform(u: jax.Array, mdp: MDP, state: jax.Array, action: jax.Array) -> jax.Array:
+    """Inverse CDF over the successor list of ``(state, action)``: the slot ``k`` of the next state."""
     cdf = jnp.cumsum(mdp.succ_p[state, action])
-    k = jnp.minimum(jnp.sum(cdf <= u * cdf[-1]), cdf.shape[-1] - 1)
-    return mdp.succ[state, action, k].astype(jnp.int32)
+    return jnp.minimum(jnp.sum(cdf <= u * cdf[-1]), cdf.shape[-1] - 1)
+
+
+def _reward_draw(key: jax.Array, mdp: MDP, mean: jax.Array, conc: jax.Array) -> jax.Array:
+    """Beta(mean * conc, (1 - mean) * conc) where ``conc > 0``, else ``mean`` (no draw compiled if rewards are all
+    point masses)."""
+    if not mdp.stochastic_rewards:  # static: no Beta anywhere, no draw compiled
+        return mean
+    stochastic = conc > 0
+    alpha = jnp.where(stochastic, mean * conc, 1.0)
+    beta = jnp.where(stochastic, (1.0 - mean) * conc, 1.0)
+    draw = sample_beta(key, alpha, beta, dtype=mdp.dtype)
+    return jnp.where(stochastic, draw, mean)
 
 
 def sample_action(key: jax.Array, mdp: MDP) -> jax.Array:
@@ -62,7 +85,8 @@ def sample_action(key: jax.Array, mdp: MDP) -> jax.Array:
 
 def sample_next_state(key: jax.Array, mdp: MDP, state: jax.Array, action: jax.Array) -> jax.Array:
     """Draw ``s' ~ P(. | state, action)`` by inverse CDF over the successor list (``O(K)``)."""
-    return _next_from_uniform(jax.random.uniform(key, dtype=mdp.dtype), mdp, state, action)
+    k = _slot_from_uniform(jax.random.uniform(key, dtype=mdp.dtype), mdp, state, action)
+    return mdp.succ[state, action, k].astype(jnp.int32)
 
 
 def sample_reward(
@@ -80,14 +104,7 @@ def sample_reward(
     reward is the mean.
     """
     mean = mdp.reward_mean[state, action, next_state]
-    if not mdp.stochastic_rewards:  # static: no Beta anywhere, no draw compiled
-        return mean
-    conc = mdp.reward_conc[state, action, next_state]
-    stochastic = conc > 0
-    alpha = jnp.where(stochastic, mean * conc, 1.0)
-    beta = jnp.where(stochastic, (1.0 - mean) * conc, 1.0)
-    draw = sample_beta(key, alpha, beta, dtype=mdp.dtype)
-    return jnp.where(stochastic, draw, mean)
+    return _reward_draw(key, mdp, mean, mdp.reward_conc[state, action, next_state])
 
 
 def reset(key: jax.Array, mdp: MDP | BlockMDP) -> tuple[jax.Array, EnvState]:
@@ -99,6 +116,34 @@ def reset(key: jax.Array, mdp: MDP | BlockMDP) -> tuple[jax.Array, EnvState]:
     return s0, EnvState(state=s0, h=jnp.zeros((), jnp.int32))
 
 
+def _concrete(x: Any) -> np.ndarray | None:
+    """``x`` as a numpy array when it is concrete (not traced), else None."""
+    if isinstance(x, jax.core.Tracer):
+        return None
+    try:
+        return np.asarray(x)
+    except (jax.errors.ConcretizationTypeError, jax.errors.TracerArrayConversionError):
+        return None
+
+
+def _check_action(action: Any, mdp: MDP) -> None:
+    """Eager check of a concrete ``action``: an integer in ``[0, A)`` that the MDP's ``action_mask`` allows."""
+    a = _concrete(action)
+    if a is None:
+        return
+    A = mdp.n_actions
+    if a.dtype.kind not in "iu" and not (a.dtype.kind == "f" and np.all(a == np.round(a))):
+        raise ValueError(f"action must be an integer in [0, {A}) (A = {A}); got {action!r}")
+    if np.any((a < 0) | (a >= A)):
+        raise ValueError(f"action must be an integer in [0, {A}) (A = {A}); got {a.tolist()}")
+    mask = _concrete(mdp.action_mask)
+    if mask is not None and mask.ndim == 1 and not np.all(mask[a.astype(np.int64)]):
+        raise ValueError(
+            f"action {a.tolist()} is a padded action of this MDP (action_mask is False); valid actions: "
+            f"{np.nonzero(mask)[0].tolist()} of A = {A}"
+        )
+
+
 def step(
     key: jax.Array, state: EnvState, action: jax.Array, mdp: MDP | BlockMDP
 ) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, jax.Array, dict[str, Any]]:
@@ -106,6 +151,16 @@ def step(
 
     ``info`` holds ``final_observation`` (the state reached by this action, before any reset) and ``discount``
     (0 on termination, else 1); for a BlockMDP see the module docstring.
+
+    Cost ``O(K)``: the next state is an inverse CDF over the successor list, its reward is read from the slot's
+    ``succ_reward_*``, and the reset of a finished episode an inverse CDF over the sparse start list (nothing at all
+    with one start state; computed branch-free, as ``vmap`` would turn a ``cond`` into a select anyway). Random
+    numbers per step: one key split (reward key, uniform key) and one draw of two uniforms (next state, reset).
+
+    Invalid actions: a concrete ``action`` outside ``[0, A)`` or masked out by ``action_mask`` (a padded action of a
+    stacked MDP) raises ``ValueError``. A traced one cannot raise: the step is then a no-op that is flagged, i.e. the
+    state and ``h`` stay as they were, the reward is NaN, ``terminated`` is False and ``final_observation`` is the
+    current state; no array row other than the current state's (clamped) row is read.
     """
     if isinstance(mdp, BlockMDP):
         _, new_state, reward, terminated, truncated, info = step(key, state, action, mdp.mdp)
@@ -113,18 +168,26 @@ def step(
         final = jnp.where(terminated, jnp.zeros_like(obs), obs)
         info = {**info, "final_observation": final, "final_state": info["final_observation"], "state": new_state.state}
         return obs, new_state, reward, terminated, truncated, info
+    _check_action(action, mdp)
     # One key for the reward and two uniforms for the next and reset states: fewer PRNG calls than three splits.
     k_reward, k_uniform = jax.random.split(key)
     u_next, u_reset = jax.random.uniform(k_uniform, (2,), dtype=mdp.dtype)
     action = jnp.asarray(action, jnp.int32)
-    s_next = _next_from_uniform(u_next, mdp, state.state, action)
-    reward = sample_reward(k_reward, mdp, state.state, action, s_next)
+    a = jnp.clip(action, 0, mdp.n_actions - 1)
+    valid = (action == a) & mdp.action_mask[a]
+    k = _slot_from_uniform(u_next, mdp, state.state, a)
+    s_next = mdp.succ[state.state, a, k].astype(jnp.int32)
+    reward = _reward_draw(
+        k_reward, mdp, mdp.succ_reward_mean[state.state, a, k], mdp.succ_reward_conc[state.state, a, k]
+    )
     h_next = state.h + 1
-    terminated = (h_next >= mdp.horizon) if mdp.episodic else jnp.zeros((), bool)
+    terminated = ((h_next >= mdp.horizon) & valid) if mdp.episodic else jnp.zeros((), bool)
     s_reset = _start_from_uniform(u_reset, mdp) if mdp.episodic else state.state
+    s_next = jnp.where(valid, s_next, state.state)
     new_state = EnvState(
         state=jnp.where(terminated, s_reset, s_next),
-        h=jnp.where(terminated, 0, h_next).astype(jnp.int32),
+        h=jnp.where(terminated, 0, jnp.where(valid, h_next, state.h)).astype(jnp.int32),
     )
     info = {"final_observation": s_next, "discount": 1.0 - terminated.astype(mdp.dtype)}
+    reward = jnp.where(valid, reward, jnp.nan)
     return new_state.state, new_state, reward, terminated, jnp.zeros((), bool), info

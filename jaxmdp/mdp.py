@@ -11,6 +11,17 @@ An MDP ``M = (S, A, P, P0, R)`` (paper §2.1) is held as dense arrays:
 * ``succ[s, a, k]`` / ``succ_p[s, a, k]``: the same kernel as successor lists (``K`` entries per row, padded with
   zero-probability entries). They are derived from ``T`` by every constructor and let samplers and hitting-time
   solvers work in ``O(S A K)`` instead of ``O(S^2 A)``. Entries may repeat a state; probabilities then add up.
+* ``succ_reward_mean[s, a, k]`` / ``succ_reward_conc[s, a, k]``: the reward distribution of successor slot ``k``,
+  i.e. ``reward_mean[s, a, succ[s, a, k]]`` (likewise ``conc``), so that a step reads ``O(K)`` contiguous numbers
+  instead of one entry of an ``S x A x S`` table,
+* ``start[j]`` / ``start_cdf[j]``: the sparse form of ``P0`` used by :func:`jaxmdp.reset` and auto-resets: the
+  states of positive ``P0`` in increasing order and the cumulative sums ``sum_{s <= start[j]} P0[s]`` (the entries
+  of ``cumsum(P0)`` at those states), padded to a static length ``K0`` by repeating the last start and its (total)
+  cumulative sum.
+
+The sparse fields are derived from the dense ones by every constructor and transform of the package
+(:func:`successor_rewards`, :func:`start_lists`); code that replaces ``succ``, ``P0`` or the reward tables by hand
+must rebuild them with those functions.
 
 Batching: ``state_mask`` and ``action_mask`` mark the real states and actions of an MDP padded by
 :func:`jaxmdp.stack`; ``horizon`` is the (traced) episode length, while the static ``H`` is the length of time-indexed
@@ -36,7 +47,7 @@ import numpy as np
 from jaxmdp._checks import check_int
 from flax import struct
 
-__all__ = ["MDP", "MDPInfo", "custom_mdp", "successor_lists"]
+__all__ = ["MDP", "MDPInfo", "custom_mdp", "successor_lists", "start_lists", "successor_rewards"]
 
 # Tolerance used to check that host-side arrays are stochastic.
 _ROW_SUM_ATOL = 1e-5
@@ -87,6 +98,10 @@ class MDP:
     reward_conc: jax.Array
     succ: jax.Array
     succ_p: jax.Array
+    succ_reward_mean: jax.Array
+    succ_reward_conc: jax.Array
+    start: jax.Array
+    start_cdf: jax.Array
     state_mask: jax.Array
     action_mask: jax.Array
     horizon: jax.Array
@@ -110,6 +125,11 @@ class MDP:
     def max_successors(self) -> int:
         """Length ``K`` of the successor lists."""
         return self.succ.shape[-1]
+
+    @property
+    def max_starts(self) -> int:
+        """Length ``K0`` of the start list (the number of start states, or the largest one of a stacked batch)."""
+        return self.start.shape[-1]
 
     @property
     def episodic(self) -> bool:
@@ -145,6 +165,9 @@ class MDP:
             reward_mean=cast(self.reward_mean),
             reward_conc=cast(self.reward_conc),
             succ_p=cast(self.succ_p),
+            succ_reward_mean=cast(self.succ_reward_mean),
+            succ_reward_conc=cast(self.succ_reward_conc),
+            start_cdf=cast(self.start_cdf),
         )
 
     def __repr__(self) -> str:  # pragma: no cover - cosmetic
@@ -179,6 +202,31 @@ def successor_lists(T: np.ndarray, K: int | None = None) -> tuple[np.ndarray, np
             succ[s, a, : idx.size] = idx
             succ_p[s, a, : idx.size] = T[s, a, idx]
     return succ.astype(np.int32), succ_p
+
+
+def start_lists(P0: Any, n_starts: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Host-side sparse start distribution ``(start, start_cdf)`` of a concrete ``P0`` (see the module docstring).
+
+    ``start`` lists the states with ``P0 > 0`` in increasing order, padded to ``n_starts`` entries (default: the number
+    of start states) by repeating the last one; ``start_cdf`` holds ``cumsum(P0)`` at those states (summed in float64,
+    stored in ``P0``'s dtype), so its last entry is the total mass.
+    """
+    P0 = np.asarray(P0)
+    (idx,) = np.nonzero(P0 > 0)
+    if idx.size == 0:
+        raise ValueError("P0 must have at least one state of positive probability")
+    n_starts = idx.size if n_starts is None else n_starts
+    if n_starts < idx.size:
+        raise ValueError(f"n_starts must be at least the number of start states ({idx.size}); got {n_starts}")
+    start = np.concatenate([idx, np.full(n_starts - idx.size, idx[-1])]).astype(np.int32)
+    return start, np.cumsum(P0.astype(np.float64))[start].astype(P0.dtype)
+
+
+def successor_rewards(reward_mean: jax.Array, reward_conc: jax.Array, succ: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """Rewards per successor slot: ``reward_mean[s, a, succ[s, a, k]]`` and likewise ``reward_conc`` (jittable)."""
+    succ = jnp.asarray(succ)
+    take = lambda x: jnp.take_along_axis(jnp.asarray(x), succ, axis=-1)  # noqa: E731
+    return take(reward_mean), take(reward_conc)
 
 
 def _check_finite(name: str, x: np.ndarray) -> None:
@@ -290,6 +338,8 @@ def custom_mdp(
 
     succ, succ_p = successor_lists(T)
     np_dtype = np.dtype(jnp.dtype(dtype))
+    start, start_cdf = start_lists(P0.astype(np_dtype))
+    take = lambda x: np.take_along_axis(x, succ, axis=-1)  # noqa: E731 (successor_rewards, host side)
     return MDP(
         T=jnp.asarray(T, dtype=np_dtype),
         R=jnp.asarray(R, dtype=np_dtype),
@@ -298,6 +348,10 @@ def custom_mdp(
         reward_conc=jnp.asarray(reward_conc, dtype=np_dtype),
         succ=jnp.asarray(succ),
         succ_p=jnp.asarray(succ_p, dtype=np_dtype),
+        succ_reward_mean=jnp.asarray(take(reward_mean), dtype=np_dtype),
+        succ_reward_conc=jnp.asarray(take(reward_conc), dtype=np_dtype),
+        start=jnp.asarray(start),
+        start_cdf=jnp.asarray(start_cdf),
         state_mask=jnp.ones((S,), dtype=bool),
         action_mask=jnp.ones((A,), dtype=bool),
         horizon=jnp.asarray(H if H is not None else 0, dtype=jnp.int32),

@@ -108,3 +108,161 @@ def test_stochastic_rewards_flag_is_static_and_exact():
     np.testing.assert_array_equal(
         jaxmdp.env.sample_reward(jax.random.key(1), forced, jnp.int32(0), jnp.int32(0), jnp.int32(0)), np.float32(0.005)
     )
+
+
+def dense_reference_step(key, state, action, mdp):
+    """The step written on the dense arrays alone (cumulative sums over the whole ``P0`` and the successor row, the
+    reward read from ``reward_mean``/``reward_conc`` at the reached state), with the documented random stream: one
+    split into (reward key, uniform key), two uniforms (next state, reset)."""
+    k_reward, k_uniform = jax.random.split(key)
+    u_next, u_reset = jax.random.uniform(k_uniform, (2,), dtype=mdp.dtype)
+    cdf = jnp.cumsum(mdp.succ_p[state.state, action])
+    k = jnp.minimum(jnp.sum(cdf <= u_next * cdf[-1]), cdf.shape[-1] - 1)
+    s_next = mdp.succ[state.state, action, k]
+    reward = jaxmdp.env.sample_reward(k_reward, mdp, state.state, action, s_next)
+    h_next = state.h + 1
+    terminated = (h_next >= mdp.horizon) if mdp.episodic else jnp.zeros((), bool)
+    p0 = jnp.cumsum(mdp.P0)
+    s_reset = jnp.minimum(jnp.sum(p0 <= u_reset * p0[-1]), mdp.n_states - 1)
+    new_state = jnp.where(terminated, s_reset, s_next)
+    return new_state, jnp.where(terminated, 0, h_next), reward, terminated
+
+
+def _sparse_and_dense_rollouts(key, mdp, n_steps):
+    def body(carry, k):
+        state, ref = carry
+        k_act, k_step = jax.random.split(k)
+        a = jaxmdp.sample_action(k_act, mdp)
+        _, state, r, term, _, _ = jaxmdp.step(k_step, state, a, mdp)
+        s2, h2, r2, term2 = dense_reference_step(k_step, ref, a, mdp)
+        return (state, jaxmdp.EnvState(state=s2.astype(jnp.int32), h=h2.astype(jnp.int32))), (
+            (state.state, state.h, r, term),
+            (s2, h2, r2, term2),
+        )
+
+    _, state = jaxmdp.reset(key, mdp)
+    _, (got, want) = jax.lax.scan(body, (state, state), jax.random.split(key, n_steps))
+    return got, want
+
+
+def _step_test_mdps():
+    rng = np.random.default_rng(11)
+    taxi = jaxmdp.make("Taxi", episodic=True, seed=0, size=5)  # 180 start states: the binary-search reset
+    rooms = jaxmdp.make("MiniGridRooms", episodic=False, seed=0, room_size=3)  # two start states
+    river = jaxmdp.make("RiverSwim", episodic=True, seed=0, size=5, make_reward_stochastic=True)
+    noisy = jaxmdp.apply_noise(jaxmdp.make("DeepSea", episodic=True, seed=0, size=6), p_rand=0.3, p_lazy=0.2)
+    return [
+        ("taxi", taxi),
+        ("rooms", rooms),
+        ("river-beta", river),
+        ("deepsea-noisy", noisy),
+        ("random-episodic", random_mdp(rng, S=7, A=3, H=5)),
+        ("random-continuous", random_mdp(rng, S=5, A=2)),
+    ]
+
+
+@pytest.mark.parametrize("name, mdp", _step_test_mdps(), ids=lambda x: x if isinstance(x, str) else "")
+def test_sparse_step_samples_the_trajectories_of_the_dense_formulation(name, mdp):
+    # The start lists, the reward slots and the start-list search reproduce the dense inverse CDFs draw for draw
+    # (same keys, same trajectories), over 40 keys x 60 steps: many resets on every episodic MDP.
+    run = jax.jit(jax.vmap(_sparse_and_dense_rollouts, in_axes=(0, None, None)), static_argnums=2)
+    got, want = run(jax.random.split(jax.random.key(5), 40), mdp.strip(), 60)
+    for g, w in zip(got, want):
+        np.testing.assert_array_equal(np.asarray(g), np.asarray(w).astype(np.asarray(g).dtype))
+    if mdp.episodic:
+        assert int(np.sum(np.asarray(got[3]))) >= 40 * (60 // int(mdp.H))
+
+
+def _check_sparse_fields(m):
+    """Start lists and reward slots of one unbatched MDP against its dense arrays."""
+    P0, succ = np.asarray(m.P0), np.asarray(m.succ)
+    starts = np.nonzero(P0 > 0)[0]
+    n = starts.size
+    np.testing.assert_array_equal(np.asarray(m.start)[:n], starts)
+    np.testing.assert_array_equal(np.asarray(m.start)[n:], starts[-1])
+    np.testing.assert_allclose(np.asarray(m.start_cdf)[:n], np.cumsum(P0.astype(np.float64))[starts], rtol=1e-6)
+    np.testing.assert_array_equal(np.asarray(m.start_cdf)[n:], np.asarray(m.start_cdf)[n - 1])
+    S, A, K = succ.shape
+    s, a = np.meshgrid(np.arange(S), np.arange(A), indexing="ij")
+    for slot, dense in ((m.succ_reward_mean, m.reward_mean), (m.succ_reward_conc, m.reward_conc)):
+        np.testing.assert_array_equal(np.asarray(slot), np.asarray(dense)[s[..., None], a[..., None], succ])
+
+
+def test_sparse_fields_agree_with_the_dense_arrays_after_every_transform():
+    rng = np.random.default_rng(2)
+    mdps = [random_mdp(rng, S=4, A=2, H=3), jaxmdp.make("MiniGridRooms", episodic=True, seed=0, room_size=3)]
+    mdps.append(jaxmdp.custom_mdp(np.full((3, 1, 3), 1 / 3), R=np.ones((3, 1)), P0=[0.0, 0.25, 0.75], H=2))
+    for m in mdps:
+        _check_sparse_fields(m)
+        _check_sparse_fields(jaxmdp.apply_noise(m, p_rand=0.2, p_lazy=0.1))
+        _check_sparse_fields(jaxmdp.permute_states(m, np.arange(m.n_states)[::-1]))
+        _check_sparse_fields(jaxmdp.pad(m, m.n_states + 2, m.n_actions + 1, m.max_successors + 1, m.H, n_starts=9))
+    batch = jaxmdp.stack(mdps)
+    assert batch.max_starts == max(m.max_starts for m in mdps)
+    for i, m in enumerate(jaxmdp.unstack(batch)):
+        _check_sparse_fields(m)
+        _check_sparse_fields(jax.tree.map(lambda x: x[i], batch))
+        for field in ("start", "start_cdf", "succ_reward_mean", "succ_reward_conc"):
+            np.testing.assert_array_equal(np.asarray(getattr(m, field)), np.asarray(getattr(mdps[i], field)))
+    with pytest.raises(ValueError, match="start list"):
+        jaxmdp.pad(mdps[0], 4, 2, mdps[0].max_successors, 3, n_starts=2)
+
+
+def _out_shapes(jaxpr):
+    """Shapes of every equation's outputs, nested jaxprs (jit, scan, cond) included."""
+    for eqn in jaxpr.eqns:
+        yield from (v.aval.shape for v in eqn.outvars if hasattr(v.aval, "shape"))
+        for value in eqn.params.values():
+            for sub in value if isinstance(value, (tuple, list)) else (value,):
+                if isinstance(sub, jax.extend.core.ClosedJaxpr):
+                    yield from _out_shapes(sub.jaxpr)
+                elif isinstance(sub, jax.extend.core.Jaxpr):
+                    yield from _out_shapes(sub)
+
+
+@pytest.mark.parametrize("family, params", [("DeepSea", dict(size=20)), ("Taxi", dict(size=5))])
+def test_step_does_no_work_of_size_S(family, params):
+    # O(K) step: no intermediate of the traced step (MDP passed as an argument) has the number of states, or the
+    # length of a long start list, as a dimension (the dense formulation summed over all of P0 at every step).
+    m = jaxmdp.make(family, episodic=True, seed=0, **params).strip()
+    banned = {m.n_states} | ({m.max_starts} if m.max_starts > 32 else set())
+    assert m.n_states not in (m.n_actions, m.max_successors, m.max_starts)
+    _, state = jaxmdp.reset(jax.random.key(0), m)
+    closed = jax.make_jaxpr(jaxmdp.step)(jax.random.key(1), state, jnp.int32(1), m)
+    shapes = list(_out_shapes(closed.jaxpr))
+    assert len(shapes) > 20  # the walk saw the step's equations
+    assert not [sh for sh in shapes if banned & set(sh)], shapes
+
+
+def test_step_refuses_a_concrete_invalid_action():
+    m = jaxmdp.make("RiverSwim", episodic=True, seed=0, size=4)
+    _, state = jaxmdp.reset(jax.random.key(0), m)
+    for bad in (-1, 2, 7, np.int32(2), jnp.int32(-3)):
+        with pytest.raises(ValueError, match=r"action must be an integer in \[0, 2\) \(A = 2\)"):
+            jaxmdp.step(jax.random.key(1), state, bad, m)
+    with pytest.raises(ValueError, match="A = 2"):
+        jaxmdp.step(jax.random.key(1), state, 0.5, m)
+    padded = jaxmdp.pad(m, m.n_states, 3, m.max_successors, m.H)
+    with pytest.raises(ValueError, match=r"action \[?2\]? is a padded action.*valid actions: \[0, 1\] of A = 3"):
+        jaxmdp.step(jax.random.key(1), state, 2, padded)
+    jaxmdp.step(jax.random.key(1), state, 1, padded)  # a valid action still steps
+
+
+def test_traced_invalid_action_is_a_flagged_no_op():
+    # Under jit the action cannot be checked: an out-of-range or padded action leaves the state and h unchanged,
+    # pays a NaN reward and never terminates the episode (even on its last step), in every member of a stacked batch.
+    rng = np.random.default_rng(4)
+    mdps = [random_mdp(rng, S=3, A=2, H=2), random_mdp(rng, S=5, A=4, H=2)]
+    batch = jaxmdp.stack(mdps).strip()
+    step = jax.jit(jax.vmap(jaxmdp.step, in_axes=(None, 0, 0, 0)))
+    states = jaxmdp.EnvState(state=jnp.array([2, 4], jnp.int32), h=jnp.array([1, 1], jnp.int32))
+    for actions in ([-1, 4], [2, -7], [3, 1_000_000]):  # member 0 has 2 valid actions (3 and 2 are padded)
+        obs, new, r, term, trunc, info = step(jax.random.key(2), states, jnp.asarray(actions, jnp.int32), batch)
+        invalid = np.array([a < 0 or a >= m.n_actions for a, m in zip(actions, mdps)])
+        np.testing.assert_array_equal(np.isnan(np.asarray(r)), invalid)
+        np.testing.assert_array_equal(np.asarray(new.state)[invalid], np.asarray(states.state)[invalid])
+        np.testing.assert_array_equal(np.asarray(new.h)[invalid], 1)
+        np.testing.assert_array_equal(np.asarray(obs)[invalid], np.asarray(states.state)[invalid])
+        np.testing.assert_array_equal(np.asarray(info["final_observation"])[invalid], np.asarray(states.state)[invalid])
+        assert not np.any(np.asarray(term)[invalid]) and not np.any(np.asarray(trunc))
+        np.testing.assert_array_equal(np.asarray(term)[~invalid], True)  # h = 1 -> 2 = H: a valid action ends it
