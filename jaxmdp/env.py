@@ -59,6 +59,8 @@ def _start_from_uniform(u: jax.Array, mdp: MDP) -> jax.Array:
 
 def _slot_from_uniform(u: jax.Array, mdp: MDP, state: jax.Array, action: jax.Array) -> jax.Array:
     """Inverse CDF over the successor list of ``(state, action)``: the slot ``k`` of the next state."""
+    if mdp.max_successors == 1:  # static: deterministic dynamics, nothing to draw (the inverse CDF would give 0)
+        return jnp.zeros((), jnp.int32)
     cdf = jnp.cumsum(mdp.succ_p[state, action])
     return jnp.minimum(jnp.sum(cdf <= u * cdf[-1]), cdf.shape[-1] - 1)
 
@@ -155,7 +157,9 @@ def step(
     Cost ``O(K)``: the next state is an inverse CDF over the successor list, its reward is read from the slot's
     ``succ_reward_*``, and the reset of a finished episode an inverse CDF over the sparse start list (nothing at all
     with one start state; computed branch-free, as ``vmap`` would turn a ``cond`` into a select anyway). Random
-    numbers per step: one key split (reward key, uniform key) and one draw of two uniforms (next state, reset).
+    numbers per step: one key split (reward key, uniform key) and one draw of two uniforms (next state, reset); what
+    a step cannot use is not compiled (no Beta draw without Beta rewards, no uniforms when ``K = 1`` and there is one
+    start state), the stream staying the same.
 
     Invalid actions: a concrete ``action`` outside ``[0, A)`` or masked out by ``action_mask`` (a padded action of a
     stacked MDP) raises ``ValueError``. A traced one cannot raise: the step is then a no-op that is flagged, i.e. the

@@ -12,4 +12,4 @@ import sys
 from hardness.analysis.sweep_cli import main
 
 if __name__ == "__main__":
-    sys.exit(main(2, description=__doc__, default_out="results/sweep_plazy"))
+    sys.exit(main(2, description=__doc__, default_out="results/sweep_plazy", entry_point=True))

@@ -16,4 +16,4 @@ import sys
 from hardness.analysis.sweep_cli import main
 
 if __name__ == "__main__":
-    sys.exit(main(1, description=__doc__, default_out="results/sweep_prand"))
+    sys.exit(main(1, description=__doc__, default_out="results/sweep_prand", entry_point=True))

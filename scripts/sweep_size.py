@@ -13,4 +13,4 @@ import sys
 from hardness.analysis.sweep_cli import main
 
 if __name__ == "__main__":
-    sys.exit(main(3, description=__doc__, default_out="results/sweep_size", scenario_choices=(3, 4)))
+    sys.exit(main(3, description=__doc__, default_out="results/sweep_size", scenario_choices=(3, 4), entry_point=True))

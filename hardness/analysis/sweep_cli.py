@@ -26,6 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxmdp
+from jaxmdp.experiment import compilation
 from hardness.analysis import scenarios
 from hardness.analysis.near_optimal import NEAR_OPTIMAL_AGENTS, tuned_regret
 from hardness.analysis.plotting import plot_scenario
@@ -381,10 +382,22 @@ def figure(spec: scenarios.ScenarioSpec, rows: list[dict], path: Path) -> Path:
 
 
 def main(scenario: int, argv: Sequence[str] | None = None, *, description: str = "", default_out: str = "",
-         scenario_choices: Sequence[int] | None = None) -> int:
-    """Entry point of the three scripts; ``scenario_choices`` adds ``--scenario`` (sweep_size.py: 3 or 4)."""
+         scenario_choices: Sequence[int] | None = None, entry_point: bool = False) -> int:
+    """Entry point of the three scripts; ``scenario_choices`` adds ``--scenario`` (sweep_size.py: 3 or 4).
+
+    ``entry_point=True`` (the scripts, not in-process callers such as the tests) turns on the persistent compilation
+    cache (``--no-compile-cache`` turns it off; :mod:`jaxmdp.experiment.compilation`) and reports the time spent
+    compiling beside the total time on stderr.
+    """
     choices = list(scenario_choices or [scenario])
     parser = build_parser(description, default_out, choices)
+    if entry_point:
+        compilation.add_cache_flag(parser)
     args = parser.parse_args(argv)
+    if entry_point:
+        folder, stats = compilation.setup_compilation(args.no_compile_cache)
+        t0 = time.perf_counter()
     run(args, getattr(args, "scenario", scenario), parser)
+    if entry_point:
+        print(compilation.time_report(time.perf_counter() - t0, stats.snapshot(), folder), file=sys.stderr)
     return 0

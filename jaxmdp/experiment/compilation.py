@@ -10,7 +10,8 @@ the scripts' entry points do, before anything compiles (``scripts/*.py``, the co
   :data:`MAX_CACHE_BYTES`). The environment variable ``JAXMDP_COMPILATION_CACHE`` turns it off (``0``, ``off``,
   ``false``, ``no``) or names another folder; the scripts' ``--no-compile-cache`` flag turns it off too.
 * :func:`compile_stats` counts, from JAX's monitoring events, the wall time spent tracing, lowering and compiling
-  (or loading from the cache) and the persistent cache's hits and misses since the first call.
+  (or loading from the cache) and the persistent cache's hits and misses since the first call; :func:`time_report`
+  writes them beside the total time.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ __all__ = [
     "default_cache_dir",
     "enable_compilation_cache",
     "setup_compilation",
+    "time_report",
 ]
 
 #: Environment variable: ``0``/``off``/``false``/``no`` disables the cache, any other non-empty value is its folder.
@@ -161,3 +163,12 @@ def setup_compilation(no_cache: bool = False) -> tuple[Path | None, CompileStats
     """
     folder = None if no_cache else enable_compilation_cache()
     return folder, compile_stats()
+
+
+def time_report(total_s: float, snapshot: dict[str, float], folder: Path | None) -> str:
+    """One line: the total wall time, the part spent compiling and the cache's hits and misses."""
+    cache = f"cache {folder}: {snapshot['cache_hits']} hits, {snapshot['cache_misses']} misses" if folder else "no cache"
+    return (
+        f"time: {total_s:.1f} s, of which compiling {snapshot['compile_s']:.1f} s and running "
+        f"{max(total_s - snapshot['compile_s'], 0.0):.1f} s ({cache})"
+    )
