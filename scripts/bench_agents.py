@@ -39,6 +39,7 @@ import jax  # noqa: E402
 
 import agents  # noqa: E402
 import jaxmdp  # noqa: E402
+from jaxmdp.experiment import compilation  # noqa: E402
 from jaxmdp.experiment import runner  # noqa: E402
 
 # The benchmark MDPs of docs/benchmark.md §10 (docs/benchmark.md §3 scopes), keyed by (family, episodic).
@@ -190,7 +191,10 @@ def main() -> None:
     ap.add_argument("--max-seconds", type=float, default=120.0,
                     help="skip a seed count whose predicted run time exceeds this")
     ap.add_argument("--out", default="results")
+    compilation.add_cache_flag(ap)
     args = ap.parse_args()
+    cache_folder, compile_stats = compilation.setup_compilation(args.no_compile_cache)
+    t_script = time.perf_counter()
     if args.quick:
         args.steps, args.repeats = 4_000, 1
     seed_counts = [int(s) for s in args.seeds.split(",")]
@@ -252,6 +256,7 @@ def main() -> None:
               flush=True)
 
     write(Path(args.out), rows, profile, args, load0, time.perf_counter() - t0)
+    print(compilation.time_report(time.perf_counter() - t_script, compile_stats.snapshot(), cache_folder))
 
 
 def write(out: Path, rows: list[dict], profile: list[dict], args, load0, elapsed: float) -> None:

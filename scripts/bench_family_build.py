@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 import jaxmdp
+from jaxmdp.experiment import compilation
 
 # (family, setting, parameters, reference build seconds or None)
 CONFIGS = [
@@ -37,7 +38,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--out", type=Path, default=Path("results/bench_family_build"))
+    compilation.add_cache_flag(parser)
     args = parser.parse_args()
+    cache_folder, compile_stats = compilation.setup_compilation(args.no_compile_cache)
+    t_script = time.perf_counter()
     args.out.mkdir(parents=True, exist_ok=True)
     jaxmdp.make("RiverSwim", episodic=False, seed=0, size=3)  # warm up JAX's array creation
     rows = []
@@ -66,6 +70,7 @@ def main() -> None:
         writer.writeheader()
         writer.writerows(rows)
     print(f"wrote {path}")
+    print(compilation.time_report(time.perf_counter() - t_script, compile_stats.snapshot(), cache_folder))
 
 
 if __name__ == "__main__":

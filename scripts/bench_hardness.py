@@ -30,6 +30,7 @@ import numpy as np
 
 import hardness
 import jaxmdp
+from jaxmdp.experiment import compilation
 from hardness.batched import map_measures
 from hardness.benchmark import suite as benchmark_suite
 from hardness.diameter import _expect_columns
@@ -234,12 +235,16 @@ def main():
     p.add_argument("--quick", action="store_true", help="two smallest sizes per family only")
     p.add_argument("--no-suite", action="store_true", help="skip the 80-MDP suite")
     p.add_argument("--single-stack-baseline", action="store_true", help="also time one padded stack (minutes)")
+    compilation.add_cache_flag(p)
     args = p.parse_args()
+    cache_folder, compile_stats = compilation.setup_compilation(args.no_compile_cache)
+    t_script = time.perf_counter()
     rows = Rows(RESULTS / "bench_hardness.csv")
     if not args.no_suite:
         run_suite(args, rows)
     run_scaling(args, rows)
     write_markdown(rows.rows, args)
+    print(compilation.time_report(time.perf_counter() - t_script, compile_stats.snapshot(), cache_folder))
 
 
 if __name__ == "__main__":

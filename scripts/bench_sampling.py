@@ -36,6 +36,7 @@ import numpy as np  # noqa: E402
 import agents  # noqa: E402
 import agents.posteriors as posteriors  # noqa: E402
 import jaxmdp  # noqa: E402
+from jaxmdp.experiment import compilation  # noqa: E402
 from agents import psrl_episodic  # noqa: E402
 from jaxmdp.experiment import runner  # noqa: E402
 from jaxmdp.sampling import beta_sampling  # noqa: E402
@@ -110,7 +111,10 @@ def main() -> None:
     ap.add_argument("--psrl-reps", type=int, default=1)
     ap.add_argument("--psrl-steps", type=int, default=520, help="agent steps per seed (H = 13: 40 episodes)")
     ap.add_argument("--out", default="results")
+    compilation.add_cache_flag(ap)
     args = ap.parse_args()
+    cache_folder, compile_stats = compilation.setup_compilation(args.no_compile_cache)
+    t_script = time.perf_counter()
     load0, t0 = os.getloadavg(), time.perf_counter()
 
     draws = [dirichlet_draws(64, 100, 4, args.reps)]
@@ -124,6 +128,7 @@ def main() -> None:
     print(f"PSRL episodic: jax {psrl['jax_steps_per_s']:,.0f}, new {psrl['new_steps_per_s']:,.0f} agent-steps/s "
           f"({psrl['new_steps_per_s'] / psrl['jax_steps_per_s']:.1f}x)", flush=True)
     write(Path(args.out), draws, beta, psrl, args, load0, time.perf_counter() - t0)
+    print(compilation.time_report(time.perf_counter() - t_script, compile_stats.snapshot(), cache_folder))
 
 
 def write(out: Path, draws: list[dict], beta: dict, psrl: dict, args, load0, elapsed: float) -> None:
