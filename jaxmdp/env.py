@@ -9,7 +9,9 @@ reference). Continuous MDPs never terminate and ``h`` counts steps since the res
 (there is no time limit other than the horizon).
 
 Rewards are drawn from the transition's distribution (``Beta`` or point mass, see :class:`~jaxmdp.MDP`). Everything
-is jittable and vmaps over keys, states and stacked MDPs.
+is jittable and vmaps over keys, states and stacked MDPs. A step costs ``O(K)`` (successor lists, rewards per
+successor slot, sparse start lists; :func:`step`). An invalid action raises ``ValueError`` when it is concrete and is
+a flagged no-op under ``jit`` (NaN reward, the state does not move; :func:`step`).
 
 BlockMDPs (:class:`jaxmdp.BlockMDP`): ``reset`` and ``step`` take one wherever they take an MDP and return its
 observations (emission-table row plus a noise draw from ``noise_key(key)``) instead of state indices, with the same

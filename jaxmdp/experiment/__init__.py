@@ -4,7 +4,13 @@
 * :mod:`~jaxmdp.experiment.members`: the members of a run, (MDP, hyperparameters, key) triples (``product``, ``grid``);
 * :mod:`~jaxmdp.experiment.runner`: the compiled lockstep loop and its host driver (``run``);
 * :mod:`~jaxmdp.experiment.indicators`: the exact expected regret of a policy and the reference's CSV columns;
-* :mod:`~jaxmdp.experiment.records` and :mod:`~jaxmdp.experiment.checkpoints`: what a run writes.
+* :mod:`~jaxmdp.experiment.records` and :mod:`~jaxmdp.experiment.checkpoints`: what a run writes;
+* :mod:`~jaxmdp.experiment.compilation`: the scripts' persistent compilation cache and compile-time counters
+  (``enable_compilation_cache``, called by entry points only).
 
 It imports the MDP model of :mod:`jaxmdp` and nothing else of this project; agents import it.
 """
+
+from jaxmdp.experiment.compilation import enable_compilation_cache
+
+__all__ = ["enable_compilation_cache"]
