@@ -67,4 +67,9 @@ def test_nested_compile_spans_count_once():
     stats._on_event("/jax/compilation_cache/cache_hits")
     stats._on_event("/jax/compilation_cache/cache_misses")
     stats._on_event("/jax/compilation_cache/cache_misses")
-    assert stats.snapshot() == {"compile_s": 5.5, "cache_hits": 1, "cache_misses": 2}
+    assert stats.snapshot() == {
+        "compile_s": 5.5, "trace_s": 3.5, "lower_s": 0.0, "backend_s": 2.0, "cache_hits": 1, "cache_misses": 2
+    }
+    assert compilation.time_report(10.0, stats.snapshot(), None) == (
+        "time: 10.0 s, of which compiling 5.5 s (trace 3.5 s, lower 0.0 s, XLA 2.0 s) and running 4.5 s (no cache)"
+    )

@@ -10,8 +10,8 @@ the scripts' entry points do, before anything compiles (``scripts/*.py``, the co
   :data:`MAX_CACHE_BYTES`). The environment variable ``JAXMDP_COMPILATION_CACHE`` turns it off (``0``, ``off``,
   ``false``, ``no``) or names another folder; the scripts' ``--no-compile-cache`` flag turns it off too.
 * :func:`compile_stats` counts, from JAX's monitoring events, the wall time spent tracing, lowering and compiling
-  (or loading from the cache) and the persistent cache's hits and misses since the first call; :func:`time_report`
-  writes them beside the total time.
+  (or loading from the cache; the persistent cache saves only this last phase) and the persistent cache's hits and
+  misses since the first call; :func:`time_report` writes them beside the total time.
 """
 
 from __future__ import annotations
@@ -50,6 +50,7 @@ _PHASE_EVENTS = (
     "/jax/core/compile/jaxpr_to_mlir_module_duration",
     "/jax/core/compile/backend_compile_duration",
 )
+_PHASE_NAMES = dict(zip(_PHASE_EVENTS, ("trace", "lower", "backend")))
 _HIT_EVENT = "/jax/compilation_cache/cache_hits"
 _MISS_EVENT = "/jax/compilation_cache/cache_misses"
 # Spans kept to recognise nesting: a span encloses only recent ones, so a short window suffices.
@@ -96,9 +97,10 @@ class CompileStats:
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self.seconds = 0.0
+        self.phase_seconds = dict.fromkeys(_PHASE_NAMES.values(), 0.0)
         self.hits = 0
         self.misses = 0
-        self._spans: list[tuple[float, float]] = []
+        self._spans: list[tuple[float, float, str]] = []
 
     def _on_span(self, event: str, start: float, end: float, **_: object) -> None:
         if event not in _PHASE_EVENTS:
@@ -106,10 +108,13 @@ class CompileStats:
         with self._lock:
             # Spans end inner first: the new span replaces the recent ones it encloses, so time counts once.
             while self._spans and self._spans[-1][0] >= start:
-                s, e = self._spans.pop()
+                s, e, phase = self._spans.pop()
                 self.seconds -= e - s
-            self._spans.append((start, end))
+                self.phase_seconds[phase] -= e - s
+            phase = _PHASE_NAMES[event]
+            self._spans.append((start, end, phase))
             self.seconds += end - start
+            self.phase_seconds[phase] += end - start
             del self._spans[:-_SPAN_WINDOW]
 
     def _on_event(self, event: str, **_: object) -> None:
@@ -121,9 +126,11 @@ class CompileStats:
                     self.misses += 1
 
     def snapshot(self) -> dict[str, float]:
-        """``{"compile_s", "cache_hits", "cache_misses"}`` so far."""
+        """``{"compile_s", "trace_s", "lower_s", "backend_s", "cache_hits", "cache_misses"}`` so far (the phases
+        split ``compile_s``, each span counted in the outermost phase that encloses it)."""
         with self._lock:
-            return {"compile_s": self.seconds, "cache_hits": self.hits, "cache_misses": self.misses}
+            phases = {f"{name}_s": v for name, v in self.phase_seconds.items()}
+            return {"compile_s": self.seconds, **phases, "cache_hits": self.hits, "cache_misses": self.misses}
 
 
 _STATS: CompileStats | None = None
@@ -168,7 +175,9 @@ def setup_compilation(no_cache: bool = False) -> tuple[Path | None, CompileStats
 def time_report(total_s: float, snapshot: dict[str, float], folder: Path | None) -> str:
     """One line: the total wall time, the part spent compiling and the cache's hits and misses."""
     cache = f"cache {folder}: {snapshot['cache_hits']} hits, {snapshot['cache_misses']} misses" if folder else "no cache"
+    phases = ", ".join(f"{label} {snapshot[key]:.1f} s" for label, key in
+                       (("trace", "trace_s"), ("lower", "lower_s"), ("XLA", "backend_s")))
     return (
-        f"time: {total_s:.1f} s, of which compiling {snapshot['compile_s']:.1f} s and running "
+        f"time: {total_s:.1f} s, of which compiling {snapshot['compile_s']:.1f} s ({phases}) and running "
         f"{max(total_s - snapshot['compile_s'], 0.0):.1f} s ({cache})"
     )
