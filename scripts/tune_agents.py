@@ -70,5 +70,8 @@ def main(argv: list[str] | None = None) -> dict:
 
 
 if __name__ == "__main__":
+    from jaxmdp.experiment.compilation import enable_compilation_cache
+
+    enable_compilation_cache()  # the persistent compilation cache (JAXMDP_COMPILATION_CACHE=0: off)
     main()
     sys.exit(0)

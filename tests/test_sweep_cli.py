@@ -455,7 +455,8 @@ def test_progress_bar_lines():
 def test_sweep_size_script_smoke(tmp_path):
     """scripts/sweep_size.py in a fresh process: DeepSea continuous sizes 3 and 4. By hand, the diameter of a
     deterministic DeepSea of size n is 2n - 2 (from (0, 1) down, back to the start, down the diagonal)."""
-    env = dict(os.environ, PYTHONPATH=str(REPO))
+    # The script's compilation cache goes to tmp_path, not the user's cache folder.
+    env = dict(os.environ, PYTHONPATH=str(REPO), JAXMDP_COMPILATION_CACHE=str(tmp_path / "jax_cache"))
     cmd = [sys.executable, str(REPO / "scripts" / "sweep_size.py"), "--family", "DeepSea", "--setting", "continuous",
            "--values", "3", "4", "--seeds", "0", "--no-plot", "--out", str(tmp_path), "--agent-steps", "0"]
     proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=120, cwd=tmp_path)
@@ -463,6 +464,7 @@ def test_sweep_size_script_smoke(tmp_path):
     csv_path = tmp_path / "scenario3_DeepSea_continuous.csv"
     assert proc.stdout.split() == [str(csv_path), str(tmp_path / "scenario3_DeepSea_continuous.json")]
     assert "1/1 seeds" in proc.stderr
+    assert "of which compiling" in proc.stderr and f"cache {tmp_path / 'jax_cache'}: 0 hits" in proc.stderr
     rows = read_table(csv_path)
     assert [(r["seed"], r["value"], r["n_states"]) for r in rows] == [("0", "3", "6"), ("0", "4", "10")]
     np.testing.assert_allclose(column(rows, "diameter"), [4.0, 6.0], rtol=1e-6)
