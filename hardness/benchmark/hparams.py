@@ -28,6 +28,7 @@ import numpy as np
 import agents as agent_registry
 from agents import psrl_continuous
 from agents.search_spaces import SEARCH_SPACES, search_space
+from jaxmdp._checks import Variant
 from jaxmdp.agent_interface import Agent
 from jaxmdp.mdp import MDP
 
@@ -82,10 +83,13 @@ def load_tuned(path: str | os.PathLike = TUNED_FILE) -> dict[str, dict]:
     return data["agents"]
 
 
-def hparams_for(name: str, source: str | os.PathLike = "tuned") -> Any:
+def hparams_for(name: str, source: str | os.PathLike = "tuned", variant: Variant = "paper") -> Any:
     """The hyperparameters of agent ``name`` from ``source``: ``"reference"``, ``"tuned"`` or a file path (module
-    docstring). ``ValueError`` if the file has no values for a tunable agent."""
-    agent = agent_registry.get(name)
+    docstring). ``ValueError`` if the file has no values for a tunable agent.
+
+    ``variant="colosseum"`` starts from the reference-mode agent's defaults (:func:`agents.get`), which carry the
+    reference's fixed settings (e.g. Q-learning continuous's ``delta = 0.95``); the searched values are the same."""
+    agent = agent_registry.get(name, variant)
     if str(source) == "reference" or name not in SEARCH_SPACES:
         return agent.default_hparams
     path = TUNED_FILE if str(source) == "tuned" else Path(source)
