@@ -60,6 +60,7 @@ Differences from the reference (Colosseum), each deliberate:
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 
 import jax
@@ -411,15 +412,6 @@ PSRL_CONTINUOUS = Agent(
 
 
 #: Reference mode (docs/agents.md, "Reference mode"): the reference's candidate kernels and extended rewards.
-PSRL_CONTINUOUS_COLOSSEUM = Agent(
-    name="psrl_continuous@colosseum",
-    episodic=False,
-    default_hparams=PSRLContinuousHParams(),
-    init=init,
-    act=act,
-    update=update,
-    policy=policy,
-    needs_plan=needs_plan,
-    plan=functools.partial(plan, variant="colosseum"),
-    check_hparams=check_hparams,
+PSRL_CONTINUOUS_COLOSSEUM = dataclasses.replace(
+    PSRL_CONTINUOUS, name="psrl_continuous@colosseum", plan=functools.partial(plan, variant="colosseum")
 )

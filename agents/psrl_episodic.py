@@ -30,6 +30,7 @@ docs/agents.md).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 
 import jax
@@ -197,15 +198,9 @@ PSRL_EPISODIC = Agent(
 
 #: Reference mode (docs/agents.md, "Reference mode"): the episode's last transition is not learned and the Dirichlet
 #: draws are normalised by ``sum + 1e-5``.
-PSRL_EPISODIC_COLOSSEUM = Agent(
+PSRL_EPISODIC_COLOSSEUM = dataclasses.replace(
+    PSRL_EPISODIC,
     name="psrl_episodic@colosseum",
-    episodic=True,
     default_hparams=PSRLEpisodicHParams(learn_final_transition=False),
-    init=init,
-    act=act,
-    update=update,
-    policy=policy,
-    needs_plan=needs_plan,
     plan=functools.partial(plan, variant="colosseum"),
-    check_hparams=check_hparams,
 )

@@ -41,6 +41,7 @@ four, with ``delta = 0.95`` by default (reference mode, docs/agents.md).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 
 import jax
@@ -207,13 +208,10 @@ def update_colosseum(state: QLearningContinuousState, tr: Transition) -> QLearni
     )
 
 
-Q_LEARNING_CONTINUOUS_COLOSSEUM = Agent(
+Q_LEARNING_CONTINUOUS_COLOSSEUM = dataclasses.replace(
+    Q_LEARNING_CONTINUOUS,
     name="q_learning_continuous@colosseum",
-    episodic=False,
     default_hparams=QLearningContinuousHParams(delta=0.95),
     init=functools.partial(init, variant="colosseum"),
-    act=act,
     update=update_colosseum,
-    policy=policy,
-    check_hparams=check_hparams,
 )

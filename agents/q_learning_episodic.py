@@ -38,6 +38,7 @@ Differences from the reference (Colosseum), each a return to the published algor
 
 from __future__ import annotations
 
+import dataclasses
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -219,13 +220,6 @@ def update_colosseum(state: QLearningEpisodicState, tr: Transition) -> QLearning
     return state.replace(table=table, V=state.V.at[h, s].set(jnp.minimum(H, jnp.max(q_row))))
 
 
-Q_LEARNING_EPISODIC_COLOSSEUM = Agent(
-    name="q_learning_episodic@colosseum",
-    episodic=True,
-    default_hparams=QLearningEpisodicHParams(),
-    init=init_colosseum,
-    act=act,
-    update=update_colosseum,
-    policy=policy,
-    check_hparams=check_hparams,
+Q_LEARNING_EPISODIC_COLOSSEUM = dataclasses.replace(
+    Q_LEARNING_EPISODIC, name="q_learning_episodic@colosseum", init=init_colosseum, update=update_colosseum
 )

@@ -356,15 +356,11 @@ def policy_colosseum(state: UCRL2ColosseumState) -> jax.Array:
     return dp.greedy(res.Q, state.action_mask)
 
 
-UCRL2_COLOSSEUM = Agent(
+UCRL2_COLOSSEUM = dataclasses.replace(
+    UCRL2,
     name="ucrl2@colosseum",
-    episodic=False,
-    default_hparams=UCRL2HParams(),
     init=init_colosseum,
-    act=act,
     update=update_colosseum,
     policy=policy_colosseum,
-    needs_plan=needs_plan,
     plan=plan_colosseum,
-    check_hparams=check_hparams,
 )
