@@ -2,7 +2,8 @@
 
 * ``"reference"``: the agents' ``default_hparams``, which are the reference's cached values (agents.md). They were
   tuned by the reference for its own update rules, several of which differ from ours (the ``[quirk]`` entries of
-  agents.md), so they are not "tuned" for this code.
+  agents.md), so they are not "tuned" for this code; reference mode (``variant="colosseum"`` of :func:`hparams_for`,
+  ``--agent-variant colosseum``) runs them with the rules they were tuned for.
 * ``"tuned"``: :data:`TUNED_FILE`, written by ``scripts/tune_agents.py`` (:mod:`hardness.benchmark.search`) with its
   provenance (budget, seeds, commit, date); any other path: a file of the same format.
 * :func:`reference_candidates`: random-search candidates drawn as the reference draws them (agents.md §8): sample
