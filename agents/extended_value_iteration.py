@@ -22,7 +22,14 @@ import jax.numpy as jnp
 
 from jaxmdp.dynamic_programming import PlanResult, relative_value_iteration
 
-__all__ = ["confidence_box", "optimistic_expectation", "optimistic_kernel", "extended_value_iteration"]
+__all__ = [
+    "confidence_box",
+    "optimistic_expectation",
+    "optimistic_kernel",
+    "extended_value_iteration",
+    "colosseum_optimistic_kernel",
+    "colosseum_extended_value_iteration",
+]
 
 
 def confidence_box(p_hat: jax.Array, width: jax.Array, state_mask: jax.Array) -> tuple[jax.Array, jax.Array]:
@@ -99,3 +106,77 @@ def extended_value_iteration(
         aperiodicity=aperiodicity,
         active=active,
     )
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Reference mode (docs/agents.md, "Reference mode"): the reference's extended value iteration
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def colosseum_optimistic_kernel(p_hat: jax.Array, width: jax.Array, u: jax.Array, state_mask: jax.Array) -> jax.Array:
+    """The reference's optimistic next-state distributions ``[..., S]`` for one ordering of the states by ``u``.
+
+    With ``b`` the last real state in increasing order of ``u`` (ties: the higher index last, so ``u = 0`` gives the
+    last real state) and ``m = min(1, p_hat(b) + width / 2)`` (``width [...]``, one per pair): if ``m = 1`` the point
+    mass on ``b``; otherwise ``p_hat`` with ``p(b) = m`` and the excess ``m - p_hat(b)`` removed from the other states
+    in increasing order of ``u``, each down to at most 0 (an L1-style shift of mass onto the best state).
+    """
+    S = u.shape[-1]
+    idx = jnp.arange(S)
+    key = jnp.where(state_mask, u, -jnp.inf)
+    precedes = (key[:, None] < key[None, :]) | ((key[:, None] == key[None, :]) & (idx[:, None] < idx[None, :]))
+    best = jnp.argmax(jnp.sum(precedes, axis=0))  # the state every other state precedes
+    on_best = idx == best
+    p_best = p_hat[..., best]
+    m = jnp.minimum(1.0, p_best + width / 2.0)
+    excess = (m - p_best)[..., None]
+    before = p_hat @ precedes.astype(p_hat.dtype)  # mass of the states walked before each state
+    shifted = p_hat - jnp.clip(excess - before, 0.0, p_hat)
+    shifted = jnp.where(on_best, m[..., None], shifted)
+    return jnp.where((m >= 1.0)[..., None], on_best.astype(p_hat.dtype), shifted)
+
+
+def colosseum_extended_value_iteration(
+    p_hat: jax.Array,
+    width: jax.Array,
+    rewards: jax.Array,
+    state_mask: jax.Array,
+    action_mask: jax.Array,
+    *,
+    tol: float | jax.Array = 1e-3,
+    max_iter: int = 1_000_000,
+    active: bool | jax.Array = True,
+) -> PlanResult:
+    """The reference's extended value iteration (docs/agents.md §3), from ``u = 0``.
+
+    Every sweep: ``Q(s, a) = r~(s, a) + p~(s, a) . u - u(s)`` with :func:`colosseum_optimistic_kernel` of the current
+    ordering, and ``u'(s) = Q(s, a) + u(s)`` of the last action ``a`` (in index order) that exceeds the running
+    maximum or comes within ``tol`` of it; stop when ``span(u' - u) < tol`` with the ``Q`` of that sweep. No
+    aperiodicity transform: on a periodic optimistic chain it runs ``max_iter`` sweeps and reports
+    ``converged = False``. ``u`` is shifted to ``min u = 0`` after each sweep (the ordering and ``Q`` do not change).
+    """
+    dtype = rewards.dtype
+    inf = jnp.asarray(jnp.inf, dtype)
+
+    def body(c):
+        u, _, _, _, _, i = c
+        Q = rewards + jnp.sum(colosseum_optimistic_kernel(p_hat, width, u, state_mask) * u, axis=-1) - u[:, None]
+        run = jnp.full(u.shape, -inf)
+        for a in range(Q.shape[-1]):
+            v = Q[:, a] + u
+            take = action_mask[a] & ((run == -inf) | (v > run) | (jnp.abs(v - run) < tol))
+            run = jnp.where(take, v, run)
+        d = run - u
+        lo = jnp.min(jnp.where(state_mask, d, inf))
+        hi = jnp.max(jnp.where(state_mask, d, -inf))
+        u_next = jnp.where(hi - lo < tol, u, run - jnp.min(jnp.where(state_mask, run, inf)))
+        return jnp.where(state_mask, u_next, 0.0), Q, lo, hi, hi - lo, i + 1
+
+    def cond(c):
+        *_, err, i = c
+        return (err >= tol) & (i < max_iter) & active
+
+    S, A = rewards.shape
+    init = (jnp.zeros((S,), dtype), jnp.zeros((S, A), dtype), -inf, inf, inf, jnp.asarray(0, jnp.int32))
+    u, Q, lo, hi, err, it = jax.lax.while_loop(cond, body, init)
+    return PlanResult(Q=Q, u=u, gain_lower=lo, gain_upper=hi, iterations=it, converged=err < tol)

@@ -23,6 +23,7 @@ from flax import struct
 from jaxmdp.sampling.beta_sampling import sample_log_gamma
 
 __all__ = [
+    "COLOSSEUM_DIRICHLET_OFFSET",
     "LogGammaSampler",
     "log_gamma_sample",
     "dirichlet_concentration",
@@ -38,6 +39,8 @@ __all__ = [
 # Largest standard deviation a reward sample may have: a Gamma draw of a small shape can underflow towards zero, and
 # an infinite reward would turn the zero entries of a kernel into NaNs during planning (0 * inf).
 _MAX_LOG_STD = 30.0
+#: The reference's Dirichlet draws divide the Gamma variates by ``sum + 1e-5`` (docs/agents.md §1).
+COLOSSEUM_DIRICHLET_OFFSET = 1e-5
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -76,17 +79,25 @@ def dirichlet_mean(alpha: jax.Array) -> jax.Array:
     return alpha / jnp.sum(alpha, axis=-1, keepdims=True)
 
 
-def dirichlet_sample(key: jax.Array, alpha: jax.Array, log_gamma: LogGammaSampler = log_gamma_sample) -> jax.Array:
+def dirichlet_sample(
+    key: jax.Array, alpha: jax.Array, log_gamma: LogGammaSampler = log_gamma_sample, *, offset: float = 0.0
+) -> jax.Array:
     """One draw ``p ~ Dirichlet(alpha)`` per row of ``alpha[..., S]``; entries with ``alpha == 0`` get probability 0.
 
     Draws ``log g_i`` with ``g_i ~ Gamma(alpha_i, 1)`` and returns ``softmax(log g)``: normalising in log space keeps
     small concentrations (the default prior is ``1/S``) exact where ``g_i`` itself would underflow to zero, and every
     row sums to one exactly (the reference divides by ``sum + 1e-5``). ``log_gamma`` draws the ``log g_i``
     (default :func:`log_gamma_sample`; ``scripts/bench_sampling.py`` passes ``jax.random.loggamma`` to compare).
+    ``offset > 0`` (static) returns ``g / (sum g + offset)`` instead, still in log space: the reference's rows, which
+    sum to less than one (reference mode uses :data:`COLOSSEUM_DIRICHLET_OFFSET`).
     """
     positive = alpha > 0
     log_g = log_gamma(key, jnp.where(positive, alpha, 1.0))
-    return jax.nn.softmax(jnp.where(positive, log_g, -jnp.inf), axis=-1)
+    if not offset:
+        return jax.nn.softmax(jnp.where(positive, log_g, -jnp.inf), axis=-1)
+    log_g = jnp.where(positive, log_g, -jnp.inf)
+    log_z = jnp.logaddexp(jax.nn.logsumexp(log_g, axis=-1, keepdims=True), jnp.log(jnp.asarray(offset, log_g.dtype)))
+    return jnp.exp(log_g - log_z)
 
 
 # ---------------------------------------------------------------------------------------------------------------

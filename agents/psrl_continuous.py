@@ -53,9 +53,15 @@ Differences from the reference (Colosseum), each deliberate:
   independently per pair and candidate (the reference shares one state per candidate across all pairs).
 * Planning is exact (policy iteration) instead of value iteration stopped at ``1e-3`` from zero.
 * Dirichlet draws are normalised exactly and computed in log space; reward draws are always finite.
+
+``PSRL_CONTINUOUS_COLOSSEUM`` (``agents.get("psrl_continuous", variant="colosseum")``) restores the first two and the
+``sum + 1e-5`` normalisation; its planning stays exact (reference mode, docs/agents.md).
 """
 
 from __future__ import annotations
+
+import dataclasses
+import functools
 
 import jax
 import jax.numpy as jnp
@@ -64,6 +70,7 @@ from flax import struct
 
 from agents.epochs import EpochSchedule, epoch_schedule, record_visit, start_epoch
 from agents.posteriors import (
+    COLOSSEUM_DIRICHLET_OFFSET,
     NormalGamma,
     dirichlet_concentration,
     dirichlet_mean,
@@ -75,7 +82,7 @@ from agents.posteriors import (
 )
 from agents.tabular_common import greedy_action
 from jaxmdp import dynamic_programming as dp
-from jaxmdp._checks import check_int, check_range
+from jaxmdp._checks import Variant, check_int, check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
 
 __all__ = [
@@ -86,7 +93,9 @@ __all__ = [
     "psi",
     "candidate_kernels",
     "extended_mdp",
+    "colosseum_extended_rewards",
     "PSRL_CONTINUOUS",
+    "PSRL_CONTINUOUS_COLOSSEUM",
 ]
 
 # Above this many kernel entries the reference gives up optimism (one posterior draw per pair).
@@ -264,9 +273,14 @@ def _posterior_alpha(state: PSRLContinuousState) -> jax.Array:
     return dirichlet_concentration(1.0 / S, state.counts, state.state_mask)
 
 
-def candidate_kernels(key: jax.Array, state: PSRLContinuousState) -> jax.Array:
+def candidate_kernels(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "paper") -> jax.Array:
     """``[max_psi, S, A, S]`` candidate kernels (module docstring); slots ``k >= psi`` repeat candidate 0, so they
-    never change a maximum over candidates."""
+    never change a maximum over candidates.
+
+    ``variant="colosseum"``: the reference's simple optimistic sampling, whose deviation divides by the per-next-state
+    count ``max(1, N(s, a, s'))`` and whose candidate ``k`` hands the missing mass of every pair to one shared state
+    ``z_k``; posterior draws are normalised by ``sum + 1e-5``."""
+    colosseum = variant == "colosseum"
     hp, c = state.hparams, state.constants
     dtype = state.Q.dtype
     S, A = state.Q.shape
@@ -280,15 +294,16 @@ def candidate_kernels(key: jax.Array, state: PSRLContinuousState) -> jax.Array:
     n1 = jnp.maximum(N, 1.0)[..., None]
     p_hat = counts / n1
     log4s = jnp.log(4.0 * jnp.sum(mask).astype(dtype))
-    p_minus = p_hat - jnp.minimum(jnp.sqrt(3.0 * p_hat * log4s / n1) + 3.0 * log4s / n1, p_hat)
+    n_dev = jnp.maximum(counts, 1.0) if colosseum else n1
+    p_minus = p_hat - jnp.minimum(jnp.sqrt(3.0 * p_hat * log4s / n_dev) + 3.0 * log4s / n_dev, p_hat)
     missing = 1.0 - jnp.sum(p_minus, axis=-1, keepdims=True)
     use_posterior = (N >= c.eta)[..., None]
     log_mask = jnp.where(mask, 0.0, -jnp.inf)
 
     def draw(k):
         k_dir, k_z = jax.random.split(jax.random.fold_in(key, k))
-        posterior = dirichlet_sample(k_dir, alpha)
-        z = jax.random.categorical(k_z, log_mask, shape=(S, A))
+        posterior = dirichlet_sample(k_dir, alpha, offset=COLOSSEUM_DIRICHLET_OFFSET if colosseum else 0.0)
+        z = jax.random.categorical(k_z, log_mask, shape=() if colosseum else (S, A))
         optimistic = p_minus + missing * jax.nn.one_hot(z, S, dtype=dtype)
         return jnp.where(use_posterior, posterior, optimistic)
 
@@ -308,18 +323,33 @@ def extended_mdp(R: jax.Array, P: jax.Array, action_mask: jax.Array) -> tuple[ja
     return T, jnp.repeat(R, K, axis=1), jnp.repeat(action_mask, K)
 
 
-def plan(key: jax.Array, state: PSRLContinuousState) -> PSRLContinuousState:
+def colosseum_extended_rewards(R: jax.Array, psi: jax.Array, max_psi: int, action_mask: jax.Array) -> jax.Array:
+    """The reference's rewards of the extended actions, ``[S, A max_psi]``: its action ``j = a psi + k`` gets
+    ``R[s, j mod A]`` (``A`` real actions), the reward of another real action than the one whose kernel it uses.
+    Slots ``k >= psi`` and padded actions repeat ``(a, 0)`` and ``(0, k)``, as :func:`extended_mdp` lays them out."""
+    S, A = R.shape
+    k = jnp.arange(max_psi)[None, :]
+    a = jnp.where(action_mask, jnp.arange(A), 0)[:, None]
+    j = a * psi + jnp.where(k < psi, k, 0)
+    return R[:, j % jnp.sum(action_mask)].reshape(S, A * max_psi)
+
+
+def plan(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "paper") -> PSRLContinuousState:
     """Start an epoch: draw the extended MDP and solve it (module docstring).
 
     Discounted (default): policy iteration with exact evaluation, started from the policy greedy on one backup of
     the previous values (exact optimum, typically a few linear solves). Average reward (``discount == 1``): relative
     value iteration with the span stopping rule. A no-op unless :func:`needs_plan` (the runner keeps the result only
-    for members that asked).
+    for members that asked). ``variant="colosseum"``: the reference's candidates (:func:`candidate_kernels`) and
+    extended rewards (:func:`colosseum_extended_rewards`).
     """
     hp = state.hparams
     S, A = state.Q.shape
     k_r, k_p = jax.random.split(key)
-    T, R, mask = extended_mdp(normal_gamma_sample(k_r, state.rewards), candidate_kernels(k_p, state), state.action_mask)
+    R_draw = normal_gamma_sample(k_r, state.rewards)
+    T, R, mask = extended_mdp(R_draw, candidate_kernels(k_p, state, variant=variant), state.action_mask)
+    if variant == "colosseum":
+        R = colosseum_extended_rewards(R_draw, state.constants.psi, hp.max_psi, state.action_mask)
     gamma = jnp.asarray(hp.discount, T.dtype)
 
     # Under vmap the hyperparameters stored in the state are batched, so this cond becomes a select that runs both
@@ -378,4 +408,10 @@ PSRL_CONTINUOUS = Agent(
     needs_plan=needs_plan,
     plan=plan,
     check_hparams=check_hparams,
+)
+
+
+#: Reference mode (docs/agents.md, "Reference mode"): the reference's candidate kernels and extended rewards.
+PSRL_CONTINUOUS_COLOSSEUM = dataclasses.replace(
+    PSRL_CONTINUOUS, name="psrl_continuous@colosseum", plan=functools.partial(plan, variant="colosseum")
 )

@@ -22,15 +22,23 @@ Differences from the reference (Colosseum), each deliberate:
   reward draw's standard deviation is capped at ``e^30`` so it is always finite.
 * Exact ties in ``Q~`` are broken with the agent's key; the policy estimate breaks ties towards the lowest action
   index (the reference re-seeds 42, docs/measures.md §1.4).
+
+``PSRL_EPISODIC_COLOSSEUM`` (``agents.get("psrl_episodic", variant="colosseum")``) never learns the last transition
+of an episode (``learn_final_transition=False``) and normalises its Dirichlet draws by ``sum + 1e-5`` (reference mode,
+docs/agents.md).
 """
 
 from __future__ import annotations
+
+import dataclasses
+import functools
 
 import jax
 import jax.numpy as jnp
 from flax import struct
 
 from agents.posteriors import (
+    COLOSSEUM_DIRICHLET_OFFSET,
     LogGammaSampler,
     NormalGamma,
     dirichlet_concentration,
@@ -44,10 +52,10 @@ from agents.posteriors import (
 )
 from agents.tabular_common import greedy_action
 from jaxmdp import dynamic_programming as dp
-from jaxmdp._checks import check_range
+from jaxmdp._checks import Variant, check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
 
-__all__ = ["PSRLEpisodicHParams", "PSRLEpisodicState", "PSRL_EPISODIC"]
+__all__ = ["PSRLEpisodicHParams", "PSRLEpisodicState", "PSRL_EPISODIC", "PSRL_EPISODIC_COLOSSEUM"]
 
 
 class PSRLEpisodicHParams(struct.PyTreeNode):
@@ -145,14 +153,22 @@ def _alpha(state: PSRLEpisodicState) -> jax.Array:
     return dirichlet_concentration(state.hparams.transition_prior, state.counts, state.state_mask)
 
 
-def plan(key: jax.Array, state: PSRLEpisodicState, log_gamma: LogGammaSampler = log_gamma_sample) -> PSRLEpisodicState:
+def plan(
+    key: jax.Array,
+    state: PSRLEpisodicState,
+    log_gamma: LogGammaSampler = log_gamma_sample,
+    *,
+    variant: Variant = "paper",
+) -> PSRLEpisodicState:
     """Draw ``(P~, R~)`` from the posterior and solve it by backward induction (docs/agents.md §1, "Schedule").
 
     A no-op unless :func:`needs_plan` (the runner keeps the result only for members that asked). ``log_gamma`` is
-    the posteriors' Gamma sampler (:func:`agents.posteriors.dirichlet_sample`).
+    the posteriors' Gamma sampler (:func:`agents.posteriors.dirichlet_sample`). ``variant="colosseum"`` normalises
+    the Dirichlet draws as the reference, by ``sum + 1e-5``.
     """
     k_p, k_r = jax.random.split(key)
-    P = _copy_action_zero(dirichlet_sample(k_p, _alpha(state), log_gamma), state.action_mask)
+    offset = COLOSSEUM_DIRICHLET_OFFSET if variant == "colosseum" else 0.0
+    P = _copy_action_zero(dirichlet_sample(k_p, _alpha(state), log_gamma, offset=offset), state.action_mask)
     R = _copy_action_zero(normal_gamma_sample(k_r, state.rewards, log_gamma), state.action_mask)
     Q, _ = dp.finite_horizon_value_iteration(P, rewards=R, H=state.Q.shape[0], horizon=state.horizon)
     return where_due(state.plan_due, state.replace(Q=Q, plan_due=jnp.zeros((), bool)), state)
@@ -177,4 +193,14 @@ PSRL_EPISODIC = Agent(
     needs_plan=needs_plan,
     plan=plan,
     check_hparams=check_hparams,
+)
+
+
+#: Reference mode (docs/agents.md, "Reference mode"): the episode's last transition is not learned and the Dirichlet
+#: draws are normalised by ``sum + 1e-5``.
+PSRL_EPISODIC_COLOSSEUM = dataclasses.replace(
+    PSRL_EPISODIC,
+    name="psrl_episodic@colosseum",
+    default_hparams=PSRLEpisodicHParams(learn_final_transition=False),
+    plan=functools.partial(plan, variant="colosseum"),
 )

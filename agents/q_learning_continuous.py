@@ -34,9 +34,15 @@ Differences from the reference (Colosseum), each a return to the published algor
 * the exponent is exactly ``1/3`` (the reference uses 0.333); ``H`` is floored at 1 (the reference would let
   ``gamma`` go negative for tiny ``h_weight``);
 * the policy estimate breaks ties towards the lowest index (the reference re-seeds 42, docs/measures.md §1.4).
+
+``Q_LEARNING_CONTINUOUS_COLOSSEUM`` (``agents.get("q_learning_continuous", variant="colosseum")``) restores the first
+four, with ``delta = 0.95`` by default (reference mode, docs/agents.md).
 """
 
 from __future__ import annotations
+
+import dataclasses
+import functools
 
 import jax
 import jax.numpy as jnp
@@ -44,13 +50,21 @@ from flax import struct
 
 from agents.tabular_common import greedy_action, valid_counts
 from jaxmdp import dynamic_programming as dp
-from jaxmdp._checks import check_range
+from jaxmdp._checks import Variant, check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
 
-__all__ = ["QLearningContinuousHParams", "QLearningContinuousState", "Q_LEARNING_CONTINUOUS", "constants"]
+__all__ = [
+    "QLearningContinuousHParams",
+    "QLearningContinuousState",
+    "Q_LEARNING_CONTINUOUS",
+    "Q_LEARNING_CONTINUOUS_COLOSSEUM",
+    "constants",
+]
 
 # Below this value the reference's learning-rate floor is switched off (docs/agents.md §5).
 _MIN_AT_CUTOFF = 0.009
+# The reference's approximation of the exponent 1/3 in H (reference mode).
+_COLOSSEUM_EXPONENT = 0.333
 
 
 class QLearningContinuousHParams(struct.PyTreeNode):
@@ -85,25 +99,35 @@ def check_hparams(hparams: QLearningContinuousHParams) -> None:
 
 
 def constants(
-    hparams: QLearningContinuousHParams, n_states: jax.Array, n_actions: jax.Array, n_steps: jax.Array
+    hparams: QLearningContinuousHParams,
+    n_states: jax.Array,
+    n_actions: jax.Array,
+    n_steps: jax.Array,
+    *,
+    variant: Variant = "paper",
 ) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
-    """``(H, gamma, bonus_scale, min_at')`` with ``b_tau = bonus_scale / sqrt(tau)`` (module docstring)."""
+    """``(H, gamma, bonus_scale, min_at')`` with ``b_tau = bonus_scale / sqrt(tau)`` (module docstring).
+
+    ``variant="colosseum"``: the reference's exponent 0.333 and no floor on ``H``."""
     T = jnp.asarray(n_steps, jnp.float32)
     SA = jnp.asarray(n_states, jnp.float32) * jnp.asarray(n_actions, jnp.float32)
     sp, delta = hparams.span_approx_weight, hparams.delta
-    H = hparams.h_weight * jnp.minimum(jnp.sqrt(sp * T / SA), (T / (SA * jnp.log(4.0 * T / delta))) ** (1.0 / 3.0))
-    H = jnp.maximum(H, 1.0)
+    third = _COLOSSEUM_EXPONENT if variant == "colosseum" else 1.0 / 3.0
+    H = hparams.h_weight * jnp.minimum(jnp.sqrt(sp * T / SA), (T / (SA * jnp.log(4.0 * T / delta))) ** third)
+    H = H if variant == "colosseum" else jnp.maximum(H, 1.0)
     bonus_scale = 4.0 * sp * jnp.sqrt(H * jnp.log(2.0 * T / delta))
     min_at = jnp.where(hparams.min_at > _MIN_AT_CUTOFF, hparams.min_at, 0.0)
     return H, 1.0 - 1.0 / H, bonus_scale, min_at
 
 
-def init(key: jax.Array, spec: MDPSpec, hparams: QLearningContinuousHParams) -> QLearningContinuousState:
+def init(
+    key: jax.Array, spec: MDPSpec, hparams: QLearningContinuousHParams, variant: Variant = "paper"
+) -> QLearningContinuousState:
     del key
     S, A = spec.n_states, spec.n_actions
     hparams = jax.tree.map(lambda x: jnp.asarray(x, jnp.float32), hparams)
     n_s, n_a = valid_counts(spec.state_mask, spec.action_mask)
-    H, gamma, bonus_scale, min_at = constants(hparams, n_s, n_a, spec.n_steps)
+    H, gamma, bonus_scale, min_at = constants(hparams, n_s, n_a, spec.n_steps, variant=variant)
     Q = jnp.full((S, A), H, jnp.float32)
     return QLearningContinuousState(
         Q=Q,
@@ -156,4 +180,38 @@ Q_LEARNING_CONTINUOUS = Agent(
     update=update,
     policy=policy,
     check_hparams=check_hparams,
+)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Reference mode (docs/agents.md, "Reference mode"): the reference's update rules, as its published numbers used them
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def update_colosseum(state: QLearningContinuousState, tr: Transition) -> QLearningContinuousState:
+    """The reference's step at ``(s, a)``: the running estimate restarts from the monotone one,
+    ``Q(s, a) <- (1 - alpha_tau) Q_hat(s, a) + alpha_tau (r + gamma V(s') + b_tau)``, ``Q_hat(s, a) <- min(Q_hat(s, a),
+    Q(s, a))``, and the *next* state's value is refreshed, ``V(s') <- max_a Q_hat(s', a)``."""
+    s, a = tr.obs, tr.action
+    tau_int = state.N[s, a] + 1
+    tau = tau_int.astype(jnp.float32)
+    alpha = jnp.maximum(state.min_at, (state.H + 1.0) / (state.H + tau))
+    target = tr.reward + state.gamma * state.V[tr.next_obs] + state.bonus_scale / jnp.sqrt(tau)
+    q = (1.0 - alpha) * state.Q_hat[s, a] + alpha * target
+    Q_hat = state.Q_hat.at[s, a].min(q)
+    row = jnp.where(state.action_mask, Q_hat[tr.next_obs], -jnp.inf)
+    return state.replace(
+        Q=state.Q.at[s, a].set(q),
+        Q_hat=Q_hat,
+        V=state.V.at[tr.next_obs].set(jnp.max(row)),
+        N=state.N.at[s, a].set(tau_int),
+    )
+
+
+Q_LEARNING_CONTINUOUS_COLOSSEUM = dataclasses.replace(
+    Q_LEARNING_CONTINUOUS,
+    name="q_learning_continuous@colosseum",
+    default_hparams=QLearningContinuousHParams(delta=0.95),
+    init=functools.partial(init, variant="colosseum"),
+    update=update_colosseum,
 )

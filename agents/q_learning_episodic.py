@@ -31,10 +31,14 @@ Differences from the reference (Colosseum), each a return to the published algor
   ``H (sum V^2 - sum V)^2 / t^2 + H``, [quirk]);
 * ``V`` starts at ``H`` (optimistic, as ``max_a Q`` of the initial table), not 0;
 * the policy estimate breaks ties towards the lowest index (the reference re-seeds 42, docs/measures.md §1.4).
+
+``Q_LEARNING_EPISODIC_COLOSSEUM`` (``agents.get("q_learning_episodic", variant="colosseum")``) restores the first four
+(reference mode, docs/agents.md).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -45,7 +49,7 @@ from jaxmdp import dynamic_programming as dp
 from jaxmdp._checks import check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
 
-__all__ = ["QLearningEpisodicHParams", "QLearningEpisodicState", "Q_LEARNING_EPISODIC"]
+__all__ = ["QLearningEpisodicHParams", "QLearningEpisodicState", "Q_LEARNING_EPISODIC", "Q_LEARNING_EPISODIC_COLOSSEUM"]
 
 
 class QLearningEpisodicHParams(struct.PyTreeNode):
@@ -178,4 +182,44 @@ Q_LEARNING_EPISODIC = Agent(
     update=update,
     policy=policy,
     check_hparams=check_hparams,
+)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Reference mode (docs/agents.md, "Reference mode"): the reference's update rules, as its published numbers used them
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def init_colosseum(key: jax.Array, spec: MDPSpec, hparams: QLearningEpisodicHParams) -> QLearningEpisodicState:
+    """The reference's tables: counts start at 1 and ``V`` at 0 (``Q = H`` as in :func:`init`)."""
+    state = init(key, spec, hparams)
+    return state.replace(table=state.table.at[..., _N].set(1.0), V=jnp.zeros_like(state.V))
+
+
+def update_colosseum(state: QLearningEpisodicState, tr: Transition) -> QLearningEpisodicState:
+    """The reference's step at ``(h, s, a)``: with ``t = N + 1`` (counts from 1),
+    ``beta_t = min(c_1 (sqrt((H (sum V^2 - sum V)^2 / t^2 + H) iota) + sqrt(H^7 S A) iota / t), c_2 sqrt(H^3 iota/t))``,
+    ``b_t = (beta_t - (1 - alpha_t) beta_{t-1}) / (2 alpha_t)`` (Hoeffding as :func:`bonus`) and the swapped weights
+    ``Q <- alpha_t Q + (1 - alpha_t) (r + V_{h+1}(s') + b_t)``; ``V_h(s) <- min(H, max_a Q_h(s, a))``."""
+    h, s, a = tr.h, tr.obs, tr.action
+    hp, H, iota = state.hparams, state.horizon, state.iota
+    row = state.table[h, s, a]
+    t = row[_N] + 1.0
+    alpha = jnp.maximum(hp.min_at, (H + 1.0) / (H + t))
+    v_next = state.V[h + 1, tr.next_obs]
+    sum_v, sum_v2 = row[_SUM_V] + v_next, row[_SUM_V2] + v_next**2
+    beta = jnp.minimum(
+        hp.c_1 * (jnp.sqrt((H * (sum_v2 - sum_v) ** 2 / t**2 + H) * iota) + jnp.sqrt(H**7 * state.n_pairs) * iota / t),
+        hp.c_2 * jnp.sqrt(H**3 * iota / t),
+    )
+    bernstein = (beta - (1.0 - alpha) * row[_BETA]) / (2.0 * alpha)
+    b = jnp.where(hp.bernstein > 0, bernstein, hp.c_1 * jnp.sqrt(H**3 * iota / t))
+    q = alpha * row[_Q] + (1.0 - alpha) * (tr.reward + v_next + b)
+    table = state.table.at[h, s, a].set(jnp.stack([q, t, sum_v, sum_v2, beta]))
+    q_row = jnp.where(state.action_mask, table[h, s, :, _Q], -jnp.inf)
+    return state.replace(table=table, V=state.V.at[h, s].set(jnp.minimum(H, jnp.max(q_row))))
+
+
+Q_LEARNING_EPISODIC_COLOSSEUM = dataclasses.replace(
+    Q_LEARNING_EPISODIC, name="q_learning_episodic@colosseum", init=init_colosseum, update=update_colosseum
 )

@@ -38,22 +38,36 @@ Differences from the reference (Colosseum), each deliberate (the algorithm as pu
   ``t_k <= 10^6``. If ``evi_max_iter`` sweeps do not meet the rule, the last iterate is used anyway (the reference
   keeps the previous epoch's policy) and ``evi_converged`` is False.
 * Ties among optimistic actions are broken at random with the agent's key (like the reference's actor).
+
+``UCRL2_COLOSSEUM`` (``agents.get("ucrl2", variant="colosseum")``) restores the first three and plans with the
+reference's extended value iteration (no aperiodicity transform, from ``u = 0``, the previous epoch's ``Q`` kept when
+it does not converge); its policy estimate uses the lagged model (reference mode, docs/agents.md).
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import jax
 import jax.numpy as jnp
 from flax import struct
 
 from agents.epochs import EpochSchedule, epoch_schedule, record_visit, start_epoch
-from agents.extended_value_iteration import extended_value_iteration
+from agents.extended_value_iteration import colosseum_extended_value_iteration, extended_value_iteration
 from agents.tabular_common import greedy_action
 from jaxmdp import dynamic_programming as dp
 from jaxmdp._checks import check_int, check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
 
-__all__ = ["UCRL2HParams", "UCRL2State", "confidence_widths", "UCRL2"]
+__all__ = [
+    "UCRL2HParams",
+    "UCRL2State",
+    "confidence_widths",
+    "UCRL2",
+    "UCRL2ColosseumState",
+    "colosseum_confidence",
+    "UCRL2_COLOSSEUM",
+]
 
 
 class UCRL2HParams(struct.PyTreeNode):
@@ -234,4 +248,119 @@ UCRL2 = Agent(
     needs_plan=needs_plan,
     plan=plan,
     check_hparams=check_hparams,
+)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Reference mode (docs/agents.md, "Reference mode"): the reference's update rules, as its published numbers used them
+# ---------------------------------------------------------------------------------------------------------------
+
+
+class UCRL2ColosseumState(UCRL2State):
+    """:class:`UCRL2State` plus the reference's lagged model: ``p_model``, ``r_model`` (the estimates as of the last
+    epoch end, starting at a uniform kernel and ``r_max``), the current epoch's rewards summed per pair, and
+    ``iteration``, the number of rewards folded into the model (the steps before the current epoch)."""
+
+    p_model: jax.Array
+    r_model: jax.Array
+    epoch_rewards: jax.Array
+    iteration: jax.Array
+
+
+def init_colosseum(key: jax.Array, spec: MDPSpec, hparams: UCRL2HParams) -> UCRL2ColosseumState:
+    """:func:`init` with the reference's initial model: uniform next states, reward ``r_max``."""
+    base = init(key, spec, hparams)
+    S, A = spec.n_states, spec.n_actions
+    dtype = base.reward_mean.dtype
+    uniform = spec.state_mask.astype(dtype) / jnp.sum(spec.state_mask)
+    return UCRL2ColosseumState(
+        **{f.name: getattr(base, f.name) for f in dataclasses.fields(base)},
+        p_model=jnp.broadcast_to(uniform, (S, A, S)),
+        r_model=jnp.broadcast_to(jnp.asarray(hparams.r_max, dtype), (S, A)),
+        epoch_rewards=jnp.zeros((S, A), dtype),
+        iteration=jnp.zeros((), jnp.int32),
+    )
+
+
+def update_colosseum(state: UCRL2ColosseumState, tr: Transition) -> UCRL2ColosseumState:
+    """:func:`update`, and the reward added to the epoch's sum for ``(s, a)``."""
+    new = update(state, tr)
+    return new.replace(epoch_rewards=state.epoch_rewards.at[tr.obs, tr.action].add(tr.reward))
+
+
+def colosseum_confidence(state: UCRL2ColosseumState) -> tuple[jax.Array, jax.Array]:
+    """``(width[S, A], r_tilde[S, A])`` of the reference's plausible set: with ``N`` the visits (up to date),
+    ``N' = max(1, N)``, ``N'' = max(1, N - 1)``, ``delta = 1 / sqrt(iteration + 1)`` and
+    ``L = ln(2 S A (iteration + 1) / delta)`` (``iteration`` lags one epoch), the transition width of next-state index
+    0, ``sqrt(alpha_p) sqrt(14 p(0) (1 - p(0)) L / N') + alpha_p 49 L / (3 N'')`` with ``p = p_model``, used for the
+    whole row, and ``r~ = min(r_max, r_model + alpha_r r_max sqrt(3.5 L / N'))``."""
+    hp = state.hparams
+    dtype = state.r_model.dtype
+    N = state.schedule.visits.astype(dtype)
+    n1, n2 = jnp.maximum(N, 1.0), jnp.maximum(N - 1.0, 1.0)
+    S = jnp.sum(state.state_mask).astype(dtype)
+    A = jnp.sum(state.action_mask).astype(dtype)
+    L = jnp.log(2.0 * S * A) + 1.5 * jnp.log1p(state.iteration.astype(dtype))
+    p0 = state.p_model[..., 0]
+    width = jnp.sqrt(hp.alpha_p) * jnp.sqrt(14.0 * p0 * (1.0 - p0) / n1 * L) + hp.alpha_p * 49.0 * L / (3.0 * n2)
+    r_tilde = jnp.minimum(hp.r_max, state.r_model + hp.alpha_r * hp.r_max * jnp.sqrt(3.5 * L / n1))
+    return width, r_tilde
+
+
+def plan_colosseum(key: jax.Array, state: UCRL2ColosseumState) -> UCRL2ColosseumState:
+    """The reference's epoch start: extended value iteration on the lagged model with up-to-date widths
+    (:func:`colosseum_confidence`; the previous ``Q`` is kept if it does not converge), then the epoch's data folded
+    into the model: ``r_model <- (r_model (N + 1) + sum of the epoch's rewards) / (N + nu + 1)`` (the reference's
+    running mean, which starts from ``r_max`` and counts visits twice; ``N`` the visits, ``nu`` those of the epoch),
+    ``p_model <- N(s, a, .) / N`` for the pairs played in the epoch, ``iteration += sum nu``."""
+    del key
+    hp = state.hparams
+    width, r_tilde = colosseum_confidence(state)
+    res = colosseum_extended_value_iteration(
+        state.p_model,
+        width,
+        r_tilde,
+        state.state_mask,
+        state.action_mask,
+        tol=hp.evi_tol,
+        max_iter=hp.evi_max_iter,
+        active=state.plan_due,
+    )
+    dtype = state.r_model.dtype
+    N = state.schedule.visits.astype(dtype)
+    nu = state.schedule.epoch_visits.astype(dtype)
+    played = nu > 0
+    r_model = jnp.where(played, (state.r_model * (N + 1.0) + state.epoch_rewards) / (N + nu + 1.0), state.r_model)
+    p_model = state.counts.astype(dtype) / jnp.maximum(N, 1.0)[..., None]
+    new = state.replace(
+        Q=jnp.where(res.converged, res.Q, state.Q),
+        u=res.u,
+        schedule=start_epoch(state.schedule),
+        plan_due=jnp.zeros((), bool),
+        evi_iterations=res.iterations,
+        evi_converged=res.converged,
+        p_model=jnp.where(played[..., None], p_model, state.p_model),
+        r_model=r_model,
+        epoch_rewards=jnp.zeros_like(state.epoch_rewards),
+        iteration=state.iteration + state.schedule.epoch_visits.sum(),
+    )
+    return where_due(state.plan_due, new, state)
+
+
+def policy_colosseum(state: UCRL2ColosseumState) -> jax.Array:
+    """Greedy ``[S, A]`` policy of the discounted optimal values of the lagged model ``(p_model, r_model)``."""
+    keep = state.action_mask[None, :]
+    P = jnp.where(keep[..., None], state.p_model, state.p_model[:, :1])
+    R = jnp.where(keep, state.r_model, state.r_model[:, :1])
+    res = dp.solve_discounted(P, state.hparams.policy_discount, rewards=R)
+    return dp.greedy(res.Q, state.action_mask)
+
+
+UCRL2_COLOSSEUM = dataclasses.replace(
+    UCRL2,
+    name="ucrl2@colosseum",
+    init=init_colosseum,
+    update=update_colosseum,
+    policy=policy_colosseum,
+    plan=plan_colosseum,
 )

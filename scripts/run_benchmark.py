@@ -8,6 +8,7 @@ size; results are written as each batch finishes, and running again on the same 
     python scripts/run_benchmark.py --quick --out results/benchmark_quick       # the quick-test sets, a few minutes
     python scripts/run_benchmark.py --settings episodic_ergodic --seeds 20 --steps 500000 --out results/benchmark
     python scripts/run_benchmark.py --settings continuous_ergodic --agents ucrl2 --hparams reference --out DIR
+    python scripts/run_benchmark.py --quick --hparams reference --agent-variant colosseum --out DIR   # reference mode
     python scripts/run_benchmark.py --quick --emission StateInfo --agents dqn_episodic random_episodic --out DIR
 """
 
@@ -45,6 +46,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--hparams", default="tuned",
                    help="tuned (hardness/benchmark/tuned_hparams.json), reference (the reference's cached values) "
                         "or a tuned-file path (default %(default)s)")
+    p.add_argument("--agent-variant", default="paper", choices=("paper", "colosseum"),
+                   help="paper: the agents follow their algorithms' papers (default); colosseum: reference mode, the "
+                        "tabular agents with the reference package's update rules (docs/agents.md); with --hparams "
+                        "reference the like-for-like counterpart of the paper's Table 2")
     p.add_argument("--buckets", type=int, default=None, help="size buckets per set (default 4; --quick 1)")
     p.add_argument("--max-members", type=int, default=None, help="members per runner call (default: a bucket)")
     p.add_argument("--emission", default=None,
@@ -68,7 +73,8 @@ def config_from_args(args: argparse.Namespace) -> run.RunConfig:
                  seeds=tuple(range(args.seeds)) if args.seeds is not None else None, n_steps=args.steps,
                  n_buckets=args.buckets, max_members=args.max_members, emission=args.emission,
                  only=tuple(args.mdps) if args.mdps else None)
-    config = {**base, **{k: v for k, v in given.items() if v is not None}, "hparams": args.hparams}
+    config = {**base, **{k: v for k, v in given.items() if v is not None}, "hparams": args.hparams,
+              "agent_variant": args.agent_variant}
     if args.log_period is not None:
         config.update(log_period=args.log_period, log_periods={})
     return run.RunConfig(**config)

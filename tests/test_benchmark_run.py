@@ -209,3 +209,31 @@ def test_emission_names_and_keys():
     assert not np.allclose(a.emissions, c.emissions)
     direct = jaxmdp.block_mdp(mdp, "linear_random", key=jax.random.fold_in(jax.random.key(3), run.EMISSION_STREAM))
     np.testing.assert_array_equal(a.emissions, direct.emissions)
+
+
+def test_reference_mode_runs_the_colosseum_agents_in_their_own_batches(full_run, tmp_path):
+    # The same tiny run in reference mode (--agent-variant colosseum): its own batch keys, the reference-mode agent's
+    # defaults recorded, the random agent (the same in both variants) unchanged bit for bit, Q-learning not.
+    config = run.RunConfig(**{**TINY, "only": ("RiverSwim",), "agent_variant": "colosseum"})
+    summary = run.run_benchmark(config, tmp_path, progress=False, report=False)
+    assert summary.finished and len(summary.ran) == 2
+    settings = json.loads((tmp_path / "plan.json").read_text())["settings"]
+    assert settings["agent_variant"] == "colosseum"
+    with (tmp_path / "members.csv").open(newline="") as f:
+        ref = {(r["agent"], r["seed"]): r for r in csv.DictReader(f)}
+    with (full_run[0] / "members.csv").open(newline="") as f:
+        paper = {(r["agent"], r["seed"]): r for r in csv.DictReader(f) if r["mdp"] == "RiverSwim/prms_0"}
+    assert set(ref) == set(paper)
+    for key, r in ref.items():
+        same = {k: v for k, v in r.items() if k != "batch"} == {k: v for k, v in paper[key].items() if k != "batch"}
+        assert same == (key[0] == "random_episodic"), key
+    paper_keys = {b["id"]: b["key"] for b in json.loads((full_run[0] / "plan.json").read_text())["batches"]}
+    ref_keys = {b["id"]: b["key"] for b in json.loads((tmp_path / "plan.json").read_text())["batches"]}
+    assert all(ref_keys[i] != paper_keys.get(i) for i in ref_keys)
+    # Q-learning continuous in reference mode defaults to the reference's "confidence" 0.95 as its delta.
+    assert run.hp_sources.hparams_for("q_learning_continuous", "reference", "colosseum").delta == 0.95
+    assert run.hp_sources.hparams_for("q_learning_continuous", "reference").delta == 0.05
+    with pytest.raises(ValueError, match="tabular agents only"):
+        run.plan(run.RunConfig(**{**DEEP, "agent_variant": "colosseum"}))
+    with pytest.raises(ValueError, match="variant must be 'paper' or 'colosseum'"):
+        run.plan(run.RunConfig(**{**TINY, "agent_variant": "reference"}))

@@ -2,7 +2,8 @@
 
 * ``"reference"``: the agents' ``default_hparams``, which are the reference's cached values (agents.md). They were
   tuned by the reference for its own update rules, several of which differ from ours (the ``[quirk]`` entries of
-  agents.md), so they are not "tuned" for this code.
+  agents.md), so they are not "tuned" for this code; reference mode (``variant="colosseum"`` of :func:`hparams_for`,
+  ``--agent-variant colosseum``) runs them with the rules they were tuned for.
 * ``"tuned"``: :data:`TUNED_FILE`, written by ``scripts/tune_agents.py`` (:mod:`hardness.benchmark.search`) with its
   provenance (budget, seeds, commit, date); any other path: a file of the same format.
 * :func:`reference_candidates`: random-search candidates drawn as the reference draws them (agents.md §8): sample
@@ -28,6 +29,7 @@ import numpy as np
 import agents as agent_registry
 from agents import psrl_continuous
 from agents.search_spaces import SEARCH_SPACES, search_space
+from jaxmdp._checks import Variant
 from jaxmdp.agent_interface import Agent
 from jaxmdp.mdp import MDP
 
@@ -82,10 +84,13 @@ def load_tuned(path: str | os.PathLike = TUNED_FILE) -> dict[str, dict]:
     return data["agents"]
 
 
-def hparams_for(name: str, source: str | os.PathLike = "tuned") -> Any:
+def hparams_for(name: str, source: str | os.PathLike = "tuned", variant: Variant = "paper") -> Any:
     """The hyperparameters of agent ``name`` from ``source``: ``"reference"``, ``"tuned"`` or a file path (module
-    docstring). ``ValueError`` if the file has no values for a tunable agent."""
-    agent = agent_registry.get(name)
+    docstring). ``ValueError`` if the file has no values for a tunable agent.
+
+    ``variant="colosseum"`` starts from the reference-mode agent's defaults (:func:`agents.get`), which carry the
+    reference's fixed settings (e.g. Q-learning continuous's ``delta = 0.95``); the searched values are the same."""
+    agent = agent_registry.get(name, variant)
     if str(source) == "reference" or name not in SEARCH_SPACES:
         return agent.default_hparams
     path = TUNED_FILE if str(source) == "tuned" else Path(source)

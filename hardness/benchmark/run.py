@@ -56,6 +56,7 @@ import jaxmdp
 from hardness.benchmark import hparams as hp_sources
 from hardness.benchmark import sets
 from jaxmdp import runner
+from jaxmdp._checks import check_variant
 from jaxmdp.experiment import records
 from jaxmdp.experiment.members import dynamics
 from jaxmdp.mdp import MDP
@@ -111,6 +112,9 @@ class RunConfig:
         :data:`jaxmdp.EMISSION_KINDS` or a reference class name such as ``"StateInfo"``); the deep agents need one,
         the tabular agents refuse one, the random agent runs either way (``None``: the agents observe the states).
       only: keep only the MDPs with these labels (``"RiverSwim/prms_0"``) or families (``None``: every MDP).
+      agent_variant: ``"paper"`` (the algorithms as published) or ``"colosseum"`` (reference mode: the tabular agents
+        with the reference's update rules, :func:`agents.get`); with ``hparams="reference"`` the like-for-like
+        counterpart of the paper's published numbers.
     """
 
     sets: tuple[str, ...]
@@ -125,6 +129,7 @@ class RunConfig:
     n_records: int = 100
     emission: str | None = None
     only: tuple[str, ...] | None = None
+    agent_variant: str = "paper"
 
     def period(self, set_name: str) -> int:
         return int(self.log_periods.get(set_name, self.log_period))
@@ -181,8 +186,12 @@ def _check(config: RunConfig) -> list[str]:
         raise ValueError("sets must name at least one benchmark set")
     if config.emission is not None:
         canonical_emission(config.emission)
+    if config.emission is not None and config.agent_variant != "paper":
+        raise ValueError("agent_variant 'colosseum' (reference mode) exists for the tabular agents only, not with an "
+                         "emission")
+    check_variant(config.agent_variant)
     for name in config.agents or ():
-        agent = agent_registry.get(name)
+        agent = agent_registry.get(name, config.agent_variant)
         if not any(sets.is_episodic(s) == agent.episodic for s in names):
             raise ValueError(f"agent {name!r} is {'episodic' if agent.episodic else 'continuous'} but no set of "
                              f"{names} is; choose a set of its type")
@@ -251,7 +260,9 @@ def _settings(config: RunConfig, names: Sequence[str]) -> dict[str, Any]:
     return dict(
         sets=list(names), agents=agents_by_set, seeds=[int(s) for s in config.seeds], n_steps=int(config.n_steps),
         log_periods={s: config.period(s) for s in names}, hparams_source=str(config.hparams),
-        hparams={a: _hparams_repr(hp_sources.hparams_for(a, config.hparams)) for a in all_agents},
+        hparams={a: _hparams_repr(hp_sources.hparams_for(a, config.hparams, config.agent_variant))
+                 for a in all_agents},
+        agent_variant=config.agent_variant,
         n_buckets=int(config.n_buckets), max_members=config.max_members, n_records=int(config.n_records),
         emission=None if config.emission is None else canonical_emission(config.emission), variant="paper",
         only=list(config.only) if config.only else None,
@@ -290,7 +301,7 @@ def plan(config: RunConfig, out: str | os.PathLike | None = None) -> tuple[dict[
                 parts = [members[k : k + step] for k in range(0, len(members), step)]
                 for p, part in enumerate(parts):
                     bid = f"{_slug(set_name)}.{agent}.{gid}" + (f".p{p}" if len(parts) > 1 else "")
-                    key = {k: settings[k] for k in ("n_steps", "n_records", "emission", "variant")}
+                    key = {k: settings[k] for k in ("n_steps", "n_records", "emission", "variant", "agent_variant")}
                     key.update(set=set_name, agent=agent, members=part, log_period=settings["log_periods"][set_name],
                                hparams=settings["hparams"][agent])
                     digest = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:16]
@@ -391,8 +402,8 @@ def _finals(batch: Batch, result: runner.RunResult) -> list[dict[str, Any]]:
 def _run_batch(batch: Batch, config: RunConfig, run_dir: Path, stop_after_chunks: int | None) -> bool:
     """Run (or continue from its checkpoint) one batch, stopping after ``stop_after_chunks`` runner chunks if given;
     returns whether it finished."""
-    agent = agent_registry.get(batch.agent)
-    g = _grid(batch, config, hp_sources.hparams_for(batch.agent, config.hparams), batch.agent)
+    agent = agent_registry.get(batch.agent, config.agent_variant)
+    g = _grid(batch, config, hp_sources.hparams_for(batch.agent, config.hparams, config.agent_variant), batch.agent)
     period = config.period(batch.set_name)
     # One runner call per batch: each call recomputes the members' indicator constants, which is not free.
     result = runner.run(agent, g, config.n_steps, log_period=period, n_records=config.n_records,
