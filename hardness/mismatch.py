@@ -19,7 +19,8 @@ state that ``mu`` never puts mass on. Which visitation distribution ``d^pi``:
   time-indexed.
 
 ``reference`` is either a distribution ``mu[S]`` (a start or exploration distribution, as in both papers) or a
-policy, whose visitation distribution (computed the same way) is then ``mu``: ``C(pi, pi) = 1``.
+policy, whose visitation distribution (computed the same way) is then ``mu``: ``C(pi, pi) = 1``. The distributions
+are those of :func:`jaxmdp.occupancy.state_distribution`.
 """
 
 from __future__ import annotations
@@ -29,43 +30,13 @@ import functools
 import jax
 import jax.numpy as jnp
 
-from hardness.mixing import cesaro_limit
 from hardness.result import MeasureResult
-from jaxmdp import dynamic_programming as dp
 from jaxmdp._checks import check_range
-from jaxmdp.jaxlib_workarounds.linalg import solve as linear_solve
 from jaxmdp.mdp import MDP
+from jaxmdp.occupancy import state_distribution
+from jaxmdp.values import optimal_policy
 
-__all__ = ["distribution_mismatch", "visitation_distribution", "optimal_policy"]
-
-
-def optimal_policy(mdp: MDP) -> jax.Array:
-    """The optimal policy: time-indexed ``[H, S, A]`` by backward induction (episodic), gain-optimal ``[S, A]``
-    (continuous); those of :func:`jaxmdp.reference_values`."""
-    if mdp.episodic:
-        Q, _ = dp.finite_horizon_value_iteration(mdp)
-        return dp.greedy(Q, mdp.action_mask)
-    return dp.optimal_gain(mdp).policy
-
-
-def visitation_distribution(mdp: MDP, policy: jax.Array, gamma: float | jax.Array | None = None) -> jax.Array:
-    """The state-visitation distribution ``d^pi[S]`` from ``P0`` of the module docstring (discounted when ``gamma``
-    is given, long-run otherwise; the in-episode average for an episodic MDP). Jittable."""
-    if mdp.episodic:
-        pis = jnp.broadcast_to(policy, (mdp.H, *policy.shape[-2:])) if policy.ndim == 2 else policy
-
-        def step(d, x):
-            h, pi_h = x
-            live = h < mdp.horizon
-            return d @ dp.policy_matrix(mdp, pi_h), jnp.where(live, d, 0.0)
-
-        _, ds = jax.lax.scan(step, mdp.P0, (jnp.arange(mdp.H), pis))
-        return jnp.sum(ds, axis=0) / mdp.horizon.astype(mdp.dtype)
-    P = dp.policy_matrix(mdp, policy)
-    if gamma is None:
-        return mdp.P0 @ cesaro_limit(P)
-    eye = jnp.eye(P.shape[0], dtype=P.dtype)
-    return (1.0 - gamma) * linear_solve((eye - gamma * P).T, mdp.P0)
+__all__ = ["distribution_mismatch", "mismatch_ratio"]
 
 
 def _check_policy(mdp: MDP, x, name: str) -> None:
@@ -88,7 +59,7 @@ def distribution_mismatch(
     Args:
       mdp: one MDP (``jax.vmap`` over a stacked batch; padded states have no mass on either side).
       policy: ``pi[S, A]`` (or ``[H, S, A]`` for an episodic MDP); ``None``: the optimal policy
-        (:func:`optimal_policy`).
+        (:func:`jaxmdp.values.optimal_policy`).
       reference: a distribution ``mu[S]`` over states, or a policy (same shapes as ``policy``) whose visitation
         distribution is ``mu``.
       gamma: continuous MDPs only: the discount of the visitation distribution, in ``(0, 1)``; ``None`` (default)
@@ -124,8 +95,8 @@ def distribution_mismatch(
 @functools.partial(jax.jit, static_argnames=("ref_is_policy",))
 def _distribution_mismatch(mdp: MDP, policy, reference, gamma, ref_is_policy):
     pi = optimal_policy(mdp) if policy is None else policy.astype(mdp.dtype)
-    d = visitation_distribution(mdp, pi, gamma)
-    mu = visitation_distribution(mdp, reference, gamma) if ref_is_policy else reference
+    d = state_distribution(mdp, pi, gamma)
+    mu = state_distribution(mdp, reference, gamma) if ref_is_policy else reference
     return MeasureResult.make(mismatch_ratio(d, mu, mdp.state_mask), True)
 
 

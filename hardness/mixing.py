@@ -1,7 +1,7 @@
 """The mixing time of a policy's Markov chain (a measure the paper lists as not known to be computable, Table 1).
 
 For a stationary policy ``pi`` of a continuous MDP with state-to-state kernel ``P = P_pi`` and Cesàro limit
-``P* = lim_n (1/n) sum_{t<n} P^t``, the distance to stationarity after ``t`` steps is
+``P* = lim_n (1/n) sum_{t<n} P^t`` (:func:`jaxmdp.occupancy.cesaro_limit`), the distance to stationarity after ``t`` steps is
 ``d(t) = max_s TV(P^t(s, .), P*(s, .))`` with ``TV(p, q) = (1/2) sum_s' |p(s') - q(s')|``, and
 
     ``t_mix(eps) = min {t >= 0 : d(t) <= eps}``   (Levin, Peres & Wilmer, *Markov Chains and Mixing Times*, §4.5).
@@ -33,24 +33,10 @@ from hardness.result import MeasureResult
 from jaxmdp import dynamic_programming as dp
 from jaxmdp._checks import check_int, check_range
 from jaxmdp.mdp import MDP
+from jaxmdp.occupancy import cesaro_limit
+from jaxmdp.values import optimal_policy
 
-__all__ = ["mixing_time", "chain_mixing_time", "cesaro_limit", "optimal_stationary_policy", "stationary_policy_check"]
-
-#: Squarings of the lazy chain that give the Cesàro limit (``2^48`` steps, as ``jaxmdp.dynamic_programming``).
-_CESARO_SQUARINGS = 48
-
-
-def cesaro_limit(P: jax.Array, n_squarings: int = _CESARO_SQUARINGS) -> jax.Array:
-    """``P* = lim ((I + P) / 2)^(2^n)``: the Cesàro limit of ``P`` (the lazy chain is aperiodic with the same limit),
-    each square renormalised to stay stochastic. Dense ``O(S^3 n)``."""
-    eye = jnp.eye(P.shape[0], dtype=P.dtype)
-
-    def square(_, M):
-        M = M @ M
-        return M / jnp.sum(M, axis=1, keepdims=True)
-
-    return jax.lax.fori_loop(0, n_squarings, square, 0.5 * (eye + P))
-
+__all__ = ["mixing_time", "chain_mixing_time", "stationary_policy_check"]
 
 def _distance(M: jax.Array, Pstar: jax.Array, state_mask: jax.Array) -> jax.Array:
     """``max_s TV(M(s, .), P*(s, .))`` over the real states."""
@@ -103,12 +89,6 @@ def chain_mixing_time(
     return MeasureResult.make(value, found | (d0 <= eps))
 
 
-def optimal_stationary_policy(mdp: MDP) -> jax.Array:
-    """The gain-optimal policy ``[S, A]`` of a continuous MDP (:func:`jaxmdp.dynamic_programming.optimal_gain`, the
-    optimal policy of :func:`jaxmdp.reference_values`)."""
-    return dp.optimal_gain(mdp).policy
-
-
 def stationary_policy_check(mdp: MDP, policy: jax.Array | None, name: str = "policy") -> None:
     """Raise ``ValueError`` unless ``policy`` is ``None`` or an ``[S, A]`` array of ``mdp``'s shape."""
     if policy is None:
@@ -131,7 +111,7 @@ def mixing_time(
 
     Args:
       mdp: a continuous MDP (a stacked batch under ``jax.vmap``; padded states are never starts).
-      policy: ``pi[S, A]``; default the gain-optimal policy (:func:`optimal_stationary_policy`).
+      policy: ``pi[S, A]``; default the gain-optimal policy (:func:`jaxmdp.values.optimal_policy`).
       eps: the TV threshold, in ``(0, 1)``; 1/4 is the textbook ``t_mix``.
       lazy: measure the lazy chain ``(I + P_pi) / 2`` (aperiodic) instead of ``P_pi``.
       max_doublings: budget, at most 30: chains that have not mixed after ``2^max_doublings`` steps give ``inf``
@@ -156,7 +136,7 @@ def mixing_time(
 
 @functools.partial(jax.jit, static_argnames=("lazy", "max_doublings"))
 def _mixing_time(mdp: MDP, policy, eps, lazy, max_doublings):
-    pi = optimal_stationary_policy(mdp) if policy is None else policy.astype(mdp.dtype)
+    pi = optimal_policy(mdp) if policy is None else policy.astype(mdp.dtype)
     P = dp.policy_matrix(mdp, pi)
     if lazy:
         P = 0.5 * (jnp.eye(P.shape[0], dtype=P.dtype) + P)
