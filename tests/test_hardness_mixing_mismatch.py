@@ -200,12 +200,14 @@ def test_episodic_mismatch_matches_enumeration():
     np.testing.assert_allclose(float(got.value), ratio(d, mu), rtol=1e-5)
 
 
-def test_deep_sea_optimal_against_random_is_two_to_the_depth():
+@pytest.mark.parametrize("size", [6, 24])
+def test_deep_sea_optimal_against_random_is_two_to_the_depth(size):
     # The optimal policy walks the diagonal; the uniform policy is on the diagonal's h-th cell with probability 2^-h
-    # and both spend 1/H of the episode at each depth, so the ratio is 2^(H-1) at the deepest diagonal cell.
-    m = jaxmdp.make("DeepSea", episodic=True, seed=0, size=6)
+    # and both spend 1/H of the episode at each depth, so the ratio is 2^(H-1) at the deepest diagonal cell (size 24:
+    # a mass of 2^-23 relative to the largest, which must not be mistaken for round-off).
+    m = jaxmdp.make("DeepSea", episodic=True, seed=0, size=size)
     uniform = jnp.full((m.n_states, m.n_actions), 0.5)
-    assert float(hardness.distribution_mismatch(m, None, uniform).value) == 2.0**5
+    assert float(hardness.distribution_mismatch(m, None, uniform).value) == 2.0 ** (size - 1)
 
 
 def test_uncovered_state_gives_inf():
