@@ -3,6 +3,7 @@ layouts put states where the families say, and bad input is refused."""
 
 from __future__ import annotations
 
+import jax
 import matplotlib.image
 import numpy as np
 import pytest
@@ -20,6 +21,11 @@ def _png(fig: Figure, path) -> np.ndarray:
     img = matplotlib.image.imread(path)
     assert 150 < img.shape[0] < 1500 and 250 < img.shape[1] < 1500
     return img
+
+
+@jax.jit
+def _optimal_values(m):
+    return jaxmdp.reference_values(m).optimal_state_values
 
 
 @pytest.fixture(scope="module")
@@ -40,7 +46,7 @@ def test_every_picture_renders(mdps, name, tmp_path):
     figs = {
         "mdp": plotting.draw_mdp(m),
         "chain": plotting.draw_markov_chain(m),
-        "values": plotting.draw_values(m, np.asarray(jaxmdp.reference_values(m).optimal_state_values)),
+        "values": plotting.draw_values(m, np.asarray(_optimal_values(m.strip()))),
         "visits": plotting.draw_visits(m, np.arange(2 * S).reshape(2, S)),
     }
     for what, fig in figs.items():
