@@ -276,6 +276,10 @@ def _draw(
         _draw_cells(ax, mdp, xy)
     unit = 1.0 if kind in ("grid", "line") else 0.6
     node_r = (0.085 if S > 40 else 0.14) * unit
+    if kind == "grid":  # cells holding many states (a key, a door, a passenger) get smaller nodes
+        per_cell = np.unique(np.round(xy), axis=0, return_counts=True)[1].max()
+        if per_cell > 4:
+            node_r = min(node_r, 0.8 * np.pi * 0.32 / per_cell)
     edge_norm = _edge_norm(C, W)
     cmap = colormaps[_EDGE_CMAP] if C is not None else None
     src, dst = np.nonzero((W >= MIN_EDGE_PROBABILITY) & real[:, None] & real[None, :])
@@ -325,7 +329,7 @@ def _draw(
     start_note = "thick outline: start states" if start.sum() < S else ""
     if kind == "grid":
         fields = mdp.info.node_fields
-        note = "each cell: one state per facing direction, placed towards it" if "Dir" in fields else ""
+        note = "each cell: one state per facing direction, placed towards it" if fields == ("X", "Y", "Dir") else ""
         ax.set_xlabel("X\n" + "; ".join(n for n in (note, start_note) if n))
         ax.set_ylabel("Y")
         ax.set_xticks(np.unique(np.round(xy[:, 0])))
