@@ -1,4 +1,6 @@
-"""Hardness measures of MDPs (paper §2.2): diameter, environmental value norm, sum of reciprocal sub-optimality gaps.
+"""Hardness measures of MDPs (paper §2.2): diameter, environmental value norm, sum of reciprocal sub-optimality gaps;
+and two that the paper's Table 1 marks as not known to be computable: the mixing time of a policy's chain
+(:func:`mixing_time`) and the distribution mismatch coefficient (:func:`distribution_mismatch`).
 
 Every measure takes one :class:`jaxmdp.MDP` and returns a :class:`MeasureResult` (``value``, ``converged``,
 ``finite``); ``jax.vmap`` runs it over a stacked batch (:func:`jaxmdp.stack`), and padding changes nothing;
@@ -11,6 +13,8 @@ from hardness.batched import measures_many
 from hardness.diameter import diameter, strongly_connected
 from hardness.gaps import suboptimality_gaps, sum_reciprocal_gaps
 from hardness.measures import HardnessMeasures, measures, normalize
+from hardness.mismatch import distribution_mismatch
+from hardness.mixing import mixing_time
 from hardness.result import MeasureResult
 from hardness.value_norm import deterministic_base, value_norm
 
@@ -26,4 +30,6 @@ __all__ = [
     "suboptimality_gaps",
     "strongly_connected",
     "deterministic_base",
+    "mixing_time",
+    "distribution_mismatch",
 ]

@@ -60,3 +60,12 @@ __all__ = [
     "EMISSION_KINDS",
     "NOISE_KINDS",
 ]
+
+
+def __getattr__(name: str):
+    # jaxmdp.plotting imports matplotlib: loaded on first access only, so that `import jaxmdp` does not pay for it.
+    if name == "plotting":
+        import importlib
+
+        return importlib.import_module("jaxmdp.plotting")
+    raise AttributeError(f"module 'jaxmdp' has no attribute {name!r}")

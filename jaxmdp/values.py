@@ -27,7 +27,7 @@ from jaxmdp import dynamic_programming as dp
 from jaxmdp._checks import Variant, check_variant
 from jaxmdp.mdp import MDP
 
-__all__ = ["ReferenceValues", "reference_values", "optimal_value", "worst_value", "random_value"]
+__all__ = ["ReferenceValues", "reference_values", "optimal_value", "worst_value", "random_value", "optimal_policy"]
 
 
 
@@ -119,3 +119,16 @@ def random_value(mdp: MDP, variant: Variant = "paper") -> jax.Array:
     return reference_values(mdp, variant).random
 
 
+
+
+def optimal_policy(mdp: MDP) -> jax.Array:
+    """The optimal policy of :func:`reference_values` (``variant="paper"``) alone, jitted: time-indexed ``[H, S, A]``
+    by backward induction (episodic) or gain-optimal ``[S, A]`` (continuous)."""
+    return _optimal_policy(mdp.strip())
+
+
+@jax.jit
+def _optimal_policy(mdp: MDP) -> jax.Array:
+    if mdp.episodic:
+        return dp.greedy(dp.finite_horizon_value_iteration(mdp)[0], mdp.action_mask)
+    return dp.optimal_gain(mdp).policy

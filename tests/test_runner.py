@@ -380,3 +380,47 @@ def test_not_an_agent_or_grid():
         runner.run(SCRIPTED[False], [river_swim(False)], 10)
     with pytest.raises(ValueError, match="shards"):
         runner.run(SCRIPTED[False], g, 10, shards=2)
+
+
+def scripted_visits(mdp, n_steps):
+    """numpy: the states the scripted agent acts in on a deterministic MDP, counted."""
+    T, P0 = np.asarray(mdp.T, np.float64), np.asarray(mdp.P0, np.float64)
+    counts = np.zeros(mdp.n_states, np.int64)
+    s, h = int(np.argmax(P0)), 0
+    for t in range(n_steps):
+        counts[s] += 1
+        s, h = int(np.argmax(T[s, scripted_action(t, T.shape[1])])), h + 1
+        if mdp.episodic and h == mdp.H:
+            s, h = int(np.argmax(P0)), 0
+    return counts
+
+
+@pytest.mark.parametrize("episodic", [False, True])
+def test_record_visits_counts_the_states_acted_in(episodic, tmp_path):
+    mdp = river_swim(episodic)
+    agent = SCRIPTED[episodic]
+    g = runner.product([mdp], [agent.default_hparams], seeds=[0, 1])
+    n = 257
+    res = runner.run(agent, g, n, n_records=4, record_visits=True)
+    assert res.visits.shape == (2, mdp.n_states)
+    expected = scripted_visits(mdp, n)
+    np.testing.assert_array_equal(res.visits, np.stack([expected, expected]))
+    # Chunked and resumed from a checkpoint, the counts are the same; without the option there are none and the
+    # records are unchanged.
+    ckpt = tmp_path / "v.npz"
+    runner.run(agent, g, n, n_records=4, chunk_steps=60, checkpoint_path=ckpt, stop_after_chunks=2,
+               record_visits=True)
+    resumed = runner.run(agent, g, n, n_records=4, chunk_steps=60, checkpoint_path=ckpt, record_visits=True)
+    np.testing.assert_array_equal(resumed.visits, res.visits)
+    plain = runner.run(agent, g, n, n_records=4)
+    assert plain.visits is None
+    np.testing.assert_array_equal(plain.values, res.values)
+
+
+def test_record_visits_random_agent_sums_to_steps():
+    agent = agents.RANDOM_CONTINUOUS
+    mdp = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=5, p_rand=0.2)
+    g = runner.product([mdp], [agent.default_hparams], seeds=[0, 1, 2])
+    res = runner.run(agent, g, 300, n_records=2, record_visits=True)
+    np.testing.assert_array_equal(res.visits.sum(1), [300, 300, 300])
+    assert not np.array_equal(res.visits[0], res.visits[1])  # seeds differ

@@ -60,6 +60,8 @@ class RunResult:
       run_s: seconds spent running the loop (compilation excluded), over every session of a resumed run.
       n_steps, log_period, record_period, variant: the settings.
       agent_state: the members' final agent states (numpy, leading axis ``B``).
+      visits: ``[B, S]`` counts of the states each member acted in, when the run was asked to record them
+        (``run(..., record_visits=True)``), else None.
     """
 
     steps: np.ndarray
@@ -74,6 +76,7 @@ class RunResult:
     record_period: int
     variant: str
     agent_state: Any = None
+    visits: np.ndarray | None = None
 
     @property
     def agent_steps_per_second(self) -> float:

@@ -16,7 +16,9 @@ through ``n_steps`` agent/MDP interaction steps (paper §3.3 and App. A.1; docs/
   The cumulative (sampled) reward is summed every step. All sums are compensated (Kahan) so that float32 keeps
   its precision over long runs;
 * memory is flat in ``n_steps``: the carry holds running sums only, and a run emits a fixed number of records
-  (``n_records`` evenly spaced snapshots, the last one after step ``n_steps``).
+  (``n_records`` evenly spaced snapshots, the last one after step ``n_steps``);
+* ``record_visits=True`` adds an ``[B, S]`` count of the states each member acted in (``RunResult.visits``); it is a
+  static setting, so a run without it compiles no counting at all.
 
 The host runs the compiled loop in chunks (:func:`run`), shows progress, appends each chunk's records to a CSV and
 can checkpoint the carry so that an interrupted run resumes without losing finished work. Every random draw comes
@@ -105,6 +107,7 @@ class Carry(struct.PyTreeNode):
     logged: Sums  # [B, 3] cumulative regret, expected reward and normalised regret, summed at logs
     policy_cache: jax.Array  # [B, ...] the policy evaluated at the previous log (NaN before the first)
     value_cache: jax.Array  # [B, S] its values (V_0 or the gain from every state)
+    visits: jax.Array  # [B, S] int32 count of the states acted in (record_visits), else [B, 0]
 
 
 class Schedule(struct.PyTreeNode):
@@ -136,7 +139,7 @@ _MAX_CACHED_PROGRAMS = 32
 
 
 @functools.lru_cache(maxsize=_MAX_CACHED_PROGRAMS)
-def _init_program(agent: Agent) -> Callable:
+def _init_program(agent: Agent, record_visits: bool = False) -> Callable:
     def init(
         mdps: MDP | BlockMDP, mdp_index: jax.Array, hparams: Any, key_data: jax.Array, n_steps: jax.Array
     ) -> Carry:
@@ -171,6 +174,7 @@ def _init_program(agent: Agent) -> Callable:
             logged=Sums.zeros((B, 3), dyn.dtype),
             policy_cache=jnp.full(policy.shape, jnp.nan, policy.dtype),
             value_cache=jnp.zeros((B, dyn.n_states), dyn.dtype),
+            visits=jnp.zeros((B, dyn.n_states if record_visits else 0), jnp.int32),
         )
 
     return jax.jit(init)
@@ -178,7 +182,7 @@ def _init_program(agent: Agent) -> Callable:
 
 @functools.lru_cache(maxsize=_MAX_CACHED_PROGRAMS)
 def _chunk_program(
-    agent: Agent, variant: Variant, capacity: int, n_shards: int, carry_treedef: Any
+    agent: Agent, variant: Variant, capacity: int, n_shards: int, carry_treedef: Any, record_visits: bool = False
 ) -> Callable:
     """``chunk(carry, mdps, mdp_index, consts, schedule, n) -> (carry, steps[capacity], values[capacity, B, 4],
     n_written)``: ``n`` more steps (traced), recording at most ``capacity`` snapshots.
@@ -223,7 +227,9 @@ def _chunk_program(
             obs2, env_state, state, reward, terminated = jax.vmap(one)(
                 mdp_index, k_env, k_act, c.env_state, c.observation, c.agent_state
             )
+            visits = c.visits.at[jnp.arange(B), c.env_state.state].add(1) if record_visits else c.visits
             return c.replace(
+                visits=visits,
                 t=c.t + 1,
                 env_state=env_state,
                 observation=obs2,
@@ -379,6 +385,7 @@ class _Settings:
     capacity: int
     n_shards: int
     variant: Variant
+    record_visits: bool = False
 
 
 @dataclasses.dataclass
@@ -416,6 +423,7 @@ def _validated_settings(
     variant: str,
     chunk_steps: int | None,
     shards: int | None,
+    record_visits: bool = False,
 ) -> _Settings:
     """Check every argument on the host, before anything compiles, and derive the chunking (see :func:`run`)."""
     n_steps = check_int("n_steps", n_steps)
@@ -423,6 +431,8 @@ def _validated_settings(
     n_records = check_int("n_records", n_records)
     if chunk_steps is not None:
         chunk_steps = check_int("chunk_steps", chunk_steps)
+    if not isinstance(record_visits, bool):
+        raise ValueError(f"record_visits must be True or False; got {record_visits!r}")
     if n_steps >= 2**31 - 1:
         raise ValueError(f"n_steps must be below 2**31 - 1; got {n_steps}")
     _validate(agent, grid, variant)
@@ -440,6 +450,7 @@ def _validated_settings(
         capacity=chunk_steps // record_period + 2,
         n_shards=n_shards,
         variant=variant,
+        record_visits=record_visits,
     )
 
 
@@ -457,12 +468,14 @@ def _compile(agent: Agent, grid: Grid, settings: _Settings) -> _Program:
     t0 = time.perf_counter()
     unique_consts = _constants_program(settings.variant)(mdps)
     consts = jax.tree.map(lambda x: x[mdp_index], unique_consts)
-    init_jit = _init_program(agent)
+    init_jit = _init_program(agent, settings.record_visits)
     init_fn = init_jit.lower(mdps, mdp_index, hparams, key_data, sched.n_steps).compile()
     carry_shape = jax.eval_shape(init_jit, mdps, mdp_index, hparams, key_data, sched.n_steps)
     leaves, treedef = jax.tree.flatten(carry_shape)
     carry_layout = (treedef, tuple(x.ndim for x in leaves))
-    chunk_fn = _chunk_program(agent, settings.variant, settings.capacity, settings.n_shards, carry_layout)
+    chunk_fn = _chunk_program(
+        agent, settings.variant, settings.capacity, settings.n_shards, carry_layout, settings.record_visits
+    )
     chunk_exe = chunk_fn.lower(carry_shape, mdps, mdp_index, consts, sched, jnp.int32(0)).compile()
     jax.block_until_ready(consts)
     return _Program(
@@ -552,6 +565,7 @@ def run(
     progress: bool = False,
     stop_after_chunks: int | None = None,
     shards: int | None = None,
+    record_visits: bool = False,
 ) -> RunResult:
     """Run ``agent`` on every member of ``grid`` for ``n_steps`` steps in lockstep (see the module docstring).
 
@@ -574,6 +588,9 @@ def run(
       shards: split the members over this many local devices (default: as many as divide the batch, up to
         ``jax.local_device_count()``). XLA runs one lockstep loop on one core; to use every core of a CPU, start
         Python with ``XLA_FLAGS=--xla_force_host_platform_device_count=<cores>`` (before JAX is imported).
+      record_visits: also count, per member, the states it took its actions in (``RunResult.visits``, ``[B, S]``
+        int, summing to ``n_steps`` per member; for a BlockMDP the latent states). Off by default: the loop then
+        carries and computes nothing for it.
 
     Raises:
       ValueError: before anything compiles, for an episodic agent on continuous MDPs (or the reverse), an agent
@@ -581,9 +598,13 @@ def run(
         ``n_records``, hyperparameters outside their domain (``agent.check_hparams``) or a checkpoint of another
         run.
     """
-    settings = _validated_settings(agent, grid, n_steps, log_period, n_records, variant, chunk_steps, shards)
+    settings = _validated_settings(
+        agent, grid, n_steps, log_period, n_records, variant, chunk_steps, shards, record_visits
+    )
     program = _compile(agent, grid, settings)
     run_id = fingerprint(agent.name, grid, settings.n_steps, settings.log_period, settings.record_period, variant)
+    if record_visits:  # a checkpoint of a run without counts cannot continue one with them (and vice versa)
+        run_id += "+visits"
     ckpt = Path(checkpoint_path) if checkpoint_path is not None else None
     csv_file = Path(csv_path) if csv_path is not None else None
     start = _start_or_resume(program, grid.n_members, run_id, ckpt, csv_file, resume)
@@ -603,4 +624,5 @@ def run(
         record_period=settings.record_period,
         variant=variant,
         agent_state=jax.tree.map(np.asarray, done.carry.agent_state),
+        visits=np.asarray(done.carry.visits) if record_visits else None,
     )

@@ -1,0 +1,113 @@
+"""jaxmdp.plotting: every picture renders to a PNG of sensible size for the families' layouts and a custom MDP, the
+layouts put states where the families say, and bad input is refused."""
+
+from __future__ import annotations
+
+import jax
+import matplotlib.image
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+
+import jaxmdp
+import jaxmdp.plotting as plotting
+
+from conftest import random_mdp
+
+
+def _png(fig: Figure, path) -> np.ndarray:
+    fig.savefig(path, dpi=60)
+    assert path.stat().st_size > 5_000  # an empty figure is ~2 kB
+    img = matplotlib.image.imread(path)
+    assert 150 < img.shape[0] < 1500 and 250 < img.shape[1] < 1500
+    return img
+
+
+@jax.jit
+def _optimal_values(m):
+    return jaxmdp.reference_values(m).optimal_state_values
+
+
+@pytest.fixture(scope="module")
+def mdps():
+    rng = np.random.default_rng(0)
+    return {
+        "minigrid": jaxmdp.make("MiniGridEmpty", episodic=False, seed=0, size=5),
+        "river": jaxmdp.make("RiverSwim", episodic=False, seed=0, size=6, p_rand=0.1),
+        "deepsea": jaxmdp.make("DeepSea", episodic=True, seed=0, size=5),
+        "custom": random_mdp(rng, S=7, A=2),
+    }
+
+
+@pytest.mark.parametrize("name", ["minigrid", "river", "deepsea", "custom"])
+def test_every_picture_renders(mdps, name, tmp_path):
+    m = mdps[name]
+    S = m.n_states
+    figs = {
+        "mdp": plotting.draw_mdp(m),
+        "chain": plotting.draw_markov_chain(m),
+        "values": plotting.draw_values(m, np.asarray(_optimal_values(m.strip()))),
+        "visits": plotting.draw_visits(m, np.arange(2 * S).reshape(2, S)),
+    }
+    for what, fig in figs.items():
+        assert isinstance(fig, Figure)
+        img = _png(fig, tmp_path / f"{name}_{what}.png")
+        assert img[..., :3].std() > 0.05  # something is drawn
+
+
+def test_given_axes_are_used(mdps, tmp_path):
+    fig = Figure(figsize=(10, 4))
+    axes = fig.subplots(1, 2)
+    assert plotting.draw_mdp(mdps["river"], ax=axes[0]) is fig
+    assert plotting.draw_markov_chain(mdps["river"], ax=axes[1]) is fig
+    assert len(axes[0].patches) > mdps["river"].n_states  # nodes and edges
+    _png(fig, tmp_path / "two.png")
+
+
+def test_layouts(mdps):
+    xy, kind = plotting.layout(mdps["river"])
+    assert kind == "line"
+    np.testing.assert_array_equal(xy[:, 0], [v[0] for v in mdps["river"].info.node_values])
+    xy, kind = plotting.layout(mdps["minigrid"])
+    assert kind == "grid"
+    nodes = np.asarray(mdps["minigrid"].info.node_values)
+    np.testing.assert_array_equal(np.round(xy), nodes[:, :2])  # every state inside its own cell
+    assert len({tuple(p) for p in np.round(xy, 6)}) == len(xy)  # no two states on top of each other
+    up, right = (nodes[:, 2] == 0), (nodes[:, 2] == 1)
+    assert np.all(xy[up, 1] > nodes[up, 1]) and np.all(xy[right, 0] > nodes[right, 0])
+    xy, kind = plotting.layout(mdps["custom"])
+    assert kind in ("spectral", "circle") and xy.shape == (7, 2)
+
+
+def test_chain_draws_the_policy_edges_only():
+    m = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=6)  # deterministic moves
+    right = np.zeros((m.n_states, m.n_actions))
+    right[:, 1] = 1.0
+    left = np.zeros_like(right)
+    left[:, 0] = 1.0
+    # Patches: 6 nodes, then one arrow per edge (or a ring per self-loop): "always right" has 0->1 ... 4->5 and the
+    # loop at 5; "always left" has the loop at 0 and 1->0 ... 5->4; the MDP has all of them.
+    assert len(plotting.draw_markov_chain(m, right).axes[0].patches) == 6 + 6
+    assert len(plotting.draw_markov_chain(m, left).axes[0].patches) == 6 + 6
+    assert len(plotting.draw_mdp(m).axes[0].patches) == 6 + 12
+
+
+def test_bad_input(mdps):
+    m = mdps["river"]
+    with pytest.raises(ValueError, match="values"):
+        plotting.draw_values(m, np.zeros(3))
+    with pytest.raises(ValueError, match="counts"):
+        plotting.draw_visits(m, -np.ones(m.n_states))
+    with pytest.raises(ValueError, match="policy"):
+        plotting.draw_markov_chain(m, np.ones((2, 2)))
+    with pytest.raises(ValueError, match="unstack"):
+        plotting.draw_mdp(jaxmdp.stack([m, m]))
+
+
+def test_plotting_is_lazy():
+    import subprocess
+    import sys
+
+    code = "import sys, jaxmdp; assert 'matplotlib' not in sys.modules; jaxmdp.plotting.draw_mdp; print('ok')"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.stdout.strip() == "ok", out.stderr
