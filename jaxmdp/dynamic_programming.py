@@ -549,13 +549,18 @@ def optimal_gain(
     The same iteration as :func:`relative_value_iteration` (``h = u / tau``), with its own arithmetic: the direct
     backup of ``P_tau`` renormalised at state 0 keeps float32 round-off below the ``1e-6`` relative tolerance, where
     the incremental ``u + tau d`` of the planners (tolerance ``1e-3``) stalls above it on some benchmark MDPs (5 of
-    66 tried) and breaks ties between optimal actions differently.
+    66 tried) and breaks ties between optimal actions differently. Padded states (an MDP of a stacked batch) are left
+    out of the stopping rule, as in :func:`relative_value_iteration`: their gain is 0, so with them the span would
+    never fall below ``tol`` and a padded MDP would run all ``max_iter`` sweeps.
     """
     R = _rewards(model, rewards)
     mask = _action_mask(model)
+    state_mask, _ = _masks(model, R)
     S = R.shape[0]
     if start is None:
         start = model.P0 if isinstance(model, MDP) else jnp.full((S,), 1.0 / S, R.dtype)
+
+    inf = jnp.asarray(jnp.inf, R.dtype)
 
     def backup(h):
         return R + tau * expected_next_values(model, h) + (1.0 - tau) * h[:, None]
@@ -568,9 +573,8 @@ def optimal_gain(
         h, _, _, i = c
         Th = jnp.max(backup(h), axis=-1)
         d = Th - h
-        return Th - Th[0], jnp.min(d), jnp.max(d), i + 1
+        return Th - Th[0], jnp.min(jnp.where(state_mask, d, inf)), jnp.max(jnp.where(state_mask, d, -inf)), i + 1
 
-    inf = jnp.asarray(jnp.inf, R.dtype)
     h, lo, hi, it = jax.lax.while_loop(cond, body, (jnp.zeros((S,), R.dtype), -inf, inf, jnp.asarray(0)))
     Q = backup(h)
     pi = greedy(Q, mask)

@@ -293,7 +293,9 @@ def _chunk_program(
 
 @functools.lru_cache(maxsize=len(VARIANTS))
 def _constants_program(variant: Variant) -> Callable:
-    return jax.jit(jax.vmap(lambda m: indicator_constants(dynamics(m), variant)))
+    # lax.map, not vmap: the constants come from planning loops run to convergence, and a vmapped while_loop runs
+    # until its slowest member converges.
+    return jax.jit(lambda mdps: jax.lax.map(lambda m: indicator_constants(dynamics(m), variant), mdps))
 
 
 # ---------------------------------------------------------------------------------------------------------------
