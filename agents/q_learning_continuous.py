@@ -17,7 +17,8 @@ Tables start at ``Q = Q_hat = V = H`` and ``n = 0``. After ``(s, a, r, s')``: ``
 * ``Q_hat(s, a) <- min(Q_hat(s, a), Q(s, a))`` (the optimistic, monotone estimate),
 * ``V(s) <- max_a Q_hat(s, a)``.
 
-Actions are greedy in ``Q_hat(s, .)`` with exact ties at random; the policy estimate (for regret) is greedy in
+Actions are greedy in ``Q_hat(s, .)`` with exact ties at random (one uniform draw per step,
+:func:`~agents.tabular_common.greedy_action_single_draw`); the policy estimate (for regret) is greedy in
 ``Q_hat`` with ties to the lowest index, ``[S, A]``. (docs/agents.md names the running estimate ``Q_hat`` and the
 monotone one ``Q``; the names here are the paper's.)
 
@@ -38,11 +39,13 @@ Differences from the reference (Colosseum), each a return to the published algor
 
 from __future__ import annotations
 
+from typing import Any
+
 import jax
 import jax.numpy as jnp
 from flax import struct
 
-from agents.tabular_common import greedy_action, valid_counts
+from agents.tabular_common import greedy_action_single_draw, row_max, valid_counts
 from jaxmdp import dynamic_programming as dp
 from jaxmdp._checks import check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
@@ -62,18 +65,38 @@ class QLearningContinuousHParams(struct.PyTreeNode):
     delta: float | jax.Array = 0.05
 
 
-class QLearningContinuousState(struct.PyTreeNode):
-    """Running estimate ``Q[S, A]``, optimistic ``Q_hat[S, A]``, ``V[S]``, counts ``N[S, A]`` and the constants."""
+# Columns of the per-(s, a) table: one gather and one scatter per update instead of four of each.
+_Q, _Q_HAT, _N = range(3)
 
-    Q: jax.Array
-    Q_hat: jax.Array
-    V: jax.Array
-    N: jax.Array
+
+class QLearningContinuousState(struct.PyTreeNode):
+    """Per-``(s, a)`` table ``[S, A, 3]`` holding the running estimate ``Q``, the optimistic ``Q_hat`` and the count
+    ``N`` (as a float: exact up to ``2^24`` visits of one pair in float32), in the MDP's dtype, and the constants.
+    ``V(s) = max_a Q_hat(s, a)`` is read from the table rather than stored (the same numbers: ``V(s)`` is refreshed
+    exactly when ``Q_hat(s, .)`` changes)."""
+
+    table: jax.Array
     H: jax.Array
     gamma: jax.Array
     bonus_scale: jax.Array
     min_at: jax.Array
     action_mask: jax.Array
+
+    @property
+    def Q(self) -> jax.Array:
+        return self.table[..., _Q]
+
+    @property
+    def Q_hat(self) -> jax.Array:
+        return self.table[..., _Q_HAT]
+
+    @property
+    def N(self) -> jax.Array:
+        return self.table[..., _N].astype(jnp.int32)
+
+    @property
+    def V(self) -> jax.Array:
+        return jnp.max(jnp.where(self.action_mask, self.Q_hat, -jnp.inf), axis=-1)
 
 
 def check_hparams(hparams: QLearningContinuousHParams) -> None:
@@ -85,31 +108,33 @@ def check_hparams(hparams: QLearningContinuousHParams) -> None:
 
 
 def constants(
-    hparams: QLearningContinuousHParams, n_states: jax.Array, n_actions: jax.Array, n_steps: jax.Array
+    hparams: QLearningContinuousHParams,
+    n_states: jax.Array,
+    n_actions: jax.Array,
+    n_steps: jax.Array,
+    dtype: Any = jnp.float32,
 ) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
-    """``(H, gamma, bonus_scale, min_at')`` with ``b_tau = bonus_scale / sqrt(tau)`` (module docstring)."""
-    T = jnp.asarray(n_steps, jnp.float32)
-    SA = jnp.asarray(n_states, jnp.float32) * jnp.asarray(n_actions, jnp.float32)
-    sp, delta = hparams.span_approx_weight, hparams.delta
-    H = hparams.h_weight * jnp.minimum(jnp.sqrt(sp * T / SA), (T / (SA * jnp.log(4.0 * T / delta))) ** (1.0 / 3.0))
+    """``(H, gamma, bonus_scale, min_at')`` with ``b_tau = bonus_scale / sqrt(tau)`` (module docstring), in
+    ``dtype``."""
+    T = jnp.asarray(n_steps, dtype)
+    SA = jnp.asarray(n_states, dtype) * jnp.asarray(n_actions, dtype)
+    sp, delta = (jnp.asarray(x, dtype) for x in (hparams.span_approx_weight, hparams.delta))
+    h_weight, min_at = (jnp.asarray(x, dtype) for x in (hparams.h_weight, hparams.min_at))
+    H = h_weight * jnp.minimum(jnp.sqrt(sp * T / SA), (T / (SA * jnp.log(4.0 * T / delta))) ** (1.0 / 3.0))
     H = jnp.maximum(H, 1.0)
     bonus_scale = 4.0 * sp * jnp.sqrt(H * jnp.log(2.0 * T / delta))
-    min_at = jnp.where(hparams.min_at > _MIN_AT_CUTOFF, hparams.min_at, 0.0)
+    min_at = jnp.where(min_at > _MIN_AT_CUTOFF, min_at, 0.0)
     return H, 1.0 - 1.0 / H, bonus_scale, min_at
 
 
 def init(key: jax.Array, spec: MDPSpec, hparams: QLearningContinuousHParams) -> QLearningContinuousState:
     del key
-    S, A = spec.n_states, spec.n_actions
-    hparams = jax.tree.map(lambda x: jnp.asarray(x, jnp.float32), hparams)
-    n_s, n_a = valid_counts(spec.state_mask, spec.action_mask)
-    H, gamma, bonus_scale, min_at = constants(hparams, n_s, n_a, spec.n_steps)
-    Q = jnp.full((S, A), H, jnp.float32)
+    S, A, dtype = spec.n_states, spec.n_actions, spec.dtype
+    n_s, n_a = valid_counts(spec.state_mask, spec.action_mask, dtype)
+    H, gamma, bonus_scale, min_at = constants(hparams, n_s, n_a, spec.n_steps, dtype)
+    table = jnp.stack([jnp.full((S, A), H), jnp.full((S, A), H), jnp.zeros((S, A), dtype)], axis=-1)
     return QLearningContinuousState(
-        Q=Q,
-        Q_hat=Q,
-        V=jnp.full((S,), H, jnp.float32),
-        N=jnp.zeros((S, A), jnp.int32),
+        table=table,
         H=H,
         gamma=gamma,
         bonus_scale=bonus_scale,
@@ -121,25 +146,19 @@ def init(key: jax.Array, spec: MDPSpec, hparams: QLearningContinuousHParams) -> 
 def update(state: QLearningContinuousState, tr: Transition) -> QLearningContinuousState:
     """One optimistic Q-learning step at ``(s, a)`` (module docstring)."""
     s, a = tr.obs, tr.action
-    tau_int = state.N[s, a] + 1
-    tau = tau_int.astype(jnp.float32)
+    row = state.table[s, a]
+    v_next = row_max(jnp.where(state.action_mask, state.table[tr.next_obs, :, _Q_HAT], -jnp.inf))
+    tau = row[_N] + 1.0
     alpha = jnp.maximum(state.min_at, (state.H + 1.0) / (state.H + tau))
-    target = tr.reward + state.gamma * state.V[tr.next_obs] + state.bonus_scale / jnp.sqrt(tau)
-    q = (1.0 - alpha) * state.Q[s, a] + alpha * target
-    Q_hat = state.Q_hat.at[s, a].min(q)
-    row = jnp.where(state.action_mask, Q_hat[s], -jnp.inf)
-    return state.replace(
-        Q=state.Q.at[s, a].set(q),
-        Q_hat=Q_hat,
-        V=state.V.at[s].set(jnp.max(row)),
-        N=state.N.at[s, a].set(tau_int),
-    )
+    target = tr.reward.astype(tau.dtype) + state.gamma * v_next + state.bonus_scale / jnp.sqrt(tau)
+    q = (1.0 - alpha) * row[_Q] + alpha * target
+    return state.replace(table=state.table.at[s, a].set(jnp.stack([q, jnp.minimum(row[_Q_HAT], q), tau])))
 
 
 def act(key: jax.Array, state: QLearningContinuousState, obs: jax.Array, h: jax.Array) -> jax.Array:
     """Greedy in ``Q_hat(obs, .)``, exact ties at random."""
     del h
-    return greedy_action(key, state.Q_hat[obs], state.action_mask)
+    return greedy_action_single_draw(key, state.table[obs, :, _Q_HAT], state.action_mask)
 
 
 def policy(state: QLearningContinuousState) -> jax.Array:
