@@ -129,6 +129,32 @@ def _keys(key_data: jax.Array, which: int, t: jax.Array) -> jax.Array:
     return jax.vmap(jax.random.fold_in, in_axes=(0, None))(base, t)
 
 
+def _evaluate_changed(
+    dyn: MDP, mdp_index: jax.Array, policy: jax.Array, changed: jax.Array, cache: jax.Array
+) -> jax.Array:
+    """:func:`policy_values` of the members whose policy ``changed``, ``cache`` for the others.
+
+    On a CPU the members are taken one at a time (``lax.map``) and an unchanged member costs nothing: under ``vmap``
+    every member paid for the evaluation (a dense ``O(S^3)`` one when continuous) as soon as one member's policy
+    changed, so a grid whose policies change at different times (epochs of UCRL2 and PSRL, Q-learning once its
+    greedy policy settles) paid for all members at almost every log. Elsewhere (GPU) the members stay in lockstep.
+    """
+    dtype = cache.dtype
+
+    def evaluate(i, p):
+        return policy_values(_member(dyn, i), p).astype(dtype)
+
+    if jax.default_backend() != "cpu":
+        values = jax.vmap(evaluate)(mdp_index, policy)
+        return jnp.where(changed[:, None], values, cache)
+
+    def one(args):
+        i, p, ch, old = args
+        return jax.lax.cond(ch, lambda: evaluate(i, p), lambda: old)
+
+    return jax.lax.map(one, (mdp_index, policy, changed, cache))
+
+
 # The program builders are cached with a bound (least recently used first out), keyed by the agent (by identity:
 # ``Agent`` compares and hashes as an object) and the static settings; ``jax.jit`` caches per input shape below that.
 # A cached entry holds its agent, so an agent's identity cannot be reused while its programs are cached.
@@ -239,12 +265,12 @@ def _chunk_program(
             # altogether when no member's policy changed.
             policy = jax.vmap(agent.policy)(c.agent_state)
             changed = jnp.any((policy != c.policy_cache).reshape(B, -1), axis=1)
-
-            def evaluate(cache):
-                values = jax.vmap(lambda i, p: policy_values(_member(dyn, i), p))(mdp_index, policy)
-                return jnp.where(changed[:, None], values.astype(dtype), cache)
-
-            values = jax.lax.cond(jnp.any(changed), evaluate, lambda cache: cache, c.value_cache)
+            values = jax.lax.cond(
+                jnp.any(changed),
+                lambda cache: _evaluate_changed(dyn, mdp_index, policy, changed, cache),
+                lambda cache: cache,
+                c.value_cache,
+            )
             inst = jax.vmap(lambda i, k, v, s, s0: instant_from_values(_member(dyn, i), k, v, s, s0, variant))(
                 mdp_index, consts, values, c.env_state.state, c.last_start
             )
