@@ -52,6 +52,7 @@ from jaxmdp.experiment.agent_interface import Agent, Transition, spec_of, where_
 from jaxmdp.experiment.checkpoints import fingerprint, load_checkpoint, save_checkpoint
 from jaxmdp.experiment.indicators import (
     AGENT_COLUMNS,
+    ITERATIVE_GAIN_SWEEPS,
     IndicatorConstants,
     indicator_constants,
     instant_from_values,
@@ -137,20 +138,20 @@ def _evaluate_changed(
     On a CPU the members are taken one at a time (``lax.map``) and an unchanged member costs nothing: under ``vmap``
     every member paid for the evaluation (a dense ``O(S^3)`` one when continuous) as soon as one member's policy
     changed, so a grid whose policies change at different times (epochs of UCRL2 and PSRL, Q-learning once its
-    greedy policy settles) paid for all members at almost every log. Elsewhere (GPU) the members stay in lockstep.
+    greedy policy settles) paid for all members at almost every log. A continuous member's gain is first certified on
+    the successor lists (:func:`~jaxmdp.experiment.indicators.policy_values`), the dense solve running only when that
+    fails. Elsewhere (GPU) the members stay in lockstep with the dense solve.
     """
     dtype = cache.dtype
 
-    def evaluate(i, p):
-        return policy_values(_member(dyn, i), p).astype(dtype)
-
     if jax.default_backend() != "cpu":
-        values = jax.vmap(evaluate)(mdp_index, policy)
-        return jnp.where(changed[:, None], values, cache)
+        values = jax.vmap(lambda i, p: policy_values(_member(dyn, i), p))(mdp_index, policy)
+        return jnp.where(changed[:, None], values.astype(dtype), cache)
 
     def one(args):
         i, p, ch, old = args
-        return jax.lax.cond(ch, lambda: evaluate(i, p), lambda: old)
+        evaluate = lambda: policy_values(_member(dyn, i), p, ITERATIVE_GAIN_SWEEPS).astype(dtype)  # noqa: E731
+        return jax.lax.cond(ch, evaluate, lambda: old)
 
     return jax.lax.map(one, (mdp_index, policy, changed, cache))
 
