@@ -533,7 +533,9 @@ def successor_gain_bounds(
     so ``min_{t in Reach(s)} d_n(t) <= g(s) <= max_{t in Reach(s)} d_n(t)`` (Puterman 1994 §8.2 for ``P*``). The
     reachable minimum and maximum are fixed points of ``m(s) <- min(m(s), min_{s -> t} m(t))`` over the edges of
     positive probability. Since ``g = P_pi g``, a lower bound ``L`` improves to ``max(L, P_pi L)`` (and an upper bound
-    likewise), which tightens the bounds of transient states that reach several recurrent classes. Every
+    likewise), which tightens the bounds of transient states that reach several recurrent classes. Products with
+    ``P_pi - I`` are summed as differences ``sum p (x(s') - x(s))``: kernel rows that sum to ``1 +- ulp`` would
+    otherwise scale ``d`` a little at every sweep (1e-6 relative after a hundred float32 sweeps). Every
     ``inner_sweeps`` power sweeps the bounds are refreshed; the loop stops when ``upper - lower <= rtol (1 + |upper|)``
     at every real state (``certified``) or after ``max_sweeps`` sweeps. Converges geometrically at the rate of the
     slowest class's mixing (and absorption, for transient states); a caller falls back to :func:`gain_vector` when
@@ -546,8 +548,9 @@ def successor_gain_bounds(
     inf = jnp.asarray(jnp.inf, dtype)
     real = mdp.state_mask
 
-    def expect(x):
-        return jnp.sum(w * x[succ], axis=(1, 2))
+    def drift(x):
+        # (P_pi - I) x, summed as differences so that rows summing to 1 +- ulp add no error proportional to x itself
+        return jnp.sum(w * (x[succ] - x[:, None, None]), axis=(1, 2))
 
     def reach_extreme(x, sign):
         # min (sign = 1) or max (sign = -1) of x over the states reachable from each state
@@ -562,8 +565,8 @@ def successor_gain_bounds(
     def refresh(lo, hi, d):
         lo = jnp.maximum(lo, reach_extreme(d, 1.0))
         hi = jnp.minimum(hi, reach_extreme(d, -1.0))
-        lo = jnp.maximum(lo, expect(lo))
-        hi = jnp.minimum(hi, expect(hi))
+        lo = jnp.maximum(lo, lo + drift(jnp.where(jnp.isfinite(lo), lo, 0.0)))
+        hi = jnp.minimum(hi, hi + drift(jnp.where(jnp.isfinite(hi), hi, 0.0)))
         ok = jnp.all(~real | (hi - lo <= rtol * (1.0 + jnp.abs(hi))))
         return lo, hi, ok
 
@@ -573,7 +576,7 @@ def successor_gain_bounds(
 
     def body(c):
         d, lo, hi, _, n = c
-        d = jax.lax.fori_loop(0, inner_sweeps, lambda _, x: tau * expect(x) + (1.0 - tau) * x, d)
+        d = jax.lax.fori_loop(0, inner_sweeps, lambda _, x: x + tau * drift(x), d)
         lo, hi, ok = refresh(lo, hi, d)
         return d, lo, hi, ok, n + inner_sweeps
 
