@@ -42,13 +42,13 @@ four, with ``delta = 0.95`` by default (reference mode, docs/agents.md).
 from __future__ import annotations
 
 import dataclasses
-import functools
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 from flax import struct
 
-from agents.tabular_common import greedy_action, valid_counts
+from agents.tabular_common import greedy_action_single_draw, row_max, valid_counts
 from jaxmdp import dynamic_programming as dp
 from jaxmdp._checks import Variant, check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
@@ -60,6 +60,9 @@ __all__ = [
     "Q_LEARNING_CONTINUOUS_COLOSSEUM",
     "constants",
 ]
+
+# Below this value the reference's learning-rate floor is switched off (docs/agents.md §5).
+_MIN_AT_CUTOFF = 0.009
 
 # Below this value the reference's learning-rate floor is switched off (docs/agents.md §5).
 _MIN_AT_CUTOFF = 0.009
@@ -76,18 +79,38 @@ class QLearningContinuousHParams(struct.PyTreeNode):
     delta: float | jax.Array = 0.05
 
 
-class QLearningContinuousState(struct.PyTreeNode):
-    """Running estimate ``Q[S, A]``, optimistic ``Q_hat[S, A]``, ``V[S]``, counts ``N[S, A]`` and the constants."""
+# Columns of the per-(s, a) table: one gather and one scatter per update instead of four of each.
+_Q, _Q_HAT, _N = range(3)
 
-    Q: jax.Array
-    Q_hat: jax.Array
-    V: jax.Array
-    N: jax.Array
+
+class QLearningContinuousState(struct.PyTreeNode):
+    """Per-``(s, a)`` table ``[S, A, 3]`` holding the running estimate ``Q``, the optimistic ``Q_hat`` and the count
+    ``N`` (as a float: exact up to ``2^24`` visits of one pair in float32), in the MDP's dtype, and the constants.
+    ``V(s) = max_a Q_hat(s, a)`` is read from the table rather than stored (the same numbers: ``V(s)`` is refreshed
+    exactly when ``Q_hat(s, .)`` changes)."""
+
+    table: jax.Array
     H: jax.Array
     gamma: jax.Array
     bonus_scale: jax.Array
     min_at: jax.Array
     action_mask: jax.Array
+
+    @property
+    def Q(self) -> jax.Array:
+        return self.table[..., _Q]
+
+    @property
+    def Q_hat(self) -> jax.Array:
+        return self.table[..., _Q_HAT]
+
+    @property
+    def N(self) -> jax.Array:
+        return self.table[..., _N].astype(jnp.int32)
+
+    @property
+    def V(self) -> jax.Array:
+        return jnp.max(jnp.where(self.action_mask, self.Q_hat, -jnp.inf), axis=-1)
 
 
 def check_hparams(hparams: QLearningContinuousHParams) -> None:
@@ -103,20 +126,21 @@ def constants(
     n_states: jax.Array,
     n_actions: jax.Array,
     n_steps: jax.Array,
+    dtype: Any = jnp.float32,
     *,
     variant: Variant = "paper",
 ) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
-    """``(H, gamma, bonus_scale, min_at')`` with ``b_tau = bonus_scale / sqrt(tau)`` (module docstring).
-
-    ``variant="colosseum"``: the reference's exponent 0.333 and no floor on ``H``."""
-    T = jnp.asarray(n_steps, jnp.float32)
-    SA = jnp.asarray(n_states, jnp.float32) * jnp.asarray(n_actions, jnp.float32)
-    sp, delta = hparams.span_approx_weight, hparams.delta
+    """``(H, gamma, bonus_scale, min_at')`` with ``b_tau = bonus_scale / sqrt(tau)`` (module docstring), in
+    ``dtype``. ``variant="colosseum"``: the reference's exponent 0.333 and no floor on ``H``."""
+    T = jnp.asarray(n_steps, dtype)
+    SA = jnp.asarray(n_states, dtype) * jnp.asarray(n_actions, dtype)
+    sp, delta = (jnp.asarray(x, dtype) for x in (hparams.span_approx_weight, hparams.delta))
+    h_weight, min_at = (jnp.asarray(x, dtype) for x in (hparams.h_weight, hparams.min_at))
     third = _COLOSSEUM_EXPONENT if variant == "colosseum" else 1.0 / 3.0
-    H = hparams.h_weight * jnp.minimum(jnp.sqrt(sp * T / SA), (T / (SA * jnp.log(4.0 * T / delta))) ** third)
+    H = h_weight * jnp.minimum(jnp.sqrt(sp * T / SA), (T / (SA * jnp.log(4.0 * T / delta))) ** third)
     H = H if variant == "colosseum" else jnp.maximum(H, 1.0)
     bonus_scale = 4.0 * sp * jnp.sqrt(H * jnp.log(2.0 * T / delta))
-    min_at = jnp.where(hparams.min_at > _MIN_AT_CUTOFF, hparams.min_at, 0.0)
+    min_at = jnp.where(min_at > _MIN_AT_CUTOFF, min_at, 0.0)
     return H, 1.0 - 1.0 / H, bonus_scale, min_at
 
 
@@ -124,16 +148,12 @@ def init(
     key: jax.Array, spec: MDPSpec, hparams: QLearningContinuousHParams, variant: Variant = "paper"
 ) -> QLearningContinuousState:
     del key
-    S, A = spec.n_states, spec.n_actions
-    hparams = jax.tree.map(lambda x: jnp.asarray(x, jnp.float32), hparams)
-    n_s, n_a = valid_counts(spec.state_mask, spec.action_mask)
-    H, gamma, bonus_scale, min_at = constants(hparams, n_s, n_a, spec.n_steps, variant=variant)
-    Q = jnp.full((S, A), H, jnp.float32)
+    S, A, dtype = spec.n_states, spec.n_actions, spec.dtype
+    n_s, n_a = valid_counts(spec.state_mask, spec.action_mask, dtype)
+    H, gamma, bonus_scale, min_at = constants(hparams, n_s, n_a, spec.n_steps, dtype, variant=variant)
+    table = jnp.stack([jnp.full((S, A), H), jnp.full((S, A), H), jnp.zeros((S, A), dtype)], axis=-1)
     return QLearningContinuousState(
-        Q=Q,
-        Q_hat=Q,
-        V=jnp.full((S,), H, jnp.float32),
-        N=jnp.zeros((S, A), jnp.int32),
+        table=table,
         H=H,
         gamma=gamma,
         bonus_scale=bonus_scale,
@@ -145,25 +165,19 @@ def init(
 def update(state: QLearningContinuousState, tr: Transition) -> QLearningContinuousState:
     """One optimistic Q-learning step at ``(s, a)`` (module docstring)."""
     s, a = tr.obs, tr.action
-    tau_int = state.N[s, a] + 1
-    tau = tau_int.astype(jnp.float32)
+    row = state.table[s, a]
+    v_next = row_max(jnp.where(state.action_mask, state.table[tr.next_obs, :, _Q_HAT], -jnp.inf))
+    tau = row[_N] + 1.0
     alpha = jnp.maximum(state.min_at, (state.H + 1.0) / (state.H + tau))
-    target = tr.reward + state.gamma * state.V[tr.next_obs] + state.bonus_scale / jnp.sqrt(tau)
-    q = (1.0 - alpha) * state.Q[s, a] + alpha * target
-    Q_hat = state.Q_hat.at[s, a].min(q)
-    row = jnp.where(state.action_mask, Q_hat[s], -jnp.inf)
-    return state.replace(
-        Q=state.Q.at[s, a].set(q),
-        Q_hat=Q_hat,
-        V=state.V.at[s].set(jnp.max(row)),
-        N=state.N.at[s, a].set(tau_int),
-    )
+    target = tr.reward.astype(tau.dtype) + state.gamma * v_next + state.bonus_scale / jnp.sqrt(tau)
+    q = (1.0 - alpha) * row[_Q] + alpha * target
+    return state.replace(table=state.table.at[s, a].set(jnp.stack([q, jnp.minimum(row[_Q_HAT], q), tau])))
 
 
 def act(key: jax.Array, state: QLearningContinuousState, obs: jax.Array, h: jax.Array) -> jax.Array:
     """Greedy in ``Q_hat(obs, .)``, exact ties at random."""
     del h
-    return greedy_action(key, state.Q_hat[obs], state.action_mask)
+    return greedy_action_single_draw(key, state.table[obs, :, _Q_HAT], state.action_mask)
 
 
 def policy(state: QLearningContinuousState) -> jax.Array:
@@ -188,30 +202,48 @@ Q_LEARNING_CONTINUOUS = Agent(
 # ---------------------------------------------------------------------------------------------------------------
 
 
-def update_colosseum(state: QLearningContinuousState, tr: Transition) -> QLearningContinuousState:
+class QLearningContinuousColosseumState(QLearningContinuousState):
+    """The reference's state: as :class:`QLearningContinuousState` plus a stored ``V[S]``, which the reference
+    refreshes at the next state ``s'`` (so it can lag ``max_a Q_hat``) and which therefore cannot be read off the
+    table."""
+
+    v: jax.Array
+
+    @property
+    def V(self) -> jax.Array:
+        return self.v
+
+
+def init_colosseum(
+    key: jax.Array, spec: MDPSpec, hparams: QLearningContinuousHParams
+) -> QLearningContinuousColosseumState:
+    """:func:`init` with the reference's constants and ``V = H``."""
+    state = init(key, spec, hparams, variant="colosseum")
+    fields = {f.name: getattr(state, f.name) for f in dataclasses.fields(state)}
+    return QLearningContinuousColosseumState(**fields, v=jnp.full((spec.n_states,), state.H, state.table.dtype))
+
+
+def update_colosseum(
+    state: QLearningContinuousColosseumState, tr: Transition
+) -> QLearningContinuousColosseumState:
     """The reference's step at ``(s, a)``: the running estimate restarts from the monotone one,
     ``Q(s, a) <- (1 - alpha_tau) Q_hat(s, a) + alpha_tau (r + gamma V(s') + b_tau)``, ``Q_hat(s, a) <- min(Q_hat(s, a),
     Q(s, a))``, and the *next* state's value is refreshed, ``V(s') <- max_a Q_hat(s', a)``."""
     s, a = tr.obs, tr.action
-    tau_int = state.N[s, a] + 1
-    tau = tau_int.astype(jnp.float32)
+    row = state.table[s, a]
+    tau = row[_N] + 1.0
     alpha = jnp.maximum(state.min_at, (state.H + 1.0) / (state.H + tau))
-    target = tr.reward + state.gamma * state.V[tr.next_obs] + state.bonus_scale / jnp.sqrt(tau)
-    q = (1.0 - alpha) * state.Q_hat[s, a] + alpha * target
-    Q_hat = state.Q_hat.at[s, a].min(q)
-    row = jnp.where(state.action_mask, Q_hat[tr.next_obs], -jnp.inf)
-    return state.replace(
-        Q=state.Q.at[s, a].set(q),
-        Q_hat=Q_hat,
-        V=state.V.at[tr.next_obs].set(jnp.max(row)),
-        N=state.N.at[s, a].set(tau_int),
-    )
+    target = tr.reward.astype(tau.dtype) + state.gamma * state.v[tr.next_obs] + state.bonus_scale / jnp.sqrt(tau)
+    q = (1.0 - alpha) * row[_Q_HAT] + alpha * target
+    table = state.table.at[s, a].set(jnp.stack([q, jnp.minimum(row[_Q_HAT], q), tau]))
+    v_next = row_max(jnp.where(state.action_mask, table[tr.next_obs, :, _Q_HAT], -jnp.inf))
+    return state.replace(table=table, v=state.v.at[tr.next_obs].set(v_next))
 
 
 Q_LEARNING_CONTINUOUS_COLOSSEUM = dataclasses.replace(
     Q_LEARNING_CONTINUOUS,
     name="q_learning_continuous@colosseum",
     default_hparams=QLearningContinuousHParams(delta=0.95),
-    init=functools.partial(init, variant="colosseum"),
+    init=init_colosseum,
     update=update_colosseum,
 )

@@ -14,7 +14,8 @@ the step ``(s, a, r, s')`` taken at in-episode step ``h``:
 * ``Q_h(s, a) <- (1 - alpha_t) Q_h(s, a) + alpha_t (r + V_{h+1}(s') + b_t)`` and
   ``V_h(s) <- min(H, max_a Q_h(s, a))``.
 
-The last step of an episode reads ``V_H = 0``. Actions are greedy in ``Q_h(s, .)`` with exact ties broken at random;
+The last step of an episode reads ``V_H = 0``. Actions are greedy in ``Q_h(s, .)`` with exact ties broken at random
+(one uniform draw per step, :func:`~agents.tabular_common.greedy_action_single_draw`);
 the policy estimate (for regret) is greedy in ``Q`` with ties to the lowest action index, ``[H, S, A]``. ``S`` and
 ``A`` count the real (unpadded) states and actions; ``H`` is the member's own horizon.
 
@@ -44,7 +45,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from agents.tabular_common import greedy_action, valid_counts
+from agents.tabular_common import greedy_action_single_draw, row_max, valid_counts
 from jaxmdp import dynamic_programming as dp
 from jaxmdp._checks import check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
@@ -67,12 +68,13 @@ _Q, _N, _SUM_V, _SUM_V2, _BETA = range(5)
 
 
 class QLearningEpisodicState(struct.PyTreeNode):
-    """Per-``(h, s, a)`` table ``[H, S, A, 5]`` holding ``Q``, the count ``N`` (as a float, exact up to 2^24), the
-    Bernstein statistics (running sums of the next values and their squares, last ``beta``), ``V[H + 1, S]`` and the
-    member's constants (horizon ``H``, ``iota``, ``S A``)."""
+    """Per-``(h, s, a)`` table ``[H, S, A, 5]`` holding ``Q``, the count ``N`` (as a float, exact up to 2^24 in
+    float32), the Bernstein statistics (running sums of the next values and their squares, last ``beta``), in the
+    MDP's dtype, and the member's constants (horizon ``H``, ``iota``, ``S A``). ``V_h(s) = min(H, max_a Q_h(s, a))``
+    (0 from the horizon on) is read from the table rather than stored: the same numbers, as ``V_h(s)`` is refreshed
+    exactly when ``Q_h(s, .)`` changes."""
 
     table: jax.Array
-    V: jax.Array
     horizon: jax.Array
     iota: jax.Array
     n_pairs: jax.Array
@@ -91,6 +93,15 @@ class QLearningEpisodicState(struct.PyTreeNode):
     def beta(self) -> jax.Array:
         return self.table[..., _BETA]
 
+    @property
+    def V(self) -> jax.Array:
+        """``V[H + 1, S]`` (row ``H`` and rows from the horizon on are 0)."""
+        H = self.table.shape[-4]
+        live = (jnp.arange(H) < self.horizon[..., None])[..., None]
+        best = jnp.max(jnp.where(self.action_mask[..., None, None, :], self.Q, -jnp.inf), axis=-1)
+        V = jnp.where(live, jnp.minimum(self.horizon[..., None, None], best), 0.0)
+        return jnp.concatenate([V, jnp.zeros_like(V[..., :1, :])], axis=-2)
+
 
 def check_hparams(hparams: QLearningEpisodicHParams) -> None:
     """Domains: ``c_1, c_2 > 0``, ``0 <= min_at <= 1``, ``0 < p < 1``, ``bernstein`` in {0, 1}."""
@@ -105,18 +116,16 @@ def check_hparams(hparams: QLearningEpisodicHParams) -> None:
 
 def init(key: jax.Array, spec: MDPSpec, hparams: QLearningEpisodicHParams) -> QLearningEpisodicState:
     del key
-    H, S, A = spec.H, spec.n_states, spec.n_actions
-    horizon = spec.horizon.astype(jnp.float32)
-    live = (jnp.arange(H) < spec.horizon)[:, None]
-    n_s, n_a = valid_counts(spec.state_mask, spec.action_mask)
-    V = jnp.concatenate([jnp.where(live, horizon, 0.0) * jnp.ones((H, S)), jnp.zeros((1, S))])
-    table = jnp.zeros((H, S, A, 5), jnp.float32).at[..., _Q].set(V[:H, :, None])
-    hparams = jax.tree.map(lambda x: jnp.asarray(x, jnp.float32), hparams)
+    H, S, A, dtype = spec.H, spec.n_states, spec.n_actions, spec.dtype
+    horizon = spec.horizon.astype(dtype)
+    live = (jnp.arange(H) < spec.horizon)[:, None, None]
+    n_s, n_a = valid_counts(spec.state_mask, spec.action_mask, dtype)
+    table = jnp.zeros((H, S, A, 5), dtype).at[..., _Q].set(jnp.where(live, horizon, 0.0))
+    hparams = jax.tree.map(lambda x: jnp.asarray(x, dtype), hparams)
     return QLearningEpisodicState(
         table=table,
-        V=V,
         horizon=horizon,
-        iota=jnp.log(n_s * n_a * spec.n_steps.astype(jnp.float32) / hparams.p),
+        iota=jnp.log(n_s * n_a * spec.n_steps.astype(dtype) / hparams.p),
         n_pairs=n_s * n_a,
         action_mask=spec.action_mask,
         hparams=hparams,
@@ -154,18 +163,19 @@ def update(state: QLearningEpisodicState, tr: Transition) -> QLearningEpisodicSt
     t = row[_N] + 1.0
     H = state.horizon
     alpha = jnp.maximum(state.hparams.min_at, (H + 1.0) / (H + t))
-    v_next = state.V[h + 1, tr.next_obs]
+    # V_{h+1}(s'): 0 at the end of the episode, else min(H, max_a Q_{h+1}(s', a)).
+    q_next = state.table[jnp.minimum(h + 1, state.table.shape[0] - 1), tr.next_obs, :, _Q]
+    best_next = row_max(jnp.where(state.action_mask, q_next, -jnp.inf))
+    v_next = jnp.where(h + 1 < H, jnp.minimum(H, best_next), 0.0)
     sum_v, sum_v2 = row[_SUM_V] + v_next, row[_SUM_V2] + v_next**2
     b, beta = bonus(state, t, sum_v, sum_v2, row[_BETA], alpha)
-    q = (1.0 - alpha) * row[_Q] + alpha * (tr.reward + v_next + b)
-    table = state.table.at[h, s, a].set(jnp.stack([q, t, sum_v, sum_v2, beta]))
-    q_row = jnp.where(state.action_mask, table[h, s, :, _Q], -jnp.inf)
-    return state.replace(table=table, V=state.V.at[h, s].set(jnp.minimum(H, jnp.max(q_row))))
+    q = (1.0 - alpha) * row[_Q] + alpha * (tr.reward.astype(t.dtype) + v_next + b)
+    return state.replace(table=state.table.at[h, s, a].set(jnp.stack([q, t, sum_v, sum_v2, beta])))
 
 
 def act(key: jax.Array, state: QLearningEpisodicState, obs: jax.Array, h: jax.Array) -> jax.Array:
-    """Greedy in ``Q_h(obs, .)``, exact ties at random."""
-    return greedy_action(key, state.table[h, obs, :, _Q], state.action_mask)
+    """Greedy in ``Q_h(obs, .)``, exact ties at random (one uniform draw)."""
+    return greedy_action_single_draw(key, state.table[h, obs, :, _Q], state.action_mask)
 
 
 def policy(state: QLearningEpisodicState) -> jax.Array:
@@ -190,13 +200,28 @@ Q_LEARNING_EPISODIC = Agent(
 # ---------------------------------------------------------------------------------------------------------------
 
 
-def init_colosseum(key: jax.Array, spec: MDPSpec, hparams: QLearningEpisodicHParams) -> QLearningEpisodicState:
+class QLearningEpisodicColosseumState(QLearningEpisodicState):
+    """The reference's state: as :class:`QLearningEpisodicState` plus a stored ``V[H + 1, S]`` that starts at 0
+    while ``Q`` starts at ``H`` (so it cannot be read off the table)."""
+
+    v: jax.Array
+
+    @property
+    def V(self) -> jax.Array:
+        return self.v
+
+
+def init_colosseum(
+    key: jax.Array, spec: MDPSpec, hparams: QLearningEpisodicHParams
+) -> QLearningEpisodicColosseumState:
     """The reference's tables: counts start at 1 and ``V`` at 0 (``Q = H`` as in :func:`init`)."""
     state = init(key, spec, hparams)
-    return state.replace(table=state.table.at[..., _N].set(1.0), V=jnp.zeros_like(state.V))
+    fields = {f.name: getattr(state, f.name) for f in dataclasses.fields(state)}
+    fields["table"] = state.table.at[..., _N].set(1.0)
+    return QLearningEpisodicColosseumState(**fields, v=jnp.zeros((spec.H + 1, spec.n_states), state.table.dtype))
 
 
-def update_colosseum(state: QLearningEpisodicState, tr: Transition) -> QLearningEpisodicState:
+def update_colosseum(state: QLearningEpisodicColosseumState, tr: Transition) -> QLearningEpisodicColosseumState:
     """The reference's step at ``(h, s, a)``: with ``t = N + 1`` (counts from 1),
     ``beta_t = min(c_1 (sqrt((H (sum V^2 - sum V)^2 / t^2 + H) iota) + sqrt(H^7 S A) iota / t), c_2 sqrt(H^3 iota/t))``,
     ``b_t = (beta_t - (1 - alpha_t) beta_{t-1}) / (2 alpha_t)`` (Hoeffding as :func:`bonus`) and the swapped weights
@@ -206,7 +231,7 @@ def update_colosseum(state: QLearningEpisodicState, tr: Transition) -> QLearning
     row = state.table[h, s, a]
     t = row[_N] + 1.0
     alpha = jnp.maximum(hp.min_at, (H + 1.0) / (H + t))
-    v_next = state.V[h + 1, tr.next_obs]
+    v_next = state.v[h + 1, tr.next_obs]
     sum_v, sum_v2 = row[_SUM_V] + v_next, row[_SUM_V2] + v_next**2
     beta = jnp.minimum(
         hp.c_1 * (jnp.sqrt((H * (sum_v2 - sum_v) ** 2 / t**2 + H) * iota) + jnp.sqrt(H**7 * state.n_pairs) * iota / t),
@@ -214,10 +239,10 @@ def update_colosseum(state: QLearningEpisodicState, tr: Transition) -> QLearning
     )
     bernstein = (beta - (1.0 - alpha) * row[_BETA]) / (2.0 * alpha)
     b = jnp.where(hp.bernstein > 0, bernstein, hp.c_1 * jnp.sqrt(H**3 * iota / t))
-    q = alpha * row[_Q] + (1.0 - alpha) * (tr.reward + v_next + b)
+    q = alpha * row[_Q] + (1.0 - alpha) * (tr.reward.astype(t.dtype) + v_next + b)
     table = state.table.at[h, s, a].set(jnp.stack([q, t, sum_v, sum_v2, beta]))
     q_row = jnp.where(state.action_mask, table[h, s, :, _Q], -jnp.inf)
-    return state.replace(table=table, V=state.V.at[h, s].set(jnp.minimum(H, jnp.max(q_row))))
+    return state.replace(table=table, v=state.v.at[h, s].set(jnp.minimum(H, jnp.max(q_row))))
 
 
 Q_LEARNING_EPISODIC_COLOSSEUM = dataclasses.replace(

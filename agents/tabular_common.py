@@ -9,22 +9,62 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-__all__ = ["greedy_action", "valid_counts"]
+__all__ = ["first_argmax", "greedy_action", "greedy_action_single_draw", "row_max", "valid_counts"]
+
+
+# Up to this many actions the argmax of :func:`greedy_action` is unrolled into elementwise passes: XLA's variadic
+# argmax reduction is several times slower on CPU, and every member acts at every step.
+_UNROLLED_MAX_ACTIONS = 16
+
+
+def row_max(x: jax.Array) -> jax.Array:
+    """``jnp.max(x)`` of a 1-D ``x`` (NaN propagates), unrolled for few entries."""
+    if x.shape[-1] > _UNROLLED_MAX_ACTIONS:
+        return jnp.max(x)
+    best = x[0]
+    for a in range(1, x.shape[-1]):
+        best = jnp.maximum(best, x[a])
+    return best
+
+
+def first_argmax(x: jax.Array) -> jax.Array:
+    """``jnp.argmax(x)`` of a 1-D ``x`` without NaN (the first index of the maximum), unrolled for few entries."""
+    n = x.shape[-1]
+    if n > _UNROLLED_MAX_ACTIONS:
+        return jnp.argmax(x).astype(jnp.int32)
+    best = row_max(x)
+    index = jnp.asarray(n - 1, jnp.int32)
+    for a in reversed(range(n - 1)):
+        index = jnp.where(x[a] >= best, a, index)
+    return index
 
 
 def greedy_action(key: jax.Array, q: jax.Array, action_mask: jax.Array) -> jax.Array:
     """``argmax_a q[a]`` over the valid actions, exact ties broken uniformly at random with ``key``.
 
     Like the reference's Q-values actor (docs/agents.md §0), exact ties (e.g. unvisited pairs with identical
-    optimistic values) are resolved at random rather than towards the lowest index. A padded action is never
-    returned: if no valid action compares as a maximiser (``q`` holds NaN), the choice is uniform over the valid
-    actions.
+    optimistic values) are resolved at random rather than towards the lowest index: each valid action draws a
+    float32 uniform and the tied action with the largest draw wins. A padded action is never returned: if no valid
+    action compares as a maximiser (``q`` holds NaN), the choice is uniform over the valid actions.
     """
     q = jnp.where(action_mask, q, -jnp.inf)
-    tied = (q >= jnp.max(q)) & action_mask
+    tied = (q >= row_max(q)) & action_mask
     tied = jnp.where(jnp.any(tied), tied, action_mask)
-    u = jax.random.uniform(key, q.shape)
-    return jnp.argmax(jnp.where(tied, u, -1.0)).astype(jnp.int32)
+    u = jax.random.uniform(key, q.shape, jnp.float32)
+    return first_argmax(jnp.where(tied, u, -1.0))
+
+
+def greedy_action_single_draw(key: jax.Array, q: jax.Array, action_mask: jax.Array) -> jax.Array:
+    """:func:`greedy_action` with one uniform draw instead of one per action: with ``n`` tied maximisers, the
+    ``floor(u n)``-th of them (in index order) is taken, ``u ~ U[0, 1)``; the same distribution (uniform over the
+    ties), a different draw for a given key. Under ``vmap`` a draw of ``A`` uniforms costs several times a scalar
+    one, which dominated the per-step cost of the Q-learning agents."""
+    q = jnp.where(action_mask, q, -jnp.inf)
+    tied = (q >= row_max(q)) & action_mask
+    tied = jnp.where(jnp.any(tied), tied, action_mask)
+    n = jnp.sum(tied, dtype=jnp.int32)
+    k = jnp.minimum((jax.random.uniform(key, (), jnp.float32) * n).astype(jnp.int32), n - 1)
+    return first_argmax(jnp.cumsum(tied, dtype=jnp.int32) > k)
 
 
 def valid_counts(state_mask: jax.Array, action_mask: jax.Array, dtype: Any = jnp.float32) -> tuple[jax.Array, jax.Array]:

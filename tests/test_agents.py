@@ -4,6 +4,7 @@ MDPs with known optimal policies (a one-state bandit and tiny chains) that each 
 from __future__ import annotations
 
 import math
+import warnings
 
 import jax
 import jax.numpy as jnp
@@ -14,7 +15,7 @@ import agents
 import jaxmdp
 from agents import q_learning_continuous as qlc
 from agents import q_learning_episodic as qle
-from agents.tabular_common import greedy_action
+from agents.tabular_common import greedy_action, greedy_action_single_draw
 from jaxmdp.experiment import runner
 from jaxmdp.experiment.agent_interface import Transition, spec_of
 
@@ -147,6 +148,36 @@ def test_greedy_ties_are_uniform_over_valid_actions():
     np.testing.assert_allclose(freq, [0.5, 0.0, 0.5, 0.0], atol=0.025)  # ~5 standard errors
     nan = np.asarray(jax.vmap(greedy_action, in_axes=(0, None, None))(keys[:500], q * jnp.nan, mask))
     assert set(nan.tolist()) <= {0, 1, 2}
+
+
+def test_single_draw_greedy_ties_are_uniform_over_valid_actions():
+    # 20 000 draws, tolerance 0.02 = 5.66 standard errors of a frequency 1/2: false-failure probability < 1e-7.
+    keys = jax.random.split(jax.random.key(0), 20_000)
+    q = jnp.asarray([1.0, 0.5, 1.0, 1.0, 1.0])
+    mask = jnp.asarray([True, True, True, False, False])
+    draw = jax.jit(jax.vmap(greedy_action_single_draw, in_axes=(0, None, None)))
+    freq = np.bincount(np.asarray(draw(keys, q, mask)), minlength=5) / keys.shape[0]
+    np.testing.assert_allclose(freq, [0.5, 0.0, 0.5, 0.0, 0.0], atol=0.02)
+    assert set(np.asarray(draw(keys[:500], q * jnp.nan, mask)).tolist()) <= {0, 1, 2}
+    # A unique maximiser is taken whatever the draw; 17 actions exercise the non-unrolled path.
+    assert set(np.asarray(draw(keys[:200], q.at[1].set(2.0), mask)).tolist()) == {1}
+    wide = jnp.zeros(17).at[jnp.asarray([3, 16])].set(1.0)
+    assert set(np.asarray(draw(keys[:400], wide, jnp.ones(17, bool))).tolist()) == {3, 16}
+
+
+@pytest.mark.parametrize("name, H", [("q_learning_continuous", None), ("q_learning_episodic", 3)])
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_q_learning_keeps_the_mdp_dtype(name, H, dtype):
+    # With x64 enabled, a float64 MDP gives float64 tables (no float64 -> float32 scatter and its warning) and a
+    # float32 MDP keeps float32 ones.
+    agent = agents.get(name)
+    with jax.enable_x64(True), warnings.catch_warnings():
+        warnings.simplefilter("error")
+        mdp = jaxmdp.custom_mdp(np.full((3, 2, 3), 1 / 3), R=np.arange(6.0).reshape(3, 2) / 6, H=H, dtype=dtype)
+        res = runner.run(agent, runner.product([mdp], [agent.default_hparams], [0, 1]), 40, log_period=10,
+                         n_records=2)
+    assert res.agent_state.table.dtype == np.dtype(dtype) and res.values.dtype == np.dtype(dtype)
+    assert int(res.agent_state.N.sum()) == 2 * 40
 
 
 @pytest.mark.parametrize("mask", [[True, True, True, False], [True, False, True, False]])

@@ -20,6 +20,7 @@ import jaxmdp
 from jaxmdp.experiment import runner
 from jaxmdp.experiment.agent_interface import Agent
 from jaxmdp.experiment.indicators import AGENT_COLUMNS, CSV_COLUMNS
+from conftest import random_mdp
 from numpy_reference import finite_horizon_eval, finite_horizon_optimal, one_hot
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -424,3 +425,19 @@ def test_record_visits_random_agent_sums_to_steps():
     res = runner.run(agent, g, 300, n_records=2, record_visits=True)
     np.testing.assert_array_equal(res.visits.sum(1), [300, 300, 300])
     assert not np.array_equal(res.visits[0], res.visits[1])  # seeds differ
+
+
+def test_only_changed_members_are_evaluated():
+    # Members whose policy changed get fresh policy values (the gain from every state), the others keep their cache.
+    from jaxmdp.experiment.indicators import policy_values
+
+    rng = np.random.default_rng(4)
+    mdps = jaxmdp.stack([random_mdp(rng, S=4, A=2), random_mdp(rng, S=3, A=2)]).strip()
+    policy = jnp.asarray(rng.dirichlet(np.ones(2), size=(3, 4)), jnp.float32)
+    index = jnp.asarray([0, 1, 0])
+    cache = jnp.full((3, 4), 7.0, jnp.float32)
+    out = jax.jit(runner._evaluate_changed)(mdps, index, policy, jnp.asarray([True, False, True]), cache)
+    for b in (0, 2):
+        want = policy_values(jax.tree.map(lambda x: x[0], mdps), policy[b])
+        np.testing.assert_allclose(out[b], want, rtol=1e-6, atol=1e-7)
+    np.testing.assert_array_equal(out[1], cache[1])

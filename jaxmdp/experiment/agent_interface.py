@@ -38,6 +38,7 @@ from typing import Any, Literal
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
 
 from jaxmdp.mdp import MDP
@@ -62,6 +63,8 @@ class MDPSpec(struct.PyTreeNode):
     n_steps: jax.Array
     #: The emission table of a BlockMDP (``[S, *obs]`` or ``[H, S, *obs]``); ``None`` for a plain MDP.
     observations: jax.Array | None = None
+    #: Floating dtype of the MDP (static): tabular agents keep their tables in it.
+    dtype: Any = struct.field(pytree_node=False, default=np.dtype("float32"))
 
     @property
     def episodic(self) -> bool:
@@ -82,6 +85,7 @@ def spec_of(mdp: MDP, n_steps: int | jax.Array) -> MDPSpec:
         action_mask=mdp.action_mask,
         n_steps=jnp.broadcast_to(jnp.asarray(n_steps, jnp.int32), mdp.horizon.shape),
         observations=observations,
+        dtype=np.dtype(mdp.dtype),
     )
 
 

@@ -44,6 +44,7 @@ __all__ = [
     "Instant",
     "indicator_constants",
     "policy_values",
+    "ITERATIVE_GAIN_SWEEPS",
     "instant_from_values",
     "instantaneous",
     "CSV_COLUMNS",
@@ -139,12 +140,31 @@ def _safe_ratio(num: jax.Array, den: jax.Array, scale: jax.Array) -> jax.Array:
     return jnp.where(degenerate, 0.0, num / jnp.where(degenerate, 1.0, den))
 
 
-def policy_values(mdp: MDP, policy: jax.Array) -> jax.Array:
-    """The expensive half of an indicator: ``V^pi_0(s)`` for every state (episodic, finite-horizon evaluation) or the
-    gain ``rho^pi(s)`` from every state (continuous, :func:`~jaxmdp.dynamic_programming.gain_vector`), ``[S]``."""
+#: Sweeps over the successor lists that :func:`policy_values` spends trying to certify a gain before it falls back
+#: to the dense solve (on the benchmark's quick-test MDPs, near-optimal policies certify within 32 to 128 sweeps,
+#: and 128 sweeps cost about a tenth of the dense solve at S = 144).
+ITERATIVE_GAIN_SWEEPS = 128
+
+
+def policy_values(mdp: MDP, policy: jax.Array, iterative_sweeps: int = 0) -> jax.Array:
+    """The expensive half of an indicator: ``V^pi_0(s)`` for every state (episodic, finite-horizon evaluation on the
+    successor lists) or the gain ``rho^pi(s)`` from every state (continuous), ``[S]``.
+
+    Continuous: with ``iterative_sweeps > 0`` (static), :func:`~jaxmdp.dynamic_programming.successor_gain_bounds`
+    first tries to certify the gain to a relative ``1e-6`` within that many sweeps over the successor lists
+    (``O(S A K)`` each) and returns the midpoint of its bounds; otherwise, or when the chain mixes too slowly for
+    that, the dense ``O(S^3)`` :func:`~jaxmdp.dynamic_programming.gain_vector`. The branch is a ``lax.cond``, so
+    use it per member (``lax.map``), not under ``vmap``."""
     if mdp.episodic:
         return dp.finite_horizon_policy_evaluation(mdp, policy)[1][0]
-    return dp.gain_vector(mdp, policy)
+    if iterative_sweeps <= 0:
+        return dp.gain_vector(mdp, policy)
+    bounds = dp.successor_gain_bounds(mdp, policy, max_sweeps=iterative_sweeps)
+    return jax.lax.cond(
+        bounds.certified,
+        lambda: 0.5 * (bounds.lower + bounds.upper),
+        lambda: dp.gain_vector(mdp, policy),
+    )
 
 
 def instant_from_values(

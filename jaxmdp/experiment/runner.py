@@ -54,6 +54,7 @@ from jaxmdp.experiment.agent_interface import Agent, Transition, spec_of, where_
 from jaxmdp.experiment.checkpoints import fingerprint, load_checkpoint, save_checkpoint
 from jaxmdp.experiment.indicators import (
     AGENT_COLUMNS,
+    ITERATIVE_GAIN_SWEEPS,
     IndicatorConstants,
     indicator_constants,
     instant_from_values,
@@ -130,6 +131,32 @@ def _keys(key_data: jax.Array, which: int, t: jax.Array) -> jax.Array:
     """Per-member key ``which`` of a member for step ``t`` (vectorised over members)."""
     base = jax.random.wrap_key_data(key_data[:, which])
     return jax.vmap(jax.random.fold_in, in_axes=(0, None))(base, t)
+
+
+def _evaluate_changed(
+    dyn: MDP, mdp_index: jax.Array, policy: jax.Array, changed: jax.Array, cache: jax.Array
+) -> jax.Array:
+    """:func:`policy_values` of the members whose policy ``changed``, ``cache`` for the others.
+
+    On a CPU the members are taken one at a time (``lax.map``) and an unchanged member costs nothing: under ``vmap``
+    every member paid for the evaluation (a dense ``O(S^3)`` one when continuous) as soon as one member's policy
+    changed, so a grid whose policies change at different times (epochs of UCRL2 and PSRL, Q-learning once its
+    greedy policy settles) paid for all members at almost every log. A continuous member's gain is first certified on
+    the successor lists (:func:`~jaxmdp.experiment.indicators.policy_values`), the dense solve running only when that
+    fails. Elsewhere (GPU) the members stay in lockstep with the dense solve.
+    """
+    dtype = cache.dtype
+
+    if jax.default_backend() != "cpu":
+        values = jax.vmap(lambda i, p: policy_values(_member(dyn, i), p))(mdp_index, policy)
+        return jnp.where(changed[:, None], values.astype(dtype), cache)
+
+    def one(args):
+        i, p, ch, old = args
+        evaluate = lambda: policy_values(_member(dyn, i), p, ITERATIVE_GAIN_SWEEPS).astype(dtype)  # noqa: E731
+        return jax.lax.cond(ch, evaluate, lambda: old)
+
+    return jax.lax.map(one, (mdp_index, policy, changed, cache))
 
 
 # The program builders are cached with a bound (least recently used first out), keyed by the agent (by identity:
@@ -245,12 +272,12 @@ def _chunk_program(
             # altogether when no member's policy changed.
             policy = jax.vmap(agent.policy)(c.agent_state)
             changed = jnp.any((policy != c.policy_cache).reshape(B, -1), axis=1)
-
-            def evaluate(cache):
-                values = jax.vmap(lambda i, p: policy_values(_member(dyn, i), p))(mdp_index, policy)
-                return jnp.where(changed[:, None], values.astype(dtype), cache)
-
-            values = jax.lax.cond(jnp.any(changed), evaluate, lambda cache: cache, c.value_cache)
+            values = jax.lax.cond(
+                jnp.any(changed),
+                lambda cache: _evaluate_changed(dyn, mdp_index, policy, changed, cache),
+                lambda cache: cache,
+                c.value_cache,
+            )
             inst = jax.vmap(lambda i, k, v, s, s0: instant_from_values(_member(dyn, i), k, v, s, s0, variant))(
                 mdp_index, consts, values, c.env_state.state, c.last_start
             )
@@ -299,7 +326,9 @@ def _chunk_program(
 
 @functools.lru_cache(maxsize=len(VARIANTS))
 def _constants_program(variant: Variant) -> Callable:
-    return jax.jit(jax.vmap(lambda m: indicator_constants(dynamics(m), variant)))
+    # lax.map, not vmap: the constants come from planning loops run to convergence, and a vmapped while_loop runs
+    # until its slowest member converges.
+    return jax.jit(lambda mdps: jax.lax.map(lambda m: indicator_constants(dynamics(m), variant), mdps))
 
 
 # ---------------------------------------------------------------------------------------------------------------
