@@ -17,6 +17,7 @@ import actor_critic_probes as probes
 import agents
 from agents.deep import actor_critic_rnn as acr
 from agents.deep import policy_gradient as pg
+from agents.deep.common import cast_hparams, make_optimizer
 from agents.deep.networks import orthogonal
 
 RNN_NAMES = ("actor_critic_rnn_episodic", "actor_critic_rnn_continuous")
@@ -104,9 +105,9 @@ def test_gradients_flow_through_the_unrolled_sequence(scripted):
 
 
 def test_gradient_is_clipped_to_the_global_norm_before_adam():
-    hp = pg.float_hparams(acr.ActorCriticRNNHParams(max_grad_norm=0.5))
+    hp = cast_hparams(acr.ActorCriticRNNHParams(max_grad_norm=0.5))
     grads = {"a": jnp.asarray([3.0, 4.0]), "b": jnp.asarray([[12.0]])}  # global norm 13
-    opt = pg.make_optimizer(hp)
+    opt = make_optimizer(hp)
     _, opt_state = opt.update(grads, opt.init(grads))
     adam = [s for s in jax.tree.leaves(opt_state, is_leaf=lambda x: isinstance(x, optax.ScaleByAdamState))
             if isinstance(s, optax.ScaleByAdamState)][0]

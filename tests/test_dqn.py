@@ -14,6 +14,7 @@ import pytest
 
 import agents
 from agents.deep import dqn, replay
+from agents.deep.common import cast_hparams
 from agents.search_spaces import CHOICE_SPACES, sample_candidate_groups, sample_candidates, search_space
 from jaxmdp.experiment.agent_interface import MDPSpec, Transition, spec_of
 from tests import q_probes
@@ -270,6 +271,20 @@ def test_check_hparams_rejects_values_outside_their_domain(bad, match):
     agent.check_hparams(agent.default_hparams)
     with pytest.raises(ValueError, match=match):
         agent.check_hparams(agent.default_hparams.replace(**bad))
+
+
+def test_cast_hparams_types_each_field_by_its_class_default():
+    """Float fields become float32 even when given as Python ints (``discount=1``); integer fields (periods, counts)
+    become int32 even when given as floats; static sizes stay as given; grids keep their axis."""
+    hp = cast_hparams(dqn.DQNHParams(discount=1, epsilon=np.array([0.1, 0.2]), sgd_period=2.0, network_width=64))
+    assert hp.discount.dtype == jnp.float32 and float(hp.discount) == 1.0
+    assert hp.epsilon.dtype == jnp.float32 and hp.epsilon.shape == (2,)
+    assert hp.sgd_period.dtype == jnp.int32 and int(hp.sgd_period) == 2
+    assert hp.min_replay.dtype == jnp.int32 and hp.target_update_period.dtype == jnp.int32
+    assert hp.network_width == 64 and isinstance(hp.network_width, int)
+    ac = cast_hparams(agents.get("actor_critic_rnn_episodic").default_hparams.replace(discount=1, max_grad_norm=5))
+    assert all(x.dtype == jnp.float32 for x in jax.tree.leaves(ac)) and ac.width == 64
+    assert float(ac.discount) == 1.0 and float(ac.max_grad_norm) == 5.0
 
 
 def test_a_plain_mdp_or_a_table_of_the_wrong_shape_is_rejected_with_a_hint():
