@@ -135,10 +135,16 @@ def q_network(hparams: Any, n_actions: int) -> MLP:
 def epsilon_greedy(
     key: jax.Array, q: jax.Array, action_mask: jax.Array, epsilon: jax.Array
 ) -> jax.Array:
-    """With probability ``epsilon`` a uniform valid action, else greedy in ``q`` (exact ties uniformly at random)."""
+    """With probability ``epsilon`` a uniform valid action, else greedy in ``q`` (exact ties uniformly at random).
+
+    The uniform action is the random tie-break among all valid actions (``q`` all zero). Both tie-breaks run as one
+    call vmapped over their two keys: the same numbers as two calls, in one random-bits computation (on CPU each is a
+    loop of its own, and the acting step pays a few of them per interaction step).
+    """
     k_explore, k_uniform, k_greedy = jax.random.split(key, 3)
-    uniform = greedy_action(k_uniform, jnp.zeros_like(q), action_mask)  # every valid action tied
-    greedy = greedy_action(k_greedy, q, action_mask)
+    uniform, greedy = jax.vmap(greedy_action, in_axes=(0, 0, None))(
+        jnp.stack([k_uniform, k_greedy]), jnp.stack([jnp.zeros_like(q), q]), action_mask
+    )
     return jnp.where(jax.random.uniform(k_explore) < epsilon, uniform, greedy)
 
 
