@@ -118,6 +118,12 @@ def probe_run_fixture(names: tuple[str, ...]):
 
     @pytest.fixture(scope="module", params=names)
     def probe_run(request):
+        # This grid run once deadlocked jaxlib 0.10.2's CPU runtime under pytest-xdist (caught on the first of
+        # repeated `pytest -n 2` runs of the two actor-critic files: both intra-op workers in
+        # jax::QrFactorization -> jax::ParallelBatchMap -> BlockingCounter::Wait, the LSTM's orthogonal kernel
+        # initialisations batched over the grid). The recurrent agent now initialises them one matrix at a time
+        # (agents.deep.networks.orthogonal; its regression test is in test_actor_critic_rnn.py), and RUNS_AFTER_FIX
+        # repeated runs of the two files with -n 2 passed without a hang.
         agent = agents.get(request.param)
         runner = grid_runner(agent, N_STEPS[agent.episodic])
         return agent, runner, run_probe(runner, agent, "bandit")
