@@ -122,8 +122,8 @@ def probe_run_fixture(names: tuple[str, ...]):
         # repeated `pytest -n 2` runs of the two actor-critic files: both intra-op workers in
         # jax::QrFactorization -> jax::ParallelBatchMap -> BlockingCounter::Wait, the LSTM's orthogonal kernel
         # initialisations batched over the grid). The recurrent agent now initialises them one matrix at a time
-        # (agents.deep.networks.orthogonal; its regression test is in test_actor_critic_rnn.py), and RUNS_AFTER_FIX
-        # repeated runs of the two files with -n 2 passed without a hang.
+        # (agents.deep.networks.orthogonal; its regression test is in test_actor_critic_rnn.py), and 9
+        # repeated runs of the two files with -n 2 on the shared 2-core machine (load 5 to 20) passed without a hang.
         agent = agents.get(request.param)
         runner = grid_runner(agent, N_STEPS[agent.episodic])
         return agent, runner, run_probe(runner, agent, "bandit")
