@@ -1,5 +1,5 @@
-"""The multilayer perceptrons shared by the deep agents (bsuite's baselines: ReLU hidden layers; docs/agents.md §7), and
-an orthogonal initialiser that is safe to ``vmap`` on jaxlib 0.10.2's CPU backend."""
+"""The multilayer perceptrons shared by the deep agents (bsuite's baselines: ReLU hidden layers; docs/agents.md §7),
+and an orthogonal initialiser that is safe to ``vmap`` on jaxlib 0.10.2's CPU backend."""
 
 from __future__ import annotations
 
