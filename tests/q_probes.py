@@ -16,14 +16,16 @@ backward induction / value iteration in numpy (independent of jaxmdp); by hand:
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+import agents
 import jaxmdp
-from tests.agent_loop import make_runner
+from tests.agent_loop import RunResult, make_runner, seeds
 
 PROBES = ("constant", "arms", "discounting")
 CHAIN = np.zeros((2, 2, 2))
@@ -75,3 +77,27 @@ def grid_runner(agent: Any, n_steps: int, trace: bool = False):
     """``run(keys[B], mdp, hparams[E], table) -> RunResult`` with ``[E, B]`` leading axes: the test loop vmapped over
     a hyperparameter grid."""
     return jax.jit(jax.vmap(make_runner(agent, n_steps, trace=trace), (None, None, 0, None)))
+
+
+@functools.cache
+def _cached_runner(name: str, n_steps: int):
+    return grid_runner(agents.get(name), n_steps, trace=True)
+
+
+def run_epsilon_grid(
+    name: str, probe: str, n_steps: int, epsilons: tuple[float, ...], base: int = 0, n_seeds: int = 4, **hparams: Any
+) -> RunResult:
+    """The agent ``name`` on ``probe`` for ``n_steps`` steps: its default hyperparameters with ``hparams``, the probe's
+    discount and one member set per epsilon of ``epsilons``, each with the same ``n_seeds`` keys (``[E, B]`` leading
+    axes, actions and rewards traced; one compiled runner per agent and ``n_steps``)."""
+    agent = agents.get(name)
+    hp = agent.default_hparams.replace(**hparams, discount=discount(probe, agent.episodic))
+    grid = stack(*(hp.replace(epsilon=e) for e in epsilons))
+    run = _cached_runner(name, n_steps)
+    return run(seeds(n_seeds, base), probe_mdp(probe, agent.episodic), grid, table(agent.episodic))
+
+
+def reachable_q(q: np.ndarray, episodic: bool) -> np.ndarray:
+    """``[..., S, A]`` values of the reachable observations (the rows that :func:`true_q` gives) from a Q-table
+    ``[..., H, S, A]`` (episodic: ``(h=0, s0)`` and ``(h=1, s1)``) or ``[..., S, A]``."""
+    return np.stack([q[..., 0, 0, :], q[..., 1, 1, :]], axis=-2) if episodic else q

@@ -5,6 +5,8 @@ pieces are tested in test_actor_critic.py)."""
 
 from __future__ import annotations
 
+import re
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -15,6 +17,8 @@ import actor_critic_probes as probes
 import agents
 from agents.deep import actor_critic_rnn as acr
 from agents.deep import policy_gradient as pg
+from agents.deep.common import cast_hparams, make_optimizer
+from agents.deep.networks import orthogonal
 
 RNN_NAMES = ("actor_critic_rnn_episodic", "actor_critic_rnn_continuous")
 
@@ -101,9 +105,9 @@ def test_gradients_flow_through_the_unrolled_sequence(scripted):
 
 
 def test_gradient_is_clipped_to_the_global_norm_before_adam():
-    hp = pg.float_hparams(acr.ActorCriticRNNHParams(max_grad_norm=0.5))
+    hp = cast_hparams(acr.ActorCriticRNNHParams(max_grad_norm=0.5))
     grads = {"a": jnp.asarray([3.0, 4.0]), "b": jnp.asarray([[12.0]])}  # global norm 13
-    opt = pg.make_optimizer(hp)
+    opt = make_optimizer(hp)
     _, opt_state = opt.update(grads, opt.init(grads))
     adam = [s for s in jax.tree.leaves(opt_state, is_leaf=lambda x: isinstance(x, optax.ScaleByAdamState))
             if isinstance(s, optax.ScaleByAdamState)][0]
@@ -124,6 +128,34 @@ def test_policy_estimate_uses_a_fresh_lstm_state(scripted):
     np.testing.assert_array_equal(agent.policy(state), want)
     lead = (probes.STREAM_HORIZON, probes.S) if agent.episodic else (probes.S,)
     assert agent.policy(state).shape == (*lead, probes.PADDED_A)
+
+
+@pytest.mark.parametrize("shape", [(8, 8), (5, 3), (3, 5), (2, 3, 4)])
+def test_orthogonal_initialiser_is_jax_s_draw_for_draw(shape):
+    """The recurrent kernels' initialiser is flax's default (``jax.nn.initializers.orthogonal``) bit for bit, alone
+    and under vmap, and its matrices are orthonormal."""
+    keys = jax.random.split(jax.random.key(3), 6)
+    ours, ref = orthogonal(), jax.nn.initializers.orthogonal()
+    one = jax.jit(lambda k: ours(k, shape, jnp.float32))(keys[0])
+    np.testing.assert_array_equal(one, jax.jit(lambda k: ref(k, shape, jnp.float32))(keys[0]))
+    batch = jax.jit(jax.vmap(lambda k: ours(k, shape, jnp.float32)))(keys)
+    np.testing.assert_array_equal(batch, jax.jit(jax.vmap(lambda k: ref(k, shape, jnp.float32)))(keys))
+    m = np.asarray(one, np.float64).reshape(-1, shape[-1])
+    gram = m.T @ m if m.shape[0] >= m.shape[1] else m @ m.T
+    np.testing.assert_allclose(gram, np.eye(min(m.shape)), atol=1e-6)
+
+
+def test_init_of_a_grid_hands_lapack_one_matrix_per_call():
+    """Initialising members under vmap (every grid) must not run a batched LAPACK QR: jaxlib 0.10.2 splits a batch
+    over its CPU thread pool and the LSTM's four concurrent QRs deadlocked the learning probes (both pool workers in
+    jax::QrFactorization -> jax::ParallelBatchMap -> BlockingCounter::Wait). One matrix per call runs inline."""
+    agent = agents.get("actor_critic_rnn_continuous")
+    spec, hp = probes.spec(False), _small(agent)
+    init = jax.vmap(lambda k: agent.init(k, spec, hp).params)
+    text = jax.jit(init).lower(jax.random.split(jax.random.key(0), 4)).as_text()
+    operands = re.findall(r"stablehlo.custom_call @(lapack_\w+)\(%[^)]*\).*?: \((tensor<[^>]*>)", text)
+    assert {t for t, _ in operands} == {"lapack_sgeqrf_ffi", "lapack_sorgqr_ffi"}
+    assert {x for _, x in operands} == {"tensor<8x8xf32>"}
 
 
 @pytest.mark.parametrize("value", [0.0, -1.0, float("inf")])

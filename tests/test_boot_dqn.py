@@ -16,7 +16,6 @@ import agents
 from agents.deep import boot_dqn
 from jaxmdp import dynamic_programming as dp
 from tests import q_probes
-from tests.agent_loop import seeds
 from tests.test_dqn import make_spec, np_q, transition
 
 SMALL = boot_dqn.BootDQNHParams(network_width=3, network_depth=1, batch_size=4, replay_capacity=512, n_ensemble=3)
@@ -226,17 +225,8 @@ N_STEPS = 4000
 LEARN = dict(network_width=16, batch_size=16, n_ensemble=4, learning_rate=1e-3)
 
 
-@functools.cache
-def runner(name: str):
-    return q_probes.grid_runner(agents.get(name), N_STEPS)
-
-
 def run_probe(name: str, probe: str):
-    agent = agents.get(name)
-    hp = agent.default_hparams.replace(**LEARN, discount=q_probes.discount(probe, agent.episodic))
-    grid = q_probes.stack(hp.replace(epsilon=0.05), hp.replace(epsilon=0.2))
-    mdp, table = q_probes.probe_mdp(probe, agent.episodic), q_probes.table(agent.episodic)
-    return runner(name)(seeds(4), mdp, grid, table)
+    return q_probes.run_epsilon_grid(name, probe, N_STEPS, (0.05, 0.2), **LEARN)
 
 
 learned = functools.cache(run_probe)
@@ -250,7 +240,7 @@ def test_every_head_learns_the_probe_values(name, probe):
     episodic = agents.get(name).episodic
     state = learned(name, probe).state
     q = np.asarray(jax.vmap(jax.vmap(lambda s: jax.vmap(lambda k: boot_dqn.q_table(s, k))(jnp.arange(4))))(state))
-    q = np.stack([q[..., 0, 0, :], q[..., 1, 1, :]], axis=-2) if episodic else q
+    q = q_probes.reachable_q(q, episodic)
     want = q_probes.true_q(probe, episodic)
     np.testing.assert_allclose(q.max(-1), np.broadcast_to(want.max(-1), q.shape[:-1]), atol=0.05)
     np.testing.assert_allclose(q, np.broadcast_to(want, q.shape), atol=0.15)

@@ -1,15 +1,19 @@
-"""jaxmdp.jaxlib_workarounds.linalg.solve: jnp.linalg.solve's numbers under any vmap, and no deadlock of jaxlib 0.10.2's
-CPU pool.
+"""jaxmdp.jaxlib_workarounds.linalg.solve and .qr: jnp.linalg's numbers under any vmap, and no deadlock of jaxlib
+0.10.2's CPU pool.
 
 The deadlock check runs in a subprocess with ``NPROC=2`` (XLA's intra-op pool of two threads, whatever the machine)
 and a program with eight independent batched solves in a loop. With ``vmap(jnp.linalg.solve)`` in place of
 :func:`jaxmdp.jaxlib_workarounds.linalg.solve`, this program and two like it hung in each of 9 tries (1 and 2 host
-devices, jaxlib 0.10.2), so the subprocess's timeout is the regression test.
+devices, jaxlib 0.10.2), so the subprocess's timeout is the regression test. The QR's deadlock is rarer (a program
+with eight independent ``vmap(jnp.linalg.qr)`` of 16 matrices 64 x 64 in a loop of 100 steps hung on its first try,
+another of 30 steps did not in 4), so its regression test is structural: under ``vmap`` every LAPACK call of
+:func:`qr` gets one matrix, which jaxlib runs on the calling thread.
 """
 
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 import textwrap
@@ -20,7 +24,7 @@ import numpy as np
 import pytest
 
 from conftest import REPO
-from jaxmdp.jaxlib_workarounds.linalg import solve
+from jaxmdp.jaxlib_workarounds.linalg import qr, solve
 
 
 def _systems(key, shape, S):
@@ -88,3 +92,46 @@ def test_many_concurrent_batched_solves_do_not_deadlock_the_cpu_pool():
                     "one system at a time)")
     assert done.returncode == 0, done.stderr[-2000:]
     assert "finite True" in done.stdout
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# qr
+# ---------------------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("shape", [(6, 4), (4, 6), (5, 5)])
+def test_qr_is_jnp_qr_and_decomposes_the_matrix(shape):
+    a = jax.random.normal(jax.random.key(3), shape)
+    q, r = jax.jit(qr)(a)
+    q_ref, r_ref = jax.jit(jnp.linalg.qr)(a)
+    np.testing.assert_array_equal(np.asarray(q), np.asarray(q_ref))
+    np.testing.assert_array_equal(np.asarray(r), np.asarray(r_ref))
+    k = min(shape)
+    q64, r64 = np.asarray(q, np.float64), np.asarray(r, np.float64)
+    assert q.shape == (shape[0], k) and r.shape == (k, shape[1])
+    np.testing.assert_allclose(q64.T @ q64, np.eye(k), atol=1e-6)
+    np.testing.assert_allclose(q64 @ r64, np.asarray(a), atol=1e-5)
+    np.testing.assert_array_equal(np.tril(r64, -1), 0.0)
+
+
+def test_qr_under_nested_vmap_equals_batched_lapack_bitwise():
+    a = jax.random.normal(jax.random.key(4), (3, 5, 7, 4))
+    ours = jax.jit(jax.vmap(jax.vmap(qr)))(a)
+    lapack = jax.jit(jax.vmap(jax.vmap(jnp.linalg.qr)))(a)
+    for x, y in zip(ours, lapack, strict=True):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+
+
+def _lapack_operands(fn, *args) -> list[tuple[str, str]]:
+    """``(target, operand type)`` of every LAPACK custom call in the lowered program."""
+    text = jax.jit(fn).lower(*args).as_text()
+    return re.findall(r"stablehlo.custom_call @(lapack_\w+)\(%[^)]*\).*?: \((tensor<[^>]*>)", text)
+
+
+def test_qr_under_vmap_hands_lapack_one_matrix_per_call():
+    a = jnp.zeros((3, 5, 6, 4))
+    ours = _lapack_operands(jax.vmap(jax.vmap(qr)), a)
+    assert {t for t, _ in ours} == {"lapack_sgeqrf_ffi", "lapack_sorgqr_ffi"}
+    assert {x for _, x in ours} == {"tensor<6x4xf32>"}
+    # The check can fail: the batched decomposition hands LAPACK all 15 matrices at once.
+    assert {x for _, x in _lapack_operands(jax.vmap(jax.vmap(jnp.linalg.qr)), a)} == {"tensor<3x5x6x4xf32>"}

@@ -34,7 +34,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from agents.deep import policy_gradient as pg
-from agents.deep.common import observation_shape, observation_table
+from agents.deep.common import cast_hparams, make_optimizer, observation_shape, observation_table
 from agents.deep.networks import MLP
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
 
@@ -107,10 +107,10 @@ def initial_state(
     obs_shape = observation_shape(table, episodic)
     params = init_params(key, jnp.zeros(obs_shape, table.dtype))
     length = pg.buffer_length(hparams.max_sequence_length, spec, episodic)
-    hparams = pg.float_hparams(hparams)
+    hparams = cast_hparams(hparams)
     return cls(
         params=params,
-        opt_state=pg.make_optimizer(hparams).init(params),
+        opt_state=make_optimizer(hparams).init(params),
         buffer=pg.empty_trajectory(length, obs_shape, table.dtype),
         observations=table,
         action_mask=spec.action_mask,

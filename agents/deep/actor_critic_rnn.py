@@ -2,8 +2,9 @@
 learning rule of :mod:`agents.deep.policy_gradient` with an LSTM, Hochreiter & Schmidhuber 1997).
 
 Network, per step: observation -> flatten -> MLP ``[width] * depth`` (ReLU, final layer activated) = ``e`` ->
-LSTM(``width``) with output ``y`` -> skip connection ``e + ReLU(y)`` -> linear policy logits (padded actions at
-``-inf``) and linear value. Actions are sampled from ``softmax(logits)``.
+LSTM(``width``; recurrent kernels orthogonal at init, :func:`agents.deep.networks.orthogonal`) with output ``y`` ->
+skip connection ``e + ReLU(y)`` -> linear policy logits (padded actions at ``-inf``) and linear value. Actions are
+sampled from ``softmax(logits)``.
 
 Recurrent state: the acting LSTM state ``carry`` lives in the agent state. ``act`` cannot change the state (the
 protocol), so ``update`` advances ``carry`` through the step's observation with the same parameters ``act`` used
@@ -43,7 +44,7 @@ from agents.deep.actor_critic import (
     make_agent,
     table_rows,
 )
-from agents.deep.networks import MLP
+from agents.deep.networks import MLP, orthogonal
 from jaxmdp.experiment.agent_interface import MDPSpec, Transition
 
 __all__ = [
@@ -77,7 +78,8 @@ class PolicyValueRNN(nn.Module):
     @nn.compact
     def __call__(self, carry: LSTMCarry, obs: jax.Array) -> tuple[LSTMCarry, tuple[jax.Array, jax.Array]]:
         embedding = MLP([self.width] * self.depth, n_outputs=None, activate_final=True)(obs)
-        carry, y = nn.OptimizedLSTMCell(self.width)(carry, embedding)
+        # flax's default recurrent-kernel initialiser, with a QR that cannot deadlock jaxlib 0.10.2 under vmap.
+        carry, y = nn.OptimizedLSTMCell(self.width, recurrent_kernel_init=orthogonal())(carry, embedding)
         embedding = embedding + nn.relu(y)
         return carry, (nn.Dense(self.n_actions)(embedding), nn.Dense(1)(embedding)[0])
 

@@ -54,7 +54,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from agents.deep import replay
-from agents.deep.common import adam, cast_hparams, observation_shape, observation_table, on_table
+from agents.deep.common import cast_hparams, make_optimizer, observation_shape, observation_table, on_table
 from agents.deep.dqn import (
     QHParams,
     QState,
@@ -151,19 +151,21 @@ def init(key: jax.Array, spec: MDPSpec, hparams: BootDQNHParams) -> BootDQNState
     prior = jax.vmap(lambda k: net.init(k, obs))(jax.random.split(k_prior, K))
     item = empty_item(table, episodic)
     item = BootReplayItem(**vars(item), mask=jnp.zeros((K,)), noise=jnp.zeros((K,)))
+    buffer = replay.make(hparams.replay_capacity, hparams.batch_size)
+    hparams = cast_hparams(hparams)
     return BootDQNState(
         params=params,
         prior_params=prior,
         target_params=params,
-        opt_state=adam.init(params),
-        replay=replay.make(hparams.replay_capacity, hparams.batch_size).init(item),
+        opt_state=make_optimizer(hparams).init(params),
+        replay=buffer.init(item),
         steps=jnp.zeros((), jnp.int32),
         sgd_steps=jnp.zeros((), jnp.int32),
         active_head=jax.random.randint(k_head, (), 0, K),
         key_data=jax.random.key_data(k_draws),
         observations=table,
         action_mask=spec.action_mask,
-        hparams=cast_hparams(hparams),
+        hparams=hparams,
         n_actions=spec.n_actions,
         episodic=episodic,
     )

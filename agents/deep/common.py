@@ -1,8 +1,10 @@
-"""Pieces shared by the deep agents: the emission table from the spec, hyperparameter casting and checks, Adam with a
-traced learning rate, and evaluation of a network on every row of the emission table (paper §3.1, App. A.2)."""
+"""Pieces shared by the deep agents: the emission table from the spec, hyperparameter casting and checks, the Adam
+optimiser (optax) with traced hyperparameters, and evaluation of a network on every row of the emission table (paper
+§3.1, App. A.2)."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from typing import Any
 
@@ -14,7 +16,15 @@ import optax
 from jaxmdp._checks import check_range
 from jaxmdp.experiment.agent_interface import MDPSpec
 
-__all__ = ["observation_table", "observation_shape", "cast_hparams", "check_whole", "adam", "adam_step", "on_table"]
+__all__ = [
+    "observation_table",
+    "observation_shape",
+    "cast_hparams",
+    "check_whole",
+    "make_optimizer",
+    "optimizer_step",
+    "on_table",
+]
 
 
 def observation_table(spec: MDPSpec, agent_name: str, episodic: bool | None = None) -> jax.Array:
@@ -48,14 +58,23 @@ def observation_shape(table: jax.Array, episodic: bool) -> tuple[int, ...]:
     return tuple(table.shape[2 if episodic else 1 :])
 
 
-def cast_hparams(hparams: Any) -> Any:
-    """Numeric leaves as ``int32`` (integer-valued fields such as periods) or ``float32`` arrays."""
+def cast_hparams(hparams: Any, dtype: Any = jnp.float32) -> Any:
+    """The hyperparameters with every numeric leaf an array: ``int32`` for the fields whose class default is an
+    integer (periods and counts such as ``sgd_period``), ``dtype`` (the agent's float type) for every other one.
 
-    def cast(x):
-        x = jnp.asarray(x)
-        return x.astype(jnp.int32 if jnp.issubdtype(x.dtype, jnp.integer) else jnp.float32)
-
-    return jax.tree.map(cast, hparams)
+    The field decides, not the value: ``discount=1`` given as a Python int becomes ``1.0`` of ``dtype`` and
+    ``sgd_period=2.0`` becomes ``2`` (``check_hparams`` rejects a non-whole one). Static fields (sizes such as
+    ``width``) are not leaves and stay as given. ``hparams`` is a ``flax.struct`` dataclass (a grid: leaves with a
+    leading axis).
+    """
+    updates = {}
+    for field in dataclasses.fields(hparams):
+        if not field.metadata.get("pytree_node", True):
+            continue
+        default = field.default
+        integer = isinstance(default, int) and not isinstance(default, bool)
+        updates[field.name] = jnp.asarray(getattr(hparams, field.name)).astype(jnp.int32 if integer else dtype)
+    return hparams.replace(**updates)
 
 
 def check_whole(name: str, value: Any, low: int, high: float = np.inf) -> None:
@@ -67,15 +86,21 @@ def check_whole(name: str, value: Any, low: int, high: float = np.inf) -> None:
         raise ValueError(f"{name} must be a whole number; got {x.reshape(-1)[np.argmax(x != np.round(x))]}")
 
 
-#: Adam's moment estimates (Kingma & Ba 2015) with optax's defaults (beta_1 0.9, beta_2 0.999, eps 1e-8); the step
-#: size is applied by :func:`adam_step` so that the learning rate can be a traced hyperparameter.
-adam = optax.scale_by_adam()
+def make_optimizer(hparams: Any) -> optax.GradientTransformation:
+    """Adam (Kingma & Ba 2015) at ``hparams.learning_rate`` with optax's defaults otherwise (beta_1 0.9, beta_2 0.999,
+    eps 1e-8; bsuite's), after a clip of the gradient to global norm ``max_grad_norm`` when the hyperparameters have
+    that field. Built inside the traced functions, so the numeric hyperparameters may be traced (a vmapped grid)."""
+    adam = optax.adam(hparams.learning_rate)
+    if hasattr(hparams, "max_grad_norm"):
+        return optax.chain(optax.clip_by_global_norm(hparams.max_grad_norm), adam)
+    return adam
 
 
-def adam_step(params: Any, grads: Any, opt_state: Any, learning_rate: jax.Array) -> tuple[Any, Any]:
-    """One Adam step ``params - learning_rate * m_hat / (sqrt(v_hat) + eps)``; returns ``(params, opt_state)``."""
-    direction, opt_state = adam.update(grads, opt_state, params)
-    return jax.tree.map(lambda p, d: p - learning_rate * d, params, direction), opt_state
+def optimizer_step(params: Any, grads: Any, opt_state: Any, hparams: Any) -> tuple[Any, Any]:
+    """One step of :func:`make_optimizer`: ``params - learning_rate * m_hat / (sqrt(v_hat) + eps)`` on the (clipped)
+    gradient; returns ``(params, opt_state)``."""
+    updates, opt_state = make_optimizer(hparams).update(grads, opt_state, params)
+    return optax.apply_updates(params, updates), opt_state
 
 
 def on_table(fn: Callable[[jax.Array], jax.Array], table: jax.Array, episodic: bool) -> jax.Array:

@@ -48,13 +48,13 @@ from flax import struct
 from agents.tabular_common import greedy_action
 from agents.deep import replay
 from agents.deep.common import (
-    adam,
-    adam_step,
     cast_hparams,
     check_whole,
+    make_optimizer,
     observation_shape,
     observation_table,
     on_table,
+    optimizer_step,
 )
 from agents.deep.networks import MLP
 from jaxmdp._checks import check_int, check_range
@@ -135,10 +135,16 @@ def q_network(hparams: Any, n_actions: int) -> MLP:
 def epsilon_greedy(
     key: jax.Array, q: jax.Array, action_mask: jax.Array, epsilon: jax.Array
 ) -> jax.Array:
-    """With probability ``epsilon`` a uniform valid action, else greedy in ``q`` (exact ties uniformly at random)."""
+    """With probability ``epsilon`` a uniform valid action, else greedy in ``q`` (exact ties uniformly at random).
+
+    The uniform action is the random tie-break among all valid actions (``q`` all zero). Both tie-breaks run as one
+    call vmapped over their two keys: the same numbers as two calls, in one random-bits computation (on CPU each is a
+    loop of its own, and the acting step pays a few of them per interaction step).
+    """
     k_explore, k_uniform, k_greedy = jax.random.split(key, 3)
-    uniform = greedy_action(k_uniform, jnp.zeros_like(q), action_mask)  # every valid action tied
-    greedy = greedy_action(k_greedy, q, action_mask)
+    uniform, greedy = jax.vmap(greedy_action, in_axes=(0, 0, None))(
+        jnp.stack([k_uniform, k_greedy]), jnp.stack([jnp.zeros_like(q), q]), action_mask
+    )
     return jnp.where(jax.random.uniform(k_explore) < epsilon, uniform, greedy)
 
 
@@ -206,16 +212,17 @@ def init(key: jax.Array, spec: MDPSpec, hparams: DQNHParams) -> DQNState:
     net = q_network(hparams, spec.n_actions)
     params = net.init(key, jnp.zeros(observation_shape(table, episodic), table.dtype))
     buffer = replay.make(hparams.replay_capacity, hparams.batch_size)
+    hparams = cast_hparams(hparams)
     return DQNState(
         params=params,
         target_params=params,
-        opt_state=adam.init(params),
+        opt_state=make_optimizer(hparams).init(params),
         replay=buffer.init(empty_item(table, episodic)),
         steps=jnp.zeros((), jnp.int32),
         sgd_steps=jnp.zeros((), jnp.int32),
         observations=table,
         action_mask=spec.action_mask,
-        hparams=cast_hparams(hparams),
+        hparams=hparams,
         n_actions=spec.n_actions,
         episodic=episodic,
     )
@@ -270,7 +277,7 @@ def make_sgd_step(loss_fn: Callable[[Any, Any, Any, Any], jax.Array]) -> Callabl
         hp = state.hparams
         batch = replay.make(hp.replay_capacity, hp.batch_size).sample(state.replay, key).experience
         grads = jax.grad(loss_fn)(state.params, state.target_params, batch, state)
-        params, opt_state = adam_step(state.params, grads, state.opt_state, hp.learning_rate)
+        params, opt_state = optimizer_step(state.params, grads, state.opt_state, hp)
         sgd_steps = state.sgd_steps + 1
         copy = sgd_steps % hp.target_update_period == 0
         target = jax.tree.map(lambda p, t: jnp.where(copy, p, t), params, state.target_params)

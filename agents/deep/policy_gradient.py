@@ -25,10 +25,9 @@ from typing import Any
 import distrax
 import jax
 import jax.numpy as jnp
-import numpy as np
-import optax
 from flax import struct
 
+from agents.deep.common import optimizer_step
 from jaxmdp._checks import check_int, check_range
 from jaxmdp.experiment.agent_interface import MDPSpec, Transition
 
@@ -43,8 +42,6 @@ __all__ = [
     "sample_action",
     "argmax_policy",
     "check_common_hparams",
-    "make_optimizer",
-    "float_hparams",
     "restart",
     "learn",
 ]
@@ -206,21 +203,6 @@ def check_common_hparams(hparams: Any) -> None:
         check_int(name, getattr(hparams, name))
 
 
-def make_optimizer(hparams: Any) -> optax.GradientTransformation:
-    """Adam at ``learning_rate`` (optax defaults otherwise, as bsuite), after a global-norm clip at
-    ``max_grad_norm`` when the hyperparameters have one. Built inside the traced functions, so the numeric
-    hyperparameters may be traced (a vmapped grid)."""
-    adam = optax.adam(hparams.learning_rate)
-    if hasattr(hparams, "max_grad_norm"):
-        return optax.chain(optax.clip_by_global_norm(hparams.max_grad_norm), adam)
-    return adam
-
-
-def float_hparams(hparams: Any) -> Any:
-    """The numeric leaves as float32 arrays (static sizes untouched)."""
-    return jax.tree.map(lambda x: jnp.asarray(x, jnp.float32), hparams)
-
-
 def restart(buffer: Trajectory) -> Trajectory:
     """The buffer emptied (stale entries stay, masked out by ``count = 0``)."""
     return buffer.replace(count=jnp.zeros_like(buffer.count), due=jnp.zeros_like(buffer.due))
@@ -244,6 +226,4 @@ def learn(
             logits, values, buffer, action_mask, hparams.td_lambda, hparams.discount, hparams.entropy_cost
         )[0]
 
-    grads = jax.grad(loss)(params)
-    updates, opt_state = make_optimizer(hparams).update(grads, opt_state, params)
-    return optax.apply_updates(params, updates), opt_state
+    return optimizer_step(params, jax.grad(loss)(params), opt_state, hparams)
