@@ -1,18 +1,20 @@
 """Measure a fraction of the full tabular benchmark and extrapolate its wall time (paper §3.3; issue "Performance").
 
-The full run is :func:`hardness.benchmark.run.plan` of the four settings, every tabular agent, 20 seeds, 500 000
-steps and indicators every 100 steps: one batch per (setting, agent, size bucket). This script runs, for every agent
-of each measured setting, the smallest and the largest size bucket of that plan, with fewer seeds and steps, through
-the benchmark's own batches (one ``run_benchmark`` call per bucket, ``n_buckets=1`` on exactly that bucket's MDPs),
-and records each batch's compile and run seconds (its ``batches.csv``) and the process CPU seconds it used.
+The full run is :func:`hardness.benchmark.run.plan` of the four settings, every tabular agent, 20 seeds, 500 000 steps
+and indicators every 100 steps: one batch per (setting, agent, size bucket). This script runs, for every agent of each
+measured setting, the smallest and the largest size bucket of that plan (``--which largest``: the largest only), with
+fewer seeds and steps, through the benchmark's own batches (one ``run_benchmark`` call per bucket, ``n_buckets=1`` on
+exactly that bucket's MDPs), and records each batch's compile and run seconds (its ``batches.csv``) and the process CPU
+seconds it used.
 
 Extrapolation, for every batch of the full plan: run seconds = (measured run seconds per member-step, interpolated
-linearly in the bucket's largest state count between the two measured buckets of the same agent and setting type,
-clipped at them) x members x steps; compile seconds = the mean of the two measured compiles (compiling does not depend
-on the member count or the steps). An unmeasured setting uses the measured one of its type (episodic, continuous).
+linearly in the bucket's largest state count between the measured buckets of the same agent and setting type, clipped
+at them; one measured bucket: its rate) x members x steps; compile seconds = the mean of the measured compiles
+(compiling does not depend on the member count or the steps). An unmeasured setting uses the measured one of its type
+(episodic, continuous).
 
     python scripts/benchmark_wall_time.py --out results/wall_time
-    python scripts/benchmark_wall_time.py --out results/wall_time --agents psrl_continuous --seeds 1 --steps 200
+    python scripts/benchmark_wall_time.py --out results/wall_time --which largest --seeds 2 --steps 500
 """
 
 from __future__ import annotations
@@ -47,6 +49,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--agents", nargs="+", default=None, help="agents to measure (default: each setting's tabular)")
     p.add_argument("--seeds", type=int, default=2, help="seeds per measured batch (%(default)s)")
     p.add_argument("--steps", type=int, default=1000, help="steps per measured batch (%(default)s)")
+    p.add_argument("--which", choices=["ends", "largest"], default="ends",
+                   help="buckets measured per agent: the smallest and the largest (default), or only the largest, "
+                        "whose cost per member-step then stands for every bucket (an upper bound: the cost grows "
+                        "with the states)")
     p.add_argument("--out", type=Path, required=True, help="folder for the measured runs and wall_time.json")
     return p
 
@@ -108,7 +114,7 @@ def main(argv: list[str] | None = None) -> dict:
             if agent not in run.default_agents(set_name):
                 continue
             ours = [b for b in batches if b.set_name == set_name and b.agent == agent]
-            for b in (ours[0], ours[-1]):
+            for b in (ours[0], ours[-1]) if args.which == "ends" else (ours[-1],):
                 if any(m["set"] == set_name and m["agent"] == agent and m["bucket"] == b.id for m in measured):
                     continue
                 labels = sorted({m for m, _ in b.members})
