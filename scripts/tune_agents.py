@@ -8,11 +8,11 @@ candidate. Pass smaller numbers for a reduced run (the file records the budget a
     python scripts/tune_agents.py                                             # every tabular agent, full budget
     python scripts/tune_agents.py --agents ucrl2 --steps 20000 --candidates 8 --mdps-per-family 1 --seeds 1
 
-The file is rewritten after every agent, and every size bucket of a search keeps a CSV and a checkpoint in ``--work-
-dir`` (default ``results/tuning``, a folder per agent and budget), so a killed run started again with the same
-arguments resumes: agents whose entry in ``--out`` already has this budget are skipped (``--redo`` reruns them) and an
-unfinished search continues from its last checkpoint. Each entry records the search's wall time (``wall_s``, building
-the MDPs, compiling and running).
+The file is rewritten after every agent, and every size bucket of a search keeps a CSV and a checkpoint in
+``--work-dir`` (default ``results/tuning``, a folder per agent and budget), so a killed run started again with the
+same arguments resumes: agents whose entry in ``--out`` already has this budget are skipped (``--redo`` reruns them)
+and an unfinished search continues from its last checkpoint. Each entry records the search's wall time (``wall_s``,
+building the MDPs, compiling and running).
 """
 
 from __future__ import annotations
