@@ -12,6 +12,7 @@ from flax import struct
 import jaxmdp
 from hardness.benchmark import hparams, search
 from jaxmdp.agent_interface import Agent
+from script_loader import load_script
 
 
 def test_reference_candidates_use_seeds_sigma_plus_i_and_four_decimals():
@@ -124,21 +125,10 @@ def test_search_pipeline_with_a_fake_runner_and_the_tuned_file(tmp_path):
     assert hparams.hparams_for("random_episodic", path) == hparams.hparams_for("random_episodic", "reference")
 
 
-def _tune_agents_module():
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[1] / "scripts" / "tune_agents.py"
-    spec = importlib.util.spec_from_file_location("tune_agents", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def test_tune_agents_records_wall_time_skips_agents_done_with_the_same_budget_and_reruns_others(
     tmp_path, monkeypatch
 ):
-    tune = _tune_agents_module()
+    tune = load_script("tune_agents")
     calls = []
 
     def fake_search(name, budget, *, n_buckets, progress, work_dir, run=None):

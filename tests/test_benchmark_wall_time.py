@@ -1,21 +1,11 @@
 """The wall-time extrapolation of scripts/benchmark_wall_time.py, on hand-worked numbers."""
 
-import importlib.util
-from pathlib import Path
-
 import pytest
-
-
-def _module():
-    path = Path(__file__).resolve().parents[1] / "scripts" / "benchmark_wall_time.py"
-    spec = importlib.util.spec_from_file_location("benchmark_wall_time", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+from script_loader import load_script
 
 
 def test_extrapolation_interpolates_the_rate_in_states_and_scales_by_members_and_steps():
-    wt = _module()
+    wt = load_script("benchmark_wall_time")
     measured = [  # 1e-6 and 3e-6 run seconds per member-step at 100 and 300 states
         dict(set="episodic ergodic", agent="a", members=10, steps=1000, max_states=100, run_s=0.01, compile_s=10.0),
         dict(set="episodic ergodic", agent="a", members=20, steps=500, max_states=300, run_s=0.03, compile_s=30.0),
