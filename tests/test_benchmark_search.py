@@ -12,6 +12,7 @@ from flax import struct
 import jaxmdp
 from hardness.benchmark import hparams, search
 from jaxmdp.agent_interface import Agent
+from script_loader import load_script
 
 
 def test_reference_candidates_use_seeds_sigma_plus_i_and_four_decimals():
@@ -122,3 +123,30 @@ def test_search_pipeline_with_a_fake_runner_and_the_tuned_file(tmp_path):
     with pytest.raises(ValueError, match="no values for 'psrl_episodic'"):
         hparams.hparams_for("psrl_episodic", path)
     assert hparams.hparams_for("random_episodic", path) == hparams.hparams_for("random_episodic", "reference")
+
+
+def test_tune_agents_records_wall_time_skips_agents_done_with_the_same_budget_and_reruns_others(
+    tmp_path, monkeypatch
+):
+    tune = load_script("tune_agents")
+    calls = []
+
+    def fake_search(name, budget, *, n_buckets, progress, work_dir, run=None):
+        calls.append((name, budget.n_steps, work_dir))
+        values = [{"c_1": 0.2, "c_2": 0.3, "min_at": 0.1}, {"c_1": 0.9, "c_2": 0.3, "min_at": 0.1}]
+        return search.SearchResult(name, ["sample_0", "reference"], values, np.array([[2.0, 4.0], [1.0, 1.0]]),
+                                   [("RiverSwim/sample_0", 0), ("RiverSwim/sample_0", 1)], [], 1.0, 0.5)
+
+    monkeypatch.setattr(tune.search, "search", fake_search)
+    out = tmp_path / "tuned.json"
+    argv = ["--agents", "q_learning_episodic", "--steps", "100", "--candidates", "1", "--seeds", "2",
+            "--out", str(out), "--work-dir", str(tmp_path / "work")]
+    entries = tune.main(argv)
+    entry = entries["q_learning_episodic"]
+    assert entry["winner"] == "reference" and entry["objective"] == 1.0 and entry["wall_s"] >= 0
+    assert calls[0][2].parent == tmp_path / "work" / "q_learning_episodic"  # one folder per agent and budget
+    assert tune.main(argv) == {} and len(calls) == 1  # same budget: skipped
+    assert tune.main([*argv, "--redo"]) and len(calls) == 2
+    tune.main([*argv[:3], "200", *argv[4:]])  # another budget: searched again, in its own folder
+    assert calls[2][1] == 200 and calls[2][2] != calls[0][2]
+    assert json.loads(out.read_text())["agents"]["q_learning_episodic"]["budget"]["n_steps"] == 200

@@ -25,6 +25,7 @@ import datetime
 import json
 import os
 import subprocess
+import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -135,9 +136,13 @@ def evaluate(
     C, N = len(candidates), len(mdps)
     scores = np.full((C, N), np.nan)
     run_s = compile_s = 0.0
-    for b, group in enumerate(jaxmdp.size_buckets(mdps, n_buckets)):
+    buckets = jaxmdp.size_buckets(mdps, n_buckets)
+    for b, group in enumerate(buckets):
         members = [(c, j) for c in range(C) for j in range(len(group))]
         bucket = [mdps[g] for g in group]
+        if progress:
+            print(f" bucket {b + 1}/{len(buckets)}: {len(members)} members, up to "
+                  f"{max(m.n_states for m in bucket)} states", file=sys.stderr, flush=True)
         fitted = hp_sources.fit_static_sizes(agent.name, candidates, bucket)
         hparams = runner.stack_hparams([fitted[c] for c, _ in members])
         member_seeds = [seeds[group[j]] for _, j in members]

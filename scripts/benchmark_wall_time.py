@@ -1,0 +1,140 @@
+"""Measure a fraction of the full tabular benchmark and extrapolate its wall time (paper §3.3; issue "Performance").
+
+The full run is :func:`hardness.benchmark.run.plan` of the four settings, every tabular agent, 20 seeds, 500 000 steps
+and indicators every 100 steps: one batch per (setting, agent, size bucket). This script runs, for every agent of each
+measured setting, the smallest and the largest size bucket of that plan (``--which largest``: the largest only), with
+fewer seeds and steps, through the benchmark's own batches (one ``run_benchmark`` call per bucket, ``n_buckets=1`` on
+exactly that bucket's MDPs), and records each batch's compile and run seconds (its ``batches.csv``) and the process CPU
+seconds it used.
+
+Extrapolation, for every batch of the full plan: run seconds = (measured run seconds per member-step, interpolated
+linearly in the bucket's largest state count between the measured buckets of the same agent and setting type, clipped
+at them; one measured bucket: its rate) x members x steps; compile seconds = the mean of the measured compiles
+(compiling does not depend on the member count or the steps). An unmeasured setting uses the measured one of its type
+(episodic, continuous).
+
+    python scripts/benchmark_wall_time.py --out results/wall_time
+    python scripts/benchmark_wall_time.py --out results/wall_time --which largest --seeds 2 --steps 500
+"""
+
+from __future__ import annotations
+
+import os
+
+if __name__ == "__main__" and "xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
+    # One lockstep loop per core, as scripts/run_benchmark.py runs (set before JAX starts).
+    os.environ["XLA_FLAGS"] = (
+        os.environ.get("XLA_FLAGS", "") + f" --xla_force_host_platform_device_count={os.cpu_count() or 1}"
+    ).strip()
+
+import argparse  # noqa: E402
+import csv  # noqa: E402
+import json  # noqa: E402
+import resource  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from hardness.benchmark import run, sets  # noqa: E402
+
+FULL = dict(seeds=tuple(range(20)), n_steps=500_000, log_period=100, n_buckets=4)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--measure", nargs="+", default=["episodic ergodic", "continuous ergodic"], metavar="SET",
+                   help="settings to measure (default: the two ergodic ones)")
+    p.add_argument("--agents", nargs="+", default=None, help="agents to measure (default: each setting's tabular)")
+    p.add_argument("--seeds", type=int, default=2, help="seeds per measured batch (%(default)s)")
+    p.add_argument("--steps", type=int, default=1000, help="steps per measured batch (%(default)s)")
+    p.add_argument("--which", choices=["ends", "largest"], default="ends",
+                   help="buckets measured per agent: the smallest and the largest (default), or only the largest, "
+                        "whose cost per member-step then stands for every bucket (an upper bound: the cost grows "
+                        "with the states)")
+    p.add_argument("--out", type=Path, required=True, help="folder for the measured runs and wall_time.json")
+    return p
+
+
+def _cpu_s() -> float:
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
+
+
+def measure(set_name: str, agent: str, labels: list[str], seeds: int, steps: int, out: Path) -> dict:
+    """Run ``agent`` on the MDPs ``labels`` of ``set_name`` as one batch; its timings and the CPU seconds used."""
+    config = run.RunConfig(sets=(set_name,), agents=(agent,), seeds=tuple(range(seeds)), n_steps=steps,
+                           log_period=FULL["log_period"], hparams="reference", n_buckets=1, only=tuple(labels))
+    cpu, wall = _cpu_s(), time.perf_counter()
+    run.run_benchmark(config, out, progress=False, report=False)
+    cpu, wall = _cpu_s() - cpu, time.perf_counter() - wall
+    with open(out / "batches.csv") as f:
+        (row,) = list(csv.DictReader(f))
+    return dict(set=set_name, agent=agent, members=int(row["members"]), max_states=int(row["max_states"]),
+                steps=steps, compile_s=float(row["compile_s"]), run_s=float(row["run_s"]), wall_s=wall, cpu_s=cpu)
+
+
+def extrapolate(full_batches: list[dict], measured: list[dict]) -> list[dict]:
+    """Each full batch (``set, agent, members, max_states``) with its estimated ``run_s`` and ``compile_s`` (``None``
+    when no batch of its agent on a setting of its type was measured)."""
+    rows = []
+    for b in full_batches:
+        same = [m for m in measured if m["agent"] == b["agent"] and m["set"] == b["set"]]
+        if not same:
+            same = [m for m in measured if m["agent"] == b["agent"]
+                    and sets.is_episodic(m["set"]) == sets.is_episodic(b["set"])]
+        if not same:
+            rows.append({**b, "run_s": None, "compile_s": None})
+            continue
+        same.sort(key=lambda m: m["max_states"])
+        per_member_step = np.interp(b["max_states"], [m["max_states"] for m in same],
+                                    [m["run_s"] / (m["members"] * m["steps"]) for m in same])
+        rows.append({**b, "run_s": float(per_member_step * b["members"] * FULL["n_steps"]),
+                     "compile_s": float(np.mean([m["compile_s"] for m in same]))})
+    return rows
+
+
+def main(argv: list[str] | None = None) -> dict:
+    args = build_parser().parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    full = run.RunConfig(sets=sets.SETTINGS, hparams="reference", seeds=FULL["seeds"], n_steps=FULL["n_steps"],
+                         log_period=FULL["log_period"], n_buckets=FULL["n_buckets"])
+    _, batches = run.plan(full)
+    sizes = {}
+    for s in sets.SETTINGS:
+        for inst in sets.instances(s):
+            sizes[(s, inst.label)] = inst.build(0).n_states
+    full_batches = [dict(set=b.set_name, agent=b.agent, bucket=b.id.split(".")[-1], members=len(b.members),
+                         max_states=max(sizes[(b.set_name, m)] for m, _ in b.members)) for b in batches]
+    state_path = args.out / "measured.json"
+    measured = json.loads(state_path.read_text()) if state_path.exists() else []
+    for set_name in args.measure:
+        for agent in args.agents or run.default_agents(set_name):
+            if agent not in run.default_agents(set_name):
+                continue
+            ours = [b for b in batches if b.set_name == set_name and b.agent == agent]
+            for b in (ours[0], ours[-1]) if args.which == "ends" else (ours[-1],):
+                if any(m["set"] == set_name and m["agent"] == agent and m["bucket"] == b.id for m in measured):
+                    continue
+                labels = sorted({m for m, _ in b.members})
+                m = measure(set_name, agent, labels, args.seeds, args.steps, args.out / b.id)
+                measured.append({**m, "bucket": b.id, "full_members": len(b.members)})
+                state_path.write_text(json.dumps(measured, indent=1) + "\n")
+                print(f"{b.id}: {m['members']} members x {m['steps']} steps, up to {m['max_states']} states: "
+                      f"compile {m['compile_s']:.1f} s, run {m['run_s']:.1f} s, CPU {m['cpu_s']:.1f} s",
+                      file=sys.stderr, flush=True)
+    rows = extrapolate(full_batches, measured)
+    done = [r for r in rows if r["run_s"] is not None]
+    result = dict(full=dict(FULL, seeds=len(FULL["seeds"]), sets=list(sets.SETTINGS)), measured=measured,
+                  batches=rows, run_s=sum(r["run_s"] for r in done), compile_s=sum(r["compile_s"] for r in done),
+                  unmeasured_agents=sorted({r["agent"] for r in rows if r["run_s"] is None}))
+    (args.out / "wall_time.json").write_text(json.dumps(result, indent=1) + "\n")
+    print(f"full run: {result['run_s'] / 3600:.1f} h running + {result['compile_s'] / 3600:.2f} h compiling "
+          f"({len(done)} of {len(rows)} batches; no measurement for {result['unmeasured_agents']})", file=sys.stderr)
+    return result
+
+
+if __name__ == "__main__":
+    main()
+    sys.exit(0)
