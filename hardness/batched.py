@@ -18,7 +18,6 @@ from collections.abc import Sequence
 from typing import Any
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from hardness.measures import HardnessMeasures, measures
@@ -88,4 +87,7 @@ def measures_many(
     where = np.concatenate([p[0] for p in parts])
     inverse = np.empty_like(where)
     inverse[where] = np.arange(len(where))
-    return jax.tree.map(lambda *xs: jnp.concatenate(xs)[inverse], *[p[1] for p in parts])
+    # Reordered on the host: eager device concatenations and gathers would compile a program per array shape.
+    return jax.tree.map(
+        lambda *xs: jax.device_put(np.concatenate([np.asarray(x) for x in xs])[inverse]), *[p[1] for p in parts]
+    )

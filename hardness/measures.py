@@ -63,6 +63,7 @@ def _shared(mdp, cf, gamma, variant):
     )
 
 
+@functools.partial(jax.jit, static_argnames=("axis",))
 def normalize(values: jax.Array, axis: int | tuple[int, ...] | None = None) -> jax.Array:
     """Min-max scaling to ``[0, 1]`` across the compared set (paper App. E): ``(x - min) / (max - min)`` along
     ``axis`` (all axes by default). A set whose range is below ``1e-4`` maps to 0.5 (docs/measures.md §6.5). Non-finite

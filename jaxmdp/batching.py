@@ -116,7 +116,7 @@ def pad(
     length ``n_starts`` (default: unchanged), host side."""
     n_starts = mdp.max_starts if n_starts is None else n_starts
     arrays = _pad_host(mdp, n_states, n_actions, n_successors, H, n_starts)
-    return mdp.replace(H=H if mdp.episodic else None, **{k: jnp.asarray(v) for k, v in arrays.items()})
+    return mdp.replace(H=H if mdp.episodic else None, **{k: jax.device_put(v) for k, v in arrays.items()})
 
 
 def stack(mdps: Sequence[MDP] | Sequence[BlockMDP]) -> MDP | BlockMDP:
@@ -144,7 +144,8 @@ def stack(mdps: Sequence[MDP] | Sequence[BlockMDP]) -> MDP | BlockMDP:
     H = max(m.H for m in mdps) if mdps[0].episodic else None
     K0 = max(m.max_starts for m in mdps)
     padded = [_pad_host(m, S, A, K, H, K0) for m in mdps]
-    arrays = {k: jnp.asarray(np.stack([p[k] for p in padded])) for k in padded[0]}
+    # device_put, not jnp.asarray: the latter compiles a small program per shape (JAX 0.10), a cost every stack paid.
+    arrays = {k: jax.device_put(np.stack([p[k] for p in padded])) for k in padded[0]}
     return MDP(
         **arrays,
         H=H,
@@ -231,7 +232,7 @@ def unstack(batch: MDP | BlockMDP) -> list[MDP] | list[BlockMDP]:
         )
         out.append(
             MDP(
-                **{k: jnp.asarray(v) for k, v in member.items()},
+                **{k: jax.device_put(v) for k, v in member.items()},
                 H=int(m["horizon"]) if batch.H is not None else None,
                 info=members[i],
                 stochastic_rewards=bool(np.any(conc[T > 0] > 0)),

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -312,6 +313,18 @@ def test_normalize_measures_half_rule_and_all_infinite():
     raw["diameter"] = np.array([[5.0, np.inf], [5.0, 5.0]])
     np.testing.assert_array_equal(scenarios.normalize_measures(raw)["diameter"], [[0.5, np.nan], [0.5, 0.5]])
 
+
+
+@pytest.mark.parametrize("n", [1, 7, 64, 65, 130])
+def test_normalize_padded_is_bit_identical_to_unpadded(n):
+    # The NaN padding to a power of two must change no bit of the float32 normalisation of the real entries.
+    rng = np.random.default_rng(n)
+    x = rng.uniform(-3.0, 50.0, size=(n,))
+    x[:: max(n // 3, 1)][1:2] = np.inf
+    want = np.asarray(hardness.normalize(jnp.asarray(x, jnp.float32)), np.float64)
+    got = scenarios.normalize_padded(x.reshape(1, n))
+    assert got.shape == (1, n) and got.dtype == np.float64
+    np.testing.assert_array_equal(got[0], want)
 
 # ---------------------------------------------------------------------------------------------------------------
 # scenario_spec: defaults and validation

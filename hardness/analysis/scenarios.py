@@ -70,6 +70,7 @@ __all__ = [
     "compute",
     "grid_mdps",
     "normalize_measures",
+    "normalize_padded",
     "run_scenario",
     "sweep_p_rand",
     "sweep_p_lazy",
@@ -287,7 +288,8 @@ class ScenarioGrid:
             raise ValueError(f"seeds must be a non-empty subset of {list(self.seeds)}; got {list(seeds)}")
         members = 1 if self.spec.uses_transform else len(self.spec.values)
         rows = np.asarray([p * members + j for p in pos for j in range(members)])
-        pick = lambda x: x[rows]  # noqa: E731
+        # Gathered on the host: an eager device gather compiles a program per array shape.
+        pick = lambda x: jax.device_put(np.asarray(x)[rows])  # noqa: E731
         return dataclasses.replace(
             self,
             seeds=tuple(seeds),
@@ -367,7 +369,20 @@ def normalize_measures(raw: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     """Min-max normalisation of every measure across all seeds and values of the sweep (paper App. E) with
     :func:`hardness.normalize`: ``(x - min) / (max - min)``, 0.5 for a set whose range is below ``1e-4``; non-finite
     entries are left out of the minimum and maximum and become NaN."""
-    return {name: np.asarray(normalize(jnp.asarray(raw[name], jnp.float32)), np.float64) for name in MEASURES}
+    return {name: normalize_padded(raw[name]) for name in MEASURES}
+
+
+def normalize_padded(values: np.ndarray) -> np.ndarray:
+    """:func:`hardness.normalize` over all entries of ``values`` in float32, returned as float64 of the same shape.
+
+    The entries are padded with NaN to a power of two (at least 64) first: non-finite entries take no part in the
+    minimum and maximum, so the result is the same, and tables that grow seed by seed share a few compiled programs
+    instead of one per size."""
+    flat = np.asarray(values, np.float32).ravel()
+    padded = np.full(max(64, 1 << max(flat.size - 1, 0).bit_length()), np.nan, np.float32)
+    padded[: flat.size] = flat
+    out = np.asarray(normalize(jax.device_put(padded)), np.float64)
+    return out[: flat.size].reshape(np.shape(values))
 
 
 # ---------------------------------------------------------------------------------------------------------------

@@ -22,7 +22,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, TextIO
 
-import jax.numpy as jnp
 import numpy as np
 
 import jaxmdp
@@ -30,7 +29,6 @@ from jaxmdp.experiment import compilation
 from hardness.analysis import scenarios
 from hardness.analysis.near_optimal import NEAR_OPTIMAL_AGENTS, tuned_regret
 from hardness.analysis.plotting import plot_scenario
-from hardness.measures import normalize
 
 MEASURES = scenarios.MEASURES
 #: Columns of the tuned near-optimal agent (empty when ``--agent-steps 0``): its expected cumulative regret, the
@@ -244,7 +242,7 @@ def curves_of(rows: list[dict], shape: tuple[int, ...] = (1, -1)) -> dict[str, n
     curves = scenarios.normalize_measures(raw)
     if rows and all("agent" in r for r in rows):
         regret = np.asarray([r["agent_normalized_cumulative_regret"] for r in rows], np.float64).reshape(shape)
-        curves[AGENT_CURVE] = np.asarray(normalize(jnp.asarray(regret, jnp.float32)), np.float64)
+        curves[AGENT_CURVE] = scenarios.normalize_padded(regret)
     return curves
 
 

@@ -327,8 +327,12 @@ def _chunk_program(
 @functools.lru_cache(maxsize=len(VARIANTS))
 def _constants_program(variant: Variant) -> Callable:
     # lax.map, not vmap: the constants come from planning loops run to convergence, and a vmapped while_loop runs
-    # until its slowest member converges.
-    return jax.jit(lambda mdps: jax.lax.map(lambda m: indicator_constants(dynamics(m), variant), mdps))
+    # until its slowest member converges. The per-member gather is in the same program.
+    def constants(mdps, mdp_index):
+        unique = jax.lax.map(lambda m: indicator_constants(dynamics(m), variant), mdps)
+        return jax.tree.map(lambda x: x[mdp_index], unique)
+
+    return jax.jit(constants)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -376,15 +380,18 @@ def _validate(agent: Agent, g: Grid, variant: str) -> None:
 
 def _check_shapes(agent: Agent, g: Grid, n_steps: int) -> None:
     """Abstract evaluation (no compilation) of one member: the agent's policy and action must fit the MDP."""
-    m = _member(g.mdps, 0)
-    hp = jax.tree.map(lambda x: x[0], g.hparams)
-    key = jax.random.key(0)
+
+    def first_member(mdps, hparams):
+        # Everything, member 0 included, under eval_shape: an eager slice would compile a program per array.
+        m, hp, key = _member(mdps, 0), jax.tree.map(lambda x: x[0], hparams), jax.random.key(0)
+        state = agent.init(key, spec_of(m, n_steps), hp)
+        obs, _ = env.reset(key, m)
+        return agent.policy(state), agent.act(key, state, obs, jnp.zeros((), jnp.int32))
+
+    m = jax.eval_shape(lambda mdps: _member(mdps, 0), g.mdps)
     S, A, H = m.n_states, m.n_actions, m.H
     try:
-        state = jax.eval_shape(agent.init, key, spec_of(m, n_steps), hp)
-        policy = jax.eval_shape(agent.policy, state)
-        obs, _ = jax.eval_shape(env.reset, key, m)
-        action = jax.eval_shape(agent.act, key, state, obs, jnp.zeros((), jnp.int32))
+        policy, action = jax.eval_shape(first_member, g.mdps, g.hparams)
     except (TypeError, ValueError, IndexError) as err:
         raise ValueError(f"agent {agent.name!r} does not fit MDPs with S={S}, A={A}, H={H}: {err}") from err
     allowed = [(H, S, A), (S, A)] if H is not None else [(S, A)]
@@ -486,17 +493,17 @@ def _validated_settings(
 def _compile(agent: Agent, grid: Grid, settings: _Settings) -> _Program:
     """Compute the indicator constants and compile the initialisation and chunk programs (timed together)."""
     mdps = grid.mdps
-    mdp_index = jnp.asarray(grid.mdp_index)
-    hparams = jax.tree.map(jnp.asarray, grid.hparams)
-    key_data = jnp.asarray(grid.key_data)
+    # device_put, not jnp.asarray, which compiles a small program per array shape.
+    mdp_index = jax.device_put(grid.mdp_index)
+    hparams = jax.tree.map(jax.device_put, grid.hparams)
+    key_data = jax.device_put(grid.key_data)
     sched = Schedule(
         n_steps=jnp.asarray(settings.n_steps, jnp.int32),
         log_period=jnp.asarray(settings.log_period, jnp.int32),
         record_period=jnp.asarray(settings.record_period, jnp.int32),
     )
     t0 = time.perf_counter()
-    unique_consts = _constants_program(settings.variant)(mdps)
-    consts = jax.tree.map(lambda x: x[mdp_index], unique_consts)
+    consts = _constants_program(settings.variant)(mdps, mdp_index)
     init_jit = _init_program(agent, settings.record_visits)
     init_fn = init_jit.lower(mdps, mdp_index, hparams, key_data, sched.n_steps).compile()
     carry_shape = jax.eval_shape(init_jit, mdps, mdp_index, hparams, key_data, sched.n_steps)
@@ -558,7 +565,7 @@ def _run_chunks(
             carry, program.mdps, program.mdp_index, program.consts, program.sched, jnp.int32(n)
         )
         j = int(j)
-        steps, values = np.asarray(steps[:j]), np.asarray(values[:j])
+        steps, values = np.asarray(steps)[:j], np.asarray(values)[:j]
         elapsed = start.elapsed_before + time.perf_counter() - t_start
         steps_done = np.concatenate([steps_done, steps])
         values_done = np.concatenate([values_done, values])
