@@ -162,7 +162,7 @@ def test_stacked_constants_match_each_mdp_alone(variant):
 
     rng = np.random.default_rng(11)
     mdps = [random_mdp(rng, S=S, A=A, sparsity=0.4) for S, A in ((3, 2), (6, 3))]
-    stacked = runner._constants_program(variant)(jaxmdp.stack(mdps).strip())
+    stacked = runner._constants_program(variant)(jaxmdp.stack(mdps).strip(), jnp.arange(len(mdps)))
     for i, m in enumerate(mdps):
         alone = jax.jit(indicators.indicator_constants, static_argnums=1)(m, variant)
         for name in ("optimal", "worst", "random"):
