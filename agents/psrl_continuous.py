@@ -381,4 +381,5 @@ PSRL_CONTINUOUS = Agent(
     needs_plan=needs_plan,
     plan=plan,
     check_hparams=check_hparams,
+    diagnostics=lambda state: {"plans_unconverged": state.plans_unconverged},
 )

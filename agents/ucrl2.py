@@ -238,4 +238,5 @@ UCRL2 = Agent(
     needs_plan=needs_plan,
     plan=plan,
     check_hparams=check_hparams,
+    diagnostics=lambda state: {"plans_unconverged": state.plans_unconverged},
 )
