@@ -28,8 +28,8 @@ from stat_checks import SEED_VARIABLE  # noqa: E402
 class FreshSeeds:
     """A pytest plugin: each statistical test's body runs once per fresh seed."""
 
-    def __init__(self, runs: int, first: int) -> None:
-        self.runs, self.first = runs, first
+    def __init__(self, runs: int, first: int, log: str | None = None) -> None:
+        self.runs, self.first, self.log = runs, first, log
         self.rows: list[tuple[str, int, int, float, float, str]] = []
 
     @pytest.hookimpl(tryfirst=True)
@@ -51,13 +51,19 @@ class FreshSeeds:
             os.environ.pop(SEED_VARIABLE, None)
         self.rows.append((pyfuncitem.nodeid, self.runs, failures, float(mark.kwargs["p"]),
                           time.perf_counter() - start, first_message))
-        print(f"\n{pyfuncitem.nodeid}: {failures}/{self.runs} failed", file=sys.stderr, flush=True)
+        if self.log is not None:
+            with open(self.log, "a") as f:
+                f.write(self._line(self.rows[-1]) + "\n")
         return True
+
+    @staticmethod
+    def _line(row) -> str:
+        nodeid, runs, failures, p, seconds, _ = row
+        return f"| {nodeid} | {runs} | {failures} | {p:.1e} | {seconds:.0f} |"
 
     def table(self) -> str:
         lines = ["| test | runs | failures | stated probability | seconds |", "|---|---|---|---|---|"]
-        for nodeid, runs, failures, p, seconds, _ in self.rows:
-            lines.append(f"| {nodeid} | {runs} | {failures} | {p:.1e} | {seconds:.0f} |")
+        lines += [self._line(row) for row in self.rows]
         lines += [f"first failure of {nodeid}: {message}" for nodeid, *_, message in self.rows if message]
         return "\n".join(lines)
 
@@ -66,8 +72,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--runs", type=int, default=200, help="fresh seeds per test (default 200)")
     parser.add_argument("--first", type=int, default=1, help="first fresh seed (default 1)")
+    parser.add_argument("--log", help="also append each test's table row to this file as soon as it is done")
     args, pytest_args = parser.parse_known_args(argv)
-    plugin = FreshSeeds(args.runs, args.first)
+    plugin = FreshSeeds(args.runs, args.first, args.log)
     code = pytest.main(["-q", "-n0", "-p", "no:cacheprovider", "--timeout=0", "-m", "statistical",
                         *(pytest_args or [str(HERE)])], plugins=[plugin])
     print(plugin.table())
