@@ -28,6 +28,10 @@ def rollout(key, mdp, n_steps):
     return out
 
 
+next_states = jax.jit(jax.vmap(jaxmdp.env.sample_next_state, (0, None, None, None)))
+rewards = jax.jit(jax.vmap(jaxmdp.env.sample_reward, (0, None, None, None, 0)))
+
+
 @pytest.mark.statistical(p=1.2e-6)
 def test_next_state_and_reward_frequencies_match_the_model():
     # Next-state counts are Binomial(n, p) exactly; the rewards after each next state are i.i.d. in [0, 1] with the
@@ -37,7 +41,7 @@ def test_next_state_and_reward_frequencies_match_the_model():
     m = random_mdp(rng, S=4, A=2)
     s, a, n = 2, 1, 200_000
     keys = jax.random.split(key(1), n)
-    nxt = jax.jit(jax.vmap(lambda k: jaxmdp.env.sample_next_state(k, m, jnp.int32(s), jnp.int32(a))))(keys)
+    nxt = next_states(keys, m, jnp.int32(s), jnp.int32(a))
     counts = np.bincount(np.asarray(nxt), minlength=4)
     p = np.asarray(m.T[s, a], np.float64)
     checks = Checks()
@@ -47,7 +51,7 @@ def test_next_state_and_reward_frequencies_match_the_model():
         else:
             assert counts[t] == 0
     # Rewards: given the next state, Beta(mean conc, (1 - mean) conc) or a point mass at reward_mean.
-    rew = jax.jit(jax.vmap(lambda k, t: jaxmdp.env.sample_reward(k, m, jnp.int32(s), jnp.int32(a), t)))(keys, nxt)
+    rew = rewards(keys, m, jnp.int32(s), jnp.int32(a), nxt)
     for t in range(4):
         if p[t] > 0.05:
             sel = np.asarray(rew, np.float64)[np.asarray(nxt) == t]

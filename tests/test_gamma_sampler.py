@@ -73,7 +73,7 @@ def assert_log_gamma(checks: Checks, y: np.ndarray, a: float) -> None:
 def mixed_draws(buffers, seed):
     """One draw of an array holding every shape of ``SHAPES`` ``PER_SHAPE`` times, interleaved at random."""
     a = np.repeat(np.array(SHAPES, np.float32), PER_SHAPE)[np.random.default_rng(1).permutation(len(SHAPES) * PER_SHAPE)]
-    y = jax.jit(functools.partial(sample_log_gamma, buffers=buffers))(jax.random.key(seed), jnp.asarray(a))
+    y = sample_log_gamma(jax.random.key(seed), jnp.asarray(a), buffers=buffers)  # jitted, buffers static
     return a, np.asarray(y, np.float64)
 
 
@@ -125,7 +125,7 @@ def test_float64_and_bfloat16():
     checks = Checks()
     with jax.enable_x64(True):
         a = jnp.repeat(jnp.array(shapes, jnp.float64), 30_000)
-        y = jax.jit(functools.partial(sample_log_gamma, dtype=jnp.float64))(key(13), a)
+        y = sample_log_gamma(key(13), a, dtype=jnp.float64)  # (sample_log_gamma is jitted, dtype static)
         assert y.dtype == jnp.float64
         y = np.asarray(y).reshape(len(shapes), -1)
         for i, shape in enumerate(shapes):
@@ -142,6 +142,11 @@ def test_float64_and_bfloat16():
         checks.binomial(int(np.sum(y <= q)), y.size, ref.cdf(q + ulp / 2), f"bfloat16 below {q}")
 
 
+@functools.partial(jax.jit, static_argnames="dtype")
+def beta_draws(keys, a, b, dtype):
+    return jax.vmap(lambda k: sample_beta(k, a, b, dtype=dtype))(keys)
+
+
 @pytest.mark.statistical(p=5e-6)
 @pytest.mark.parametrize("dtype", ["float32", "float64"])
 def test_beta_against_scipy(dtype):
@@ -154,9 +159,8 @@ def test_beta_against_scipy(dtype):
     checks = Checks()
     with jax.enable_x64(dtype == "float64"):
         keys = jax.random.split(key(22), 20_000)
-        f = jax.jit(jax.vmap(functools.partial(sample_beta, dtype=jnp.dtype(dtype)), (0, None, None)))
         for a, b in params:
-            x = f(keys, a, b)
+            x = beta_draws(keys, a, b, jnp.dtype(dtype))
             assert x.dtype == jnp.dtype(dtype)
             x = np.asarray(x, np.float64)
             assert np.all((x >= 0) & (x <= 1)), (a, b)

@@ -24,6 +24,7 @@ N_DRAWS = 20_000
 # Statistical checks (tests/stat_checks.py) fail a correct sampler with probability <= 1e-7 each (exact distributions
 # of the statistics); each test states its total.
 log_gamma_sample_jit = jax.jit(log_gamma_sample)
+batched_log_gamma_sample = jax.jit(jax.vmap(log_gamma_sample, (0, None)))
 normal_gamma_draws = jax.jit(lambda k, post: jax.vmap(normal_gamma_sample, (0, None))(jax.random.split(k, N_DRAWS),
                                                                                          post))
 dirichlet_draws = jax.jit(lambda k, a: jax.vmap(dirichlet_sample, (0, None))(jax.random.split(k, N_DRAWS), a))
@@ -52,7 +53,7 @@ def test_log_gamma_sample_mixed_shapes_and_batching():
     for j, a in enumerate((0.3, 1.0, 7.0)):
         checks.ks(draws[:, j], stats.gamma(a).cdf, f"shape {a}")
     keys = jax.random.split(jax.random.key(2), 3)
-    batched = jax.jit(jax.vmap(log_gamma_sample, (0, None)))(keys, jnp.array([0.5, 2.0]))
+    batched = batched_log_gamma_sample(keys, jnp.array([0.5, 2.0]))
     np.testing.assert_array_equal(batched[1], sample(keys[1], jnp.array([0.5, 2.0])))
 
 

@@ -73,6 +73,9 @@ def _state_with_counts(counts, hp=HP, S_real=None):
     return state.replace(counts=counts, schedule=state.schedule.replace(visits=counts.sum(-1)))
 
 
+candidate_draws = jax.jit(jax.vmap(candidate_kernels, (0, None)))
+
+
 @pytest.mark.statistical(p=1.5e-6)
 def test_candidate_kernels():
     # 15 statistical checks at 1e-7 each (tests/stat_checks.py): false-failure probability <= 1.5e-6 for the test.
@@ -83,8 +86,7 @@ def test_candidate_kernels():
     counts[1, 1, 2] = 30  # N = 30, one successor
     state = _state_with_counts(counts, hp=PSRLContinuousHParams(max_psi=3), S_real=4)
     assert int(state.constants.psi) == 2 and float(state.constants.eta) == 5.0
-    draw = jax.jit(jax.vmap(candidate_kernels, (0, None)))
-    P = np.asarray(draw(jax.random.split(key(1), 4000), state), np.float64)  # [n, max_psi, S, A, S]
+    P = np.asarray(candidate_draws(jax.random.split(key(1), 4000), state), np.float64)  # [n, max_psi, S, A, S]
     np.testing.assert_allclose(P[:, :2].sum(-1), 1.0, atol=1e-5)
     np.testing.assert_array_equal(P[:, 2], P[:, 0])  # the unused slot repeats candidate 0
     assert np.all(P[..., 4] == 0.0)  # never the padded state
@@ -128,7 +130,7 @@ def test_scaled_dirichlet_candidates():
     counts[0, 1] = [10, 20, 40]
     state = _state_with_counts(counts, hp=PSRLContinuousHParams(max_psi=2, scaled_dirichlet=True))
     omega, kappa = float(state.constants.omega), float(state.constants.kappa)
-    P = np.asarray(jax.jit(jax.vmap(candidate_kernels, (0, None)))(jax.random.split(key(2), 4000), state))
+    P = np.asarray(candidate_draws(jax.random.split(key(2), 4000), state))
     rows = P[:, :, 0, 1].reshape(-1, 3).astype(np.float64)
     alpha = (np.array([10, 20, 40]) + omega) / kappa
     a0 = alpha.sum()
@@ -167,18 +169,23 @@ def _plan_keys():
     return jax.random.split(key(8), N_PLAN_KEYS)
 
 
+plan_jit = jax.jit(AGENT.plan)
+
+
 def planned(name):
     """The state of ``name`` and its plans under each of :func:`_plan_keys` (stacked)."""
     state = _plan_state(name)
-    plan = jax.jit(AGENT.plan)
-    return state, [plan(k, state) for k in _plan_keys()]
+    return state, [plan_jit(k, state) for k in _plan_keys()]
+
+
+normal_gamma_jit, candidate_jit = jax.jit(normal_gamma_sample), jax.jit(candidate_kernels)
 
 
 def _redraw(k, state):
     # The draws plan makes with key k (same split order).
     k_r, k_p = jax.random.split(k)
-    R = jax.jit(normal_gamma_sample)(k_r, state.rewards)
-    return np.asarray(R), np.asarray(jax.jit(candidate_kernels)(k_p, state))
+    R = normal_gamma_jit(k_r, state.rewards)
+    return np.asarray(R), np.asarray(candidate_jit(k_p, state))
 
 
 def _documented_unconverged(state, new):
@@ -187,6 +194,9 @@ def _documented_unconverged(state, new):
     assert int(new.plan_iterations) == state.hparams.plan_max_iter
     assert np.all(np.isfinite(np.asarray(new.Q))) and np.all(np.isfinite(np.asarray(new.u)))
     assert int(new.plans_unconverged) == int(state.plans_unconverged) + 1
+
+
+optimal_gain_jit = jax.jit(lambda T, R: dp.optimal_gain(T, rewards=R, tol=2e-6, max_iter=1_000_000))
 
 
 @pytest.mark.statistical(p=0.0)
@@ -202,7 +212,7 @@ def test_plan_is_gain_optimal_in_the_explicit_extended_mdp():
         R, P = _redraw(k, state)
         T, Rx = _extended_mdp(R, P, n_psi)
         # tol: span of one sweep; gains ~8 leave float32 ~1e-6 of resolution, so 1e-7 cannot be met by every draw.
-        ref = jax.jit(lambda T, R: dp.optimal_gain(T, rewards=R, tol=2e-6, max_iter=1_000_000))(T, Rx)
+        ref = optimal_gain_jit(T, Rx)
         assert bool(ref.converged)
         np.testing.assert_allclose(new.Q.max(-1) - new.u, float(ref.gain), atol=2e-5)
         # The executed real action is that of the best extended action, whose reward is its own action's draw.
