@@ -89,20 +89,15 @@ def _check_cached(chosen: list) -> None:
     np.testing.assert_allclose(vn, [e.cached_value_norm for e in chosen], rtol=1e-3, atol=6e-5)
 
 
-@pytest.mark.parametrize("setting", bs.SETTINGS)
-def test_cached_seed0_diameter_and_value_norm(setting):
-    chosen = _cached_entries(setting, large=False)
+@pytest.mark.parametrize(
+    "setting, large",
+    [(setting, False) for setting in bs.SETTINGS]
+    + [pytest.param(setting, True, marks=pytest.mark.slow) for setting in bs.SETTINGS],
+)
+def test_cached_seed0_diameter_and_value_norm(setting, large):
+    chosen = _cached_entries(setting, large)
     if not chosen:
-        pytest.skip("no registered family in this setting yet")
-    _check_cached(chosen)
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("setting", bs.SETTINGS)
-def test_cached_seed0_diameter_and_value_norm_large(setting):
-    chosen = _cached_entries(setting, large=True)
-    if not chosen:
-        pytest.skip("no larger cached entry in this setting")
+        pytest.skip("no cached entry of this size in this setting")
     _check_cached(chosen)
 
 
