@@ -160,6 +160,7 @@ class PSRLContinuousState(struct.PyTreeNode):
     plan_due: jax.Array
     plan_iterations: jax.Array
     plan_converged: jax.Array
+    plans_unconverged: jax.Array  # plans whose relative value iteration stopped at plan_max_iter (int32 count)
     constants: Constants
     state_mask: jax.Array
     action_mask: jax.Array
@@ -238,6 +239,7 @@ def init(key: jax.Array, spec: MDPSpec, hparams: PSRLContinuousHParams) -> PSRLC
         plan_due=jnp.ones((), bool),
         plan_iterations=jnp.zeros((), jnp.int32),
         plan_converged=jnp.ones((), bool),
+        plans_unconverged=jnp.zeros((), jnp.int32),
         constants=consts,
         state_mask=spec.state_mask,
         action_mask=spec.action_mask,
@@ -382,6 +384,7 @@ def plan(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "pape
         plan_due=jnp.zeros((), bool),
         plan_iterations=iterations,
         plan_converged=converged,
+        plans_unconverged=state.plans_unconverged + (~converged).astype(jnp.int32),
     )
     return where_due(state.plan_due, new, state)
 
@@ -408,6 +411,7 @@ PSRL_CONTINUOUS = Agent(
     needs_plan=needs_plan,
     plan=plan,
     check_hparams=check_hparams,
+    diagnostics=lambda state: {"plans_unconverged": state.plans_unconverged},
 )
 
 

@@ -16,7 +16,8 @@ With ``N(s, a)`` visits, ``N' = max(1, N)``, ``N'' = max(1, N - 1)``, ``t`` the 
 * an unvisited pair is unconstrained: ``r~ = r_max`` and any next-state distribution.
 
 Per step the agent only counts (``O(1)``); planning costs ``O(S^2 A)`` per EVI sweep. The EVI sweep count is
-reported in the state (``evi_iterations``, ``evi_converged``).
+reported in the state (``evi_iterations``, ``evi_converged``, and ``plans_unconverged``: the count of plans that
+stopped at ``evi_max_iter``, which the runner reports).
 
 Policy estimate (for regret), as the reference (docs/agents.md §3): the greedy policy of the
 ``policy_discount``-discounted optimal values (0.99) of the estimated MDP ``(p_hat, r_hat)``; unvisited pairs are
@@ -101,6 +102,7 @@ class UCRL2State(struct.PyTreeNode):
     plan_due: jax.Array
     evi_iterations: jax.Array
     evi_converged: jax.Array
+    plans_unconverged: jax.Array  # plans whose EVI stopped at evi_max_iter (int32 count)
     state_mask: jax.Array
     action_mask: jax.Array
     hparams: UCRL2HParams
@@ -134,6 +136,7 @@ def init(key: jax.Array, spec: MDPSpec, hparams: UCRL2HParams) -> UCRL2State:
         plan_due=jnp.ones((), bool),
         evi_iterations=jnp.zeros((), jnp.int32),
         evi_converged=jnp.ones((), bool),
+        plans_unconverged=jnp.zeros((), jnp.int32),
         state_mask=spec.state_mask,
         action_mask=spec.action_mask,
         hparams=hparams,
@@ -213,6 +216,7 @@ def plan(key: jax.Array, state: UCRL2State) -> UCRL2State:
         plan_due=jnp.zeros((), bool),
         evi_iterations=res.iterations,
         evi_converged=res.converged,
+        plans_unconverged=state.plans_unconverged + (~res.converged).astype(jnp.int32),
     )
     return where_due(state.plan_due, new, state)
 
@@ -248,6 +252,7 @@ UCRL2 = Agent(
     needs_plan=needs_plan,
     plan=plan,
     check_hparams=check_hparams,
+    diagnostics=lambda state: {"plans_unconverged": state.plans_unconverged},
 )
 
 

@@ -64,6 +64,8 @@ def _pad_host(
         raise ValueError(f"cannot pad the start list of length {mdp.max_starts} down to {n_starts}")
     if mdp.episodic and (H is None or H < mdp.H):
         raise ValueError(f"H must be at least the MDP's horizon {mdp.H}; got {H}")
+    if not mdp.episodic and H is not None:
+        raise ValueError(f"H is for episodic MDPs only; got H={H} for a continuous MDP")
     dt = np.dtype(mdp.dtype)
     # Padded actions copy action 0; padded states get the defaults set below.
     acts = np.concatenate([np.arange(A), np.zeros(n_actions - A, np.int64)])

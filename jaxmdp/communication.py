@@ -115,6 +115,12 @@ def communication_class(mdp: MDP) -> CommunicationClass | list[CommunicationClas
     T = np.asarray(mdp.T)
     smask = np.asarray(mdp.state_mask)
     amask = np.asarray(mdp.action_mask)
+    if T.ndim in (3, 4) and (T.shape[-1] != T.shape[-3] or smask.shape != T.shape[:-2] or
+                             amask.shape != T.shape[:-3] + T.shape[-2:-1]):
+        raise ValueError(
+            f"T must be [S, A, S] (or [B, S, A, S]) with state_mask [S] and action_mask [A]; got T {T.shape}, "
+            f"state_mask {smask.shape}, action_mask {amask.shape}"
+        )
     if T.ndim == 4:
         return [_classify(T[i][smask[i]][:, amask[i]][:, :, smask[i]]) for i in range(T.shape[0])]
     if T.ndim != 3:

@@ -129,6 +129,7 @@ def start_order(mdp: MDP) -> list[int]:
 
 
 def _concrete_horizon(mdp: MDP) -> int:
+    _require_episodic(mdp)
     try:
         return int(mdp.horizon)
     except (jax.errors.ConcretizationTypeError, TypeError):

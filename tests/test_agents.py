@@ -82,9 +82,13 @@ def test_jin_first_visit_overwrites_with_target():
     hp = qle.QLearningEpisodicHParams(bernstein=False, c_1=0.1, min_at=0.0)
     state = qle.init(jax.random.key(0), spec_of(mdp, 100), hp)
     state = qle.update(state, tr(0, 1, 0.3, 1, h=1))
-    b1 = 0.1 * math.sqrt(2**3 * math.log(2 * 2 * 100 / 0.05))
+    b1 = 0.1 * math.sqrt(2**3 * math.log(2 * 2 * 100 / 0.05))  # 0.849
     assert float(state.Q[1, 0, 1]) == pytest.approx(0.3 + 0.0 + b1, rel=1e-6)  # V_H = 0 at the last step
-    assert float(state.V[1, 0]) == pytest.approx(min(2.0, max(2.0, 0.3 + b1)), rel=1e-6)
+    assert float(state.V[1, 0]) == 2.0  # action 0 is still at its optimistic H = 2
+    # Both actions visited: V = min(H, max_a Q) = max(0.3 + b1, 0.1 + b1) = 1.149 < H.
+    state = qle.update(state, tr(0, 0, 0.1, 1, h=1))
+    assert float(state.Q[1, 0, 0]) == pytest.approx(0.1 + b1, rel=1e-6)
+    assert float(state.V[1, 0]) == pytest.approx(0.3 + b1, rel=1e-6)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -102,6 +106,17 @@ def test_wei_constants():
     # the reference's delta = 0.95 and exponent 0.333; they check this reading of the formulas.
     H, _, b = wei_constants(0.942, 0.014, 0.95, 25, 2, 500_000, exponent=0.333)
     assert H == pytest.approx(8.2931, abs=1e-4) and b == pytest.approx(0.6005, abs=1e-4)
+    # The agent against the spec's derived table itself (cached hparams, delta = 0.95, T = 500 000): the agent's
+    # exponent is 1/3 where the reference wrote 0.333, which moves H by a factor x^(1/3 - 0.333) < 1.004 (x < 1e4
+    # the cube root's argument), so H within 0.4% and gamma = 1 - 1/H.
+    hp = qlc.QLearningContinuousHParams(h_weight=0.942, span_approx_weight=0.014, delta=0.95)
+    for (S, A), (H_ref, gamma_ref) in {(25, 2): (8.2931, 0.87942), (100, 5): (3.5246, 0.71628),
+                                       (400, 3): (2.275, 0.5605), (820, 2): (1.946, 0.486)}.items():
+        H, gamma, scale, _ = (float(x) for x in qlc.constants(hp, S, A, 500_000))
+        assert H == pytest.approx(H_ref, rel=4e-3) and gamma == pytest.approx(1 - 1 / H, rel=1e-6), (S, A)
+        assert gamma == pytest.approx(gamma_ref, abs=4e-3), (S, A)
+        if (S, A) == (25, 2):
+            assert scale == pytest.approx(0.6005, rel=4e-3)  # the bonus at N = 1
     for delta, S, A in [(0.05, 25, 2), (0.95, 100, 5), (0.05, 400, 3)]:
         hp = qlc.QLearningContinuousHParams(delta=delta)
         H, gamma, scale, min_at = qlc.constants(hp, S, A, 500_000)

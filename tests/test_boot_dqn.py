@@ -16,6 +16,7 @@ import agents
 from agents.deep import boot_dqn
 from jaxmdp import dynamic_programming as dp
 from tests import q_probes
+from tests.stat_checks import Checks, key
 from tests.test_dqn import make_spec, np_q, transition
 
 SMALL = boot_dqn.BootDQNHParams(network_width=3, network_depth=1, batch_size=4, replay_capacity=512, n_ensemble=3)
@@ -67,16 +68,19 @@ def test_heads_differ_at_init_because_their_priors_differ():
     assert np.min(np.abs(q[0] - q[1])) > 1e-3
 
 
+@pytest.mark.statistical(p=3e-7)
 def test_masks_and_noise_are_drawn_per_head_per_transition():
-    state = boot_dqn.init(jax.random.key(0), make_spec(), SMALL.replace(mask_prob=0.3))
+    state = boot_dqn.init(key(0), make_spec(), SMALL.replace(mask_prob=0.3))
     state, _ = _fill(state, jnp.arange(512))
     mask, noise = np.asarray(state.replay.experience.mask[0]), np.asarray(state.replay.experience.noise[0])
     assert mask.shape == (512, 3) and noise.shape == (512, 3)
     assert set(np.unique(mask).tolist()) == {0.0, 1.0}
-    # 1536 draws: Bernoulli(0.3) mean sd 0.0117, N(0, 1) mean sd 0.0255 and variance sd 0.036; 6 sd each, so the
-    # three checks fail by chance with probability < 1e-8.
-    assert abs(mask.mean() - 0.3) < 6 * 0.0117
-    assert abs(noise.mean()) < 6 * 0.0255 and abs(noise.var() - 1.0) < 6 * 0.036
+    # 1536 draws: the mask count is Binomial(1536, 0.3), the noise sum N(0, 1536) and its sum of squares
+    # chi2(1536), all exactly. 3 checks: false-failure probability <= 3e-7 (tests/stat_checks.py).
+    checks = Checks()
+    checks.binomial(int(mask.sum()), mask.size, 0.3, "masks")
+    checks.normal(float(noise.sum()) / np.sqrt(noise.size), "noise sum")
+    checks.chi2(float(np.sum(noise.astype(np.float64) ** 2)), noise.size, "noise sum of squares")
     for j, k in [(0, 1), (1, 2), (0, 2)]:  # independent per head
         assert not np.array_equal(mask[:, j], mask[:, k]) and not np.array_equal(noise[:, j], noise[:, k])
 

@@ -18,34 +18,15 @@ import pytest
 from scipy import stats
 
 import jaxmdp
+import stat_checks
+from stat_checks import key
 from jaxmdp.blockmdp.noise import NOISE_DEFAULTS, check_noise_kind, noise_parameters, sample_noise, wishart_cholesky
 
 ALPHA = 1e-8
 
 
-class Checks:
-    """Counts the exact two-sided checks of a test, so that it can state (and assert) its false-failure bound."""
-
-    def __init__(self) -> None:
-        self.n = 0
-
-    def chi2(self, total: float, dof: float, what: str) -> None:
-        self.n += 1
-        lo, hi = stats.chi2.ppf(ALPHA / 2, dof), stats.chi2.isf(ALPHA / 2, dof)
-        assert lo <= total <= hi, f"{what}: chi2({dof}) statistic {total} outside [{lo}, {hi}]"
-
-    def normal(self, z: float, what: str) -> None:
-        self.n += 1
-        bound = stats.norm.isf(ALPHA / 2)
-        assert abs(z) <= bound, f"{what}: z = {z} beyond {bound}"
-
-    def binomial(self, count: int, n: int, p: float, what: str) -> None:
-        self.n += 1
-        lo, hi = stats.binom.ppf(ALPHA / 2, n, p), stats.binom.isf(ALPHA / 2, n, p)
-        assert lo <= count <= hi, f"{what}: count {count} of {n} outside [{lo}, {hi}] (p = {p})"
-
-    def false_failure_bound(self) -> float:
-        return self.n * ALPHA
+def Checks() -> stat_checks.Checks:  # noqa: N802 - the checks of this file, at ALPHA
+    return stat_checks.Checks(ALPHA)
 
 
 def directions(d: int, rng: np.random.Generator) -> list[np.ndarray]:
@@ -65,11 +46,17 @@ def draws(key, noise, shape, scale, df, chol, n):
     return jax.vmap(lambda k: sample_noise(k, noise, shape, scale, df, chol))(keys)
 
 
+@functools.partial(jax.jit, static_argnames=("d", "df", "s", "M"))
+def wishart_draws(key, d, df, s, M):
+    return jax.vmap(lambda k: wishart_cholesky(k, d, df, s))(jax.random.split(key, M))
+
+
 # ---------------------------------------------------------------------------------------------------------------
 # Wishart
 # ---------------------------------------------------------------------------------------------------------------
 
 
+@pytest.mark.statistical(p=1.2e-7)
 @pytest.mark.parametrize("df", [4.0, 6.5])
 def test_wishart_quadratic_forms_are_chi_square(df):
     # W ~ Wishart(df, s I) iff u^T W u ~ s chi2(df) for every unit u (jointly Wishart aside); summed over M
@@ -77,13 +64,11 @@ def test_wishart_quadratic_forms_are_chi_square(df):
     # diagonal, the (e_i + e_j)/sqrt 2 forms the off-diagonal entries by polarisation).
     # 12 checks: false-failure probability <= 1.2e-7.
     d, s, M = 4, 0.3, 20_000
-    L = np.asarray(
-        jax.jit(jax.vmap(lambda k: wishart_cholesky(k, d, df, s)))(jax.random.split(jax.random.key(1), M)), np.float64
-    )
+    L = np.asarray(wishart_draws(key(1), d, df, s, M), np.float64)
     assert np.all(np.triu(L, 1) == 0) and np.all(np.diagonal(L, axis1=1, axis2=2) > 0)
     W = L @ np.swapaxes(L, 1, 2)
     checks = Checks()
-    for u in directions(d, np.random.default_rng(0)):
+    for u in directions(d, stat_checks.rng(0)):
         checks.chi2(np.einsum("i,mij,j->", u, W, u) / s, M * df, f"u = {np.round(u, 3)}")
     mean = W.mean(0)
     np.testing.assert_allclose(mean, df * s * np.eye(d), atol=0.05 * df * s)  # implied by the checks above
@@ -106,30 +91,32 @@ def test_wishart_is_reproducible():
 # ---------------------------------------------------------------------------------------------------------------
 
 
+@pytest.mark.statistical(p=3e-7)
 def test_gaussian_mean_covariance_and_tails():
     # Each component ~ N(0, s^2) independently: mean exact normal; sum of (u^T x)^2 / s^2 ~ chi2(N) for the axes and
     # pairs (zero covariance); |x| > 4 s counted over all values ~ Binomial(6N, 2 Phi(-4)).
     # 6 + 23 + 1 = 30 checks: false-failure probability <= 3e-7.
     N, s, shape = 100_000, 0.3, (2, 3)
-    x = np.asarray(draws(jax.random.key(2), "gaussian", shape, s, 0.0, None, N), np.float64)
+    x = np.asarray(draws(key(2), "gaussian", shape, s, 0.0, None, N), np.float64)
     assert x.shape == (N, *shape)
     x = x.reshape(N, -1)
     checks = Checks()
     for i in range(6):
         checks.normal(x[:, i].sum() / (s * np.sqrt(N)), f"mean of component {i}")
-    for u in directions(6, np.random.default_rng(1)):
+    for u in directions(6, stat_checks.rng(1)):
         checks.chi2(np.sum((x @ u) ** 2) / s**2, N, f"variance along {np.round(u, 3)}")
     checks.binomial(int(np.sum(np.abs(x) > 4 * s)), x.size, 2 * stats.norm.sf(4.0), "tail beyond 4 scale")
     assert checks.false_failure_bound() < 1e-6
 
 
+@pytest.mark.statistical(p=2.4e-7)
 @pytest.mark.parametrize("df, s", [(3.0, 1.0), (5.0, 0.3)])
 def test_student_t_is_iid_per_component(df, s):
     # x_i / s ~ t(df): counts below exact quantiles (median and far tails included) are Binomial(N, p). Independent
     # components: P(x_i > 0, x_j > 0) = 1/4 (the reference's one shared scalar would give 1/2).
     # 3 components x 7 quantiles + 3 pairs = 24 checks: false-failure probability <= 2.4e-7.
     N = 200_000
-    x = np.asarray(draws(jax.random.key(3), "student_t", (3,), s, df, None, N), np.float64)
+    x = np.asarray(draws(key(3), "student_t", (3,), s, df, None, N), np.float64)
     checks = Checks()
     for p in (1e-3, 0.02, 0.25, 0.5, 0.75, 0.98, 0.999):
         q = s * stats.t.ppf(p, df)
@@ -140,35 +127,37 @@ def test_student_t_is_iid_per_component(df, s):
     assert checks.false_failure_bound() < 1e-6
 
 
+@pytest.mark.statistical(p=2.4e-7)
 def test_correlated_gaussian_has_the_wishart_covariance():
     # e ~ N(0, W): u^T e ~ N(0, u^T W u) exactly, so sum (u^T e)^2 / (u^T W u) ~ chi2(N) for every direction, and
     # the mean of u^T e is N(0, u^T W u / N). 12 + 12 = 24 checks: false-failure probability <= 2.4e-7.
     N, shape = 100_000, (2, 2)
-    chol = wishart_cholesky(jax.random.key(5), 4, 4, 0.1)
+    chol = wishart_cholesky(key(5), 4, 4, 0.1)
     W = np.asarray(chol, np.float64) @ np.asarray(chol, np.float64).T
-    e = np.asarray(draws(jax.random.key(6), "correlated_gaussian", shape, 0.1, 0.0, chol, N), np.float64)
+    e = np.asarray(draws(key(6), "correlated_gaussian", shape, 0.1, 0.0, chol, N), np.float64)
     assert e.shape == (N, *shape)
     e = e.reshape(N, 4)
     checks = Checks()
-    for u in directions(4, np.random.default_rng(2)):
+    for u in directions(4, stat_checks.rng(2)):
         var = u @ W @ u
         checks.chi2(np.sum((e @ u) ** 2) / var, N, f"variance along {np.round(u, 3)}")
         checks.normal((e @ u).sum() / np.sqrt(N * var), f"mean along {np.round(u, 3)}")
     assert checks.false_failure_bound() < 1e-6
 
 
+@pytest.mark.statistical(p=5.3e-7)
 @pytest.mark.parametrize("df", [1.0, 4.0])
 def test_correlated_student_t_is_multivariate_t(df):
     # e = L z / sqrt(u / df): along any direction, (u^T e) / sqrt(u^T W u) ~ t(df) exactly (counts below quantiles
     # are binomial); e^T W^{-1} e / d ~ F(d, df) exactly, which fails if each component had its own chi-square.
     # 10 directions x 5 quantiles + 3 = 53 checks: false-failure probability <= 5.3e-7.
     N, d = 100_000, 3
-    chol = wishart_cholesky(jax.random.key(7), d, d, 0.1)
+    chol = wishart_cholesky(key(7), d, d, 0.1)
     L = np.asarray(chol, np.float64)
     W = L @ L.T
-    e = np.asarray(draws(jax.random.key(8), "correlated_student_t", (d,), 0.1, df, chol, N), np.float64)
+    e = np.asarray(draws(key(8), "correlated_student_t", (d,), 0.1, df, chol, N), np.float64)
     checks = Checks()
-    for u in directions(d, np.random.default_rng(3)) + directions(d, np.random.default_rng(4))[-2:]:
+    for u in directions(d, stat_checks.rng(3)) + directions(d, stat_checks.rng(4))[-2:]:
         t = (e @ u) / np.sqrt(u @ W @ u)
         for p in (0.01, 0.25, 0.5, 0.75, 0.99):
             checks.binomial(int(np.sum(t <= stats.t.ppf(p, df))), N, p, f"direction {np.round(u, 3)}, quantile {p}")

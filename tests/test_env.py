@@ -4,10 +4,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from scipy import stats
 
 import jaxmdp
 
 from conftest import random_mdp
+from stat_checks import Checks, key
 
 
 def rollout(key, mdp, n_steps):
@@ -26,25 +28,39 @@ def rollout(key, mdp, n_steps):
     return out
 
 
+next_states = jax.jit(jax.vmap(jaxmdp.env.sample_next_state, (0, None, None, None)))
+rewards = jax.jit(jax.vmap(jaxmdp.env.sample_reward, (0, None, None, None, 0)))
+
+
+@pytest.mark.statistical(p=1.2e-6)
 def test_next_state_and_reward_frequencies_match_the_model():
+    # Next-state counts are Binomial(n, p) exactly; the rewards after each next state are i.i.d. in [0, 1] with the
+    # model's Beta (mean and variance by Bernstein) or its point mass. At most 4 + 2 x 4 = 12 checks at 1e-7 each
+    # (tests/stat_checks.py): false-failure probability <= 1.2e-6 for the test.
     rng = np.random.default_rng(0)
     m = random_mdp(rng, S=4, A=2)
     s, a, n = 2, 1, 200_000
-    keys = jax.random.split(jax.random.key(1), n)
-    nxt = jax.jit(jax.vmap(lambda k: jaxmdp.env.sample_next_state(k, m, jnp.int32(s), jnp.int32(a))))(keys)
-    freq = np.bincount(np.asarray(nxt), minlength=4) / n
-    p = np.asarray(m.T[s, a])
-    assert np.all(np.abs(freq - p) <= 4 * np.sqrt(p * (1 - p) / n) + 1e-12), (freq, p)
-    # Rewards: the sample mean per next state matches reward_mean (Beta or point mass).
-    rew = jax.jit(jax.vmap(lambda k, t: jaxmdp.env.sample_reward(k, m, jnp.int32(s), jnp.int32(a), t)))(keys, nxt)
+    keys = jax.random.split(key(1), n)
+    nxt = next_states(keys, m, jnp.int32(s), jnp.int32(a))
+    counts = np.bincount(np.asarray(nxt), minlength=4)
+    p = np.asarray(m.T[s, a], np.float64)
+    checks = Checks()
+    for t in range(4):
+        if p[t] > 0:
+            checks.binomial(int(counts[t]), n, p[t], f"next state {t}")
+        else:
+            assert counts[t] == 0
+    # Rewards: given the next state, Beta(mean conc, (1 - mean) conc) or a point mass at reward_mean.
+    rew = rewards(keys, m, jnp.int32(s), jnp.int32(a), nxt)
     for t in range(4):
         if p[t] > 0.05:
-            sel = np.asarray(rew)[np.asarray(nxt) == t]
+            sel = np.asarray(rew, np.float64)[np.asarray(nxt) == t]
             mean, conc = float(m.reward_mean[s, a, t]), float(m.reward_conc[s, a, t])
-            var = mean * (1 - mean) / (conc + 1) if conc > 0 else 0.0
-            assert abs(sel.mean() - mean) <= 5 * np.sqrt(var / sel.size) + 1e-6
             if conc == 0:
                 np.testing.assert_array_equal(sel, np.float32(mean))
+            else:
+                checks.bounded_moments(sel, stats.beta(mean * conc, (1 - mean) * conc), 0.0, 1.0, f"reward after {t}")
+    assert checks.false_failure_bound() <= 1.2e-6
 
 
 def test_episode_has_exactly_horizon_actions_and_auto_resets():

@@ -145,7 +145,22 @@ def test_continuous_optimal_gain_is_the_goal_reward(continuous):
 
 def test_episodic_optimal_return_equals_the_hand_count(episodic):
     m = episodic
-    assert m.H == 22
+    # The default horizon by its definition (docs/families.md §1.8, the module docstring): 1 + the largest
+    # shortest-path distance from a possible start, i.e. any node of the agent's room without key, door closed.
+    adj = (np.asarray(m.T) > 0).any(1)
+
+    def eccentricity(source):
+        dist, queue = {source: 0}, deque([source])
+        while queue:
+            s = queue.popleft()
+            for t in np.flatnonzero(adj[s]):
+                if int(t) not in dist:
+                    dist[int(t)] = dist[s] + 1
+                    queue.append(int(t))
+        return max(dist.values())
+
+    possible = [i for i, label in enumerate(m.info.node_labels) if label.endswith("HasKey=0,DoorOpen=0")]
+    assert m.H == 1 + max(eccentricity(i) for i in possible)
     T, R = np.asarray(m.T), np.asarray(m.R)
     s = m.info.node_labels.index(START)
     rewards = []
@@ -172,7 +187,7 @@ def test_randomized_actions_keep_the_optimum():
     m = jaxmdp.make("MiniGridDoorKey", episodic=True, seed=0, size=5, n_starting_states=1)
     assert m.info.node_labels[int(np.argmax(m.P0))] == START
     _, V = dp.finite_horizon_value_iteration(m)
-    np.testing.assert_allclose(m.P0 @ V[0], 22 - 15 + 1, atol=1e-5)
+    np.testing.assert_allclose(m.P0 @ V[0], m.H - len(HAND_PLAN) + 1, atol=1e-5)
 
 
 def test_default_distributions_and_parameters():

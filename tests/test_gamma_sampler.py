@@ -10,11 +10,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from scipy import special, stats
+from scipy import stats
 
 import jaxmdp.sampling.beta_sampling as bs
 from jaxmdp.sampling.beta_sampling import buffer_sizes, sample_beta, sample_log_gamma
 from jaxmdp.sampling.compaction import compact
+from stat_checks import Checks, key
+from stat_checks import seed as stat_seed
 
 SHAPES = (0.01, 0.32, 1.0, 5.0, 100.0, 1e4)
 PER_SHAPE = 40_000
@@ -51,94 +53,125 @@ def test_compact_under_vmap_is_per_member():
 # ---------------------------------------------------------------------------------------------------------------
 
 
-def assert_log_gamma(y: np.ndarray, a: float) -> None:
-    """``y`` are i.i.d. ``ln G``, ``G ~ Gamma(a)``: KS against scipy's Gamma CDF in log space (no underflow for tiny
-    shapes), E[ln G] = digamma(a), Var[ln G] = trigamma(a), and for ``a >= 0.3`` E[G] = a. Moment bounds are 6
-    standard errors of the estimate (a false alarm once in 5e8 keys; a bias of a fraction of a standard error, e.g.
-    0.003 in E[ln G] at ``a = 0.01`` with 40,000 draws, fails); the KS p-value bound 1e-3."""
-    k = y.size
+QUANTILES = (1e-3, 0.02, 0.25, 0.5, 0.75, 0.98, 0.999)
+
+
+def assert_log_gamma(checks: Checks, y: np.ndarray, a: float) -> None:
+    """``y`` are i.i.d. ``ln G``, ``G ~ Gamma(a)``: KS against scipy's log-Gamma CDF (no underflow for tiny shapes),
+    counts below 7 exact quantiles (Binomial; the far tails check the spread, the median the location), and for
+    ``a >= 0.3`` the sum of ``G``, exactly Gamma(k a). 9 checks (8 below 0.3), each failing a correct sampler with
+    probability <= 1e-7 (tests/stat_checks.py)."""
     assert np.all(np.isfinite(y)), a
-    assert stats.kstest(y, lambda t: stats.gamma.cdf(np.exp(t), a)).pvalue > 1e-3, a
-    var = special.polygamma(1, a)
-    assert abs(y.mean() - special.digamma(a)) < 6 * np.sqrt(var / k), a
-    # Var of the sample variance: (mu_4 - sigma^4) / k with mu_4 = psi_3 + 3 psi_1^2 (cumulants of ln G).
-    assert abs(y.var() - var) < 6 * np.sqrt((special.polygamma(3, a) + 2 * var**2) / k), a
-    if a >= 0.3:  # Var[G] = a; below, G's sample mean is dominated by rare large draws and says little
-        assert abs(np.exp(y).mean() - a) < 6 * np.sqrt(a / k), a
+    ref = stats.loggamma(a)
+    checks.ks(y, ref.cdf, f"ln G, shape {a}")
+    checks.below_quantiles(y, ref.ppf, QUANTILES, f"ln G, shape {a}")
+    if a >= 0.3:  # below, the sum of G is dominated by rare large draws and says little
+        checks.gamma_sum(np.exp(y).sum(), y.size * a, f"sum of G, shape {a}")
 
 
-@functools.lru_cache(maxsize=None)
-def mixed_draws(buffers):
+@functools.lru_cache(maxsize=2)
+def mixed_draws(buffers, seed):
     """One draw of an array holding every shape of ``SHAPES`` ``PER_SHAPE`` times, interleaved at random."""
     a = np.repeat(np.array(SHAPES, np.float32), PER_SHAPE)[np.random.default_rng(1).permutation(len(SHAPES) * PER_SHAPE)]
-    y = jax.jit(functools.partial(sample_log_gamma, buffers=buffers))(jax.random.key(11), jnp.asarray(a))
+    y = sample_log_gamma(jax.random.key(seed), jnp.asarray(a), buffers=buffers)  # jitted, buffers static
     return a, np.asarray(y, np.float64)
 
 
+@pytest.mark.statistical(p=5.6e-6)
 @pytest.mark.parametrize("buffers", [None, (64, 1)], ids=["default", "overflow"])
 def test_log_gamma_exact_on_large_arrays(buffers):
-    a, y = mixed_draws(buffers)
+    # 6 shapes x (8 or 9 checks + 1 independence check): 56 checks, false-failure probability <= 5.6e-6 for the
+    # test and 1e-7 per assertion.
+    seed = stat_seed(11)
+    a, y = mixed_draws(buffers, seed)
     m1, m2 = buffer_sizes(a.size) if buffers is None else buffers
     assert m1 < a.size  # the compacted path
     # First-round rejections: fewer than m1 by far with the default buffers, far more with the tiny ones (so the
-    # pass loop, with both buffers overflowing, did the work).
-    stream = jax.random.fold_in(jax.random.key(11), bs._STREAM)
+    # pass loop, with both buffers overflowing, did the work). Not a statistical check: the margins are wide (a
+    # factor two or more either way at the sampler's acceptance rates).
+    stream = jax.random.fold_in(jax.random.key(seed), bs._STREAM)
     first = bs._trial(jax.random.fold_in(stream, 0), bs._shape_terms(jnp.asarray(a)))
     rejected = int(jnp.isnan(first).sum())
     assert (rejected < m1 // 2) if buffers is None else (rejected > 50 * m1)
+    checks = Checks()
     for shape in SHAPES:
         ys = y[a == np.float32(shape)]
-        assert_log_gamma(ys, shape)
-        # Entries are independent: neighbours (in array order) uncorrelated.
-        assert abs(np.corrcoef(ys[:-1], ys[1:])[0, 1]) < 5 / np.sqrt(ys.size), shape
+        assert_log_gamma(checks, ys, shape)
+        # Entries are independent: disjoint neighbour pairs on the same side of the exact median, Binomial(k/2, 1/2).
+        median = stats.loggamma(shape).median()
+        checks.independent_signs(ys[0:-1:2], ys[1::2], median, median, f"neighbours, shape {shape}")
 
 
+@pytest.mark.statistical(p=5.3e-6)
 @pytest.mark.parametrize("candidates", [None, 1])
 def test_log_gamma_exact_on_small_arrays(candidates):
-    # A 5-entry array is below the compaction size: whole-array rounds, vmapped over keys.
-    keys = jax.random.split(jax.random.key(12), 20_000)
-    f = jax.jit(jax.vmap(functools.partial(sample_log_gamma, candidates=candidates), (0, None)))
-    y = np.asarray(f(keys, jnp.array(SHAPES)), np.float64)
+    # A 6-entry array is below the compaction size: whole-array rounds, vmapped over keys. 53 checks: <= 5.3e-6.
+    y = np.asarray(small_array_draws(key(12), candidates), np.float64)
+    checks = Checks()
     for i, shape in enumerate(SHAPES):
-        assert_log_gamma(y[:, i], shape)
+        assert_log_gamma(checks, y[:, i], shape)
 
 
+@functools.partial(jax.jit, static_argnames="candidates")
+def small_array_draws(k, candidates):
+    f = jax.vmap(functools.partial(sample_log_gamma, candidates=candidates), (0, None))
+    return f(jax.random.split(k, 20_000), jnp.array(SHAPES))
+
+
+@pytest.mark.statistical(p=3.6e-6)
 def test_float64_and_bfloat16():
+    # float64: 4 shapes, 34 checks; bfloat16: 2 binomial counts. False-failure probability <= 3.6e-6 (1e-7 each).
     shapes = (0.01, 0.32, 5.0, 1e4)
+    checks = Checks()
     with jax.enable_x64(True):
         a = jnp.repeat(jnp.array(shapes, jnp.float64), 30_000)
-        y = jax.jit(functools.partial(sample_log_gamma, dtype=jnp.float64))(jax.random.key(13), a)
+        y = sample_log_gamma(key(13), a, dtype=jnp.float64)  # (sample_log_gamma is jitted, dtype static)
         assert y.dtype == jnp.float64
         y = np.asarray(y).reshape(len(shapes), -1)
         for i, shape in enumerate(shapes):
-            assert_log_gamma(y[i], shape)
-    y = sample_log_gamma(jax.random.key(13), jnp.full((20_000,), 5.0), dtype=jnp.bfloat16)
+            assert_log_gamma(checks, y[i], shape)
+    y = sample_log_gamma(key(14), jnp.full((20_000,), 5.0), dtype=jnp.bfloat16)
     assert y.dtype == jnp.bfloat16
-    assert abs(float(y.astype(jnp.float32).mean()) - special.digamma(5.0)) < 0.01
+    # bfloat16 draws are float32 draws rounded to nearest: at a bfloat16 number q, y <= q iff the float32 draw is at
+    # most q + ulp(q) / 2, so the count below q is exactly Binomial(n, F(q + ulp / 2)).
+    ref = stats.loggamma(5.0)
+    y = np.asarray(y.astype(jnp.float32), np.float64)
+    for p in (0.1, 0.9):
+        q = float(jnp.bfloat16(ref.ppf(p)))
+        ulp = 2.0 ** (np.floor(np.log2(abs(q))) - 7)
+        checks.binomial(int(np.sum(y <= q)), y.size, ref.cdf(q + ulp / 2), f"bfloat16 below {q}")
 
 
+@functools.partial(jax.jit, static_argnames="dtype")
+def beta_draws(keys, a, b, dtype):
+    return jax.vmap(lambda k: sample_beta(k, a, b, dtype=dtype))(keys)
+
+
+@pytest.mark.statistical(p=5e-6)
 @pytest.mark.parametrize("dtype", ["float32", "float64"])
 def test_beta_against_scipy(dtype):
     # Beta(0.01, 0.5) puts 41% of its mass below 1e-38, where float32 rounds to 0: the fraction below 1e-30 is checked
-    # against scipy's CDF (binomial, 6 SE), the rest by KS against scipy's conditional CDF; the mean a / (a + b)
-    # within 6 standard errors.
+    # against scipy's CDF (binomial), the rest by KS against scipy's conditional CDF; mean and variance by Bernstein
+    # (bounded in [0, 1]); counts below 7 exact quantiles above the tiny mass. 4 x (1 + 1 + 2 + up to 7) < 50 checks:
+    # false-failure probability <= 5e-6 for the test, 1e-7 per assertion.
     params = ((0.01, 0.5), (0.5, 0.5), (2.0, 50.0), (300.0, 7.0))
-    keys = jax.random.split(jax.random.key(22), 20_000)
     tiny = 1e-30
+    checks = Checks()
     with jax.enable_x64(dtype == "float64"):
-        f = jax.jit(jax.vmap(functools.partial(sample_beta, dtype=jnp.dtype(dtype)), (0, None, None)))
+        keys = jax.random.split(key(22), 20_000)
         for a, b in params:
-            x = f(keys, a, b)
+            x = beta_draws(keys, a, b, jnp.dtype(dtype))
             assert x.dtype == jnp.dtype(dtype)
             x = np.asarray(x, np.float64)
             assert np.all((x >= 0) & (x <= 1)), (a, b)
             ref = stats.beta(a, b)
             p_tiny = ref.cdf(tiny)
-            assert abs(np.mean(x <= tiny) - p_tiny) <= 6 * np.sqrt(p_tiny * (1 - p_tiny) / x.size) + 1e-12, (a, b)
+            checks.binomial(int(np.sum(x <= tiny)), x.size, p_tiny, f"Beta({a}, {b}) below {tiny}")
             conditional = lambda t: (ref.cdf(t) - p_tiny) / (1 - p_tiny)  # noqa: E731
-            assert stats.kstest(x[x > tiny], conditional).pvalue > 1e-3, (a, b)
-            sd = np.sqrt(a * b / ((a + b) ** 2 * (a + b + 1)) / x.size)
-            assert abs(x.mean() - a / (a + b)) < 6 * sd, (a, b)
+            checks.ks(x[x > tiny], conditional, f"Beta({a}, {b}) above {tiny}")
+            checks.bounded_moments(x, ref, 0.0, 1.0, f"Beta({a}, {b})")
+            probs = [p for p in QUANTILES if p > p_tiny + 0.01 and ref.ppf(p) < 1 - 1e-6]  # resolvable quantiles
+            checks.below_quantiles(x, ref.ppf, probs, f"Beta({a}, {b})")
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -189,9 +222,20 @@ def test_same_key_same_value_other_key_other_value():
     np.testing.assert_array_equal(y1, jax.jit(sample_log_gamma)(jax.random.key(18), alpha))
     y2 = sample_log_gamma(jax.random.key(19), alpha)
     assert np.mean(np.asarray(y1) != np.asarray(y2)) > 0.999
-    # The sampler's stream is its own: drawing it does not repeat what the key gives jax.random.
-    u = jax.random.uniform(jax.random.key(18), (alpha.size,))
-    assert abs(np.corrcoef(np.asarray(u), np.asarray(y1).ravel())[0, 1]) < 0.1
+
+
+@pytest.mark.statistical(p=1e-7)
+def test_the_sampler_stream_is_not_the_key_own_stream():
+    # Drawing does not repeat what the key gives jax.random: with u = uniform(key) and y = sample(key), u_i is
+    # independent of F(y_i) (uniform, F the exact CDF of entry i), so the count of entries with both on the same side
+    # of 1/2 is Binomial(n, 1/2). (The former |corr| < 0.1 with n = 288 failed about 9% of fresh keys.) 1 check:
+    # false-failure probability <= 1e-7.
+    alpha = posterior_like(40, 5, 1)  # 8000 entries
+    k = key(18)
+    y = np.asarray(sample_log_gamma(k, alpha), np.float64).ravel()
+    u = np.asarray(jax.random.uniform(k, (alpha.size,)), np.float64)
+    cdf = stats.loggamma(np.asarray(alpha, np.float64).ravel()).cdf(y)
+    Checks().independent_signs(u, cdf, 0.5, 0.5, "uniform(key) against the draw's CDF")
 
 
 # ---------------------------------------------------------------------------------------------------------------

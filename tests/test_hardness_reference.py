@@ -97,8 +97,10 @@ def test_family_built_episodic_order_and_flags(entry, built):
         np.testing.assert_array_equal(episodic.episodic_graph_order(m), ref["episodic_graph_nodes"])
 
 
-@pytest.mark.parametrize("entry", [e for e in reference_params() if e.values[0] is None or e.values[0]["family"] == "RiverSwim"])
+@pytest.mark.slow
+@pytest.mark.parametrize("entry", reference_params())
 def test_family_built_end_to_end(entry, built):
+    # Every fixture, built by jaxmdp.make (test_family_built_episodic_order_and_flags checks make builds them all).
     m = built(entry)
     values = (
         hardness.diameter(m, variant="colosseum").value,

@@ -76,30 +76,37 @@ def continuous_case():
     rng = np.random.default_rng(5)
     mdp = random_mdp(rng, S=4, A=2, sparsity=1.0)  # dense kernel: every policy is ergodic
     T, R = np.asarray(mdp.T, np.float64), np.asarray(mdp.R, np.float64)
-    gains = np.array([np_gain(T, R, one_hot(c, 2)) for c in itertools.product(range(2), repeat=4)])
-    return mdp, T, R, gains.max(), gains.min(), rng
+    policies = [one_hot(c, 2) for c in itertools.product(range(2), repeat=4)]
+    gains = np.array([np_gain(T, R, pi) for pi in policies])
+    # The colosseum variant's rho* and rho^- by brute force: the gains of the deterministic policies whose
+    # gamma = 0.99 discounted values are largest (smallest) in every state (a discounted MDP has a uniformly optimal
+    # deterministic policy, so the elementwise extreme is attained by one of the 16).
+    disc = np.array([np.linalg.solve(np.eye(4) - 0.99 * np.einsum("sa,sat->st", pi, T), (pi * R).sum(-1))
+                     for pi in policies])
+    best, worst = int(np.argmax(disc.sum(-1))), int(np.argmin(disc.sum(-1)))
+    assert np.all(disc[best] >= disc.max(0) - 1e-9) and np.all(disc[worst] <= disc.min(0) + 1e-9)
+    colosseum = (gains[best], gains[worst])
+    return mdp, T, R, {"paper": (gains.max(), gains.min()), "colosseum": colosseum}, rng
 
 
 @pytest.mark.parametrize("variant", ["paper", "colosseum"])
 def test_continuous_instantaneous_matches_numpy(continuous_case, variant):
-    mdp, T, R, g_opt, g_min, rng = continuous_case
+    mdp, T, R, references, rng = continuous_case
+    g_opt, g_min = references[variant]  # independent references (numpy brute force), not the constants under test
     consts = indicators.indicator_constants(mdp, variant)
-    if variant == "paper":
-        np.testing.assert_allclose([consts.optimal, consts.worst], [g_opt, g_min], rtol=1e-5)
+    np.testing.assert_allclose([consts.optimal, consts.worst], [g_opt, g_min], rtol=1e-5)
     f = jax.jit(lambda pi, s: indicators.instantaneous(mdp, consts, pi, s, jnp.int32(0), variant))
     for trial in range(4):
         pi = rng.dirichlet(np.ones(2), size=4) if trial else np.full((4, 2), 0.5)
         g = np_gain(T, R, pi)
-        regret = max(float(consts.optimal) - g, 0.0)
+        regret = max(g_opt - g, 0.0)
         if variant == "colosseum" and regret <= 1e-3:
             regret = 0.0
         for s in range(4):
             out = f(jnp.asarray(pi, jnp.float32), jnp.int32(s))
             np.testing.assert_allclose(out.expected_reward, g, rtol=1e-5)
             np.testing.assert_allclose(out.regret, regret, rtol=1e-4, atol=1e-6)
-            np.testing.assert_allclose(
-                out.normalized_regret, regret / float(consts.optimal - consts.worst), rtol=1e-4, atol=1e-6
-            )
+            np.testing.assert_allclose(out.normalized_regret, regret / (g_opt - g_min), rtol=1e-4, atol=1e-6)
 
 
 def test_continuous_multichain_policy_uses_the_current_state():

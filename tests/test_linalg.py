@@ -4,17 +4,17 @@
 The deadlock check runs in a subprocess with ``NPROC=2`` (XLA's intra-op pool of two threads, whatever the machine)
 and a program with eight independent batched solves in a loop. With ``vmap(jnp.linalg.solve)`` in place of
 :func:`jaxmdp.jaxlib_workarounds.linalg.solve`, this program and two like it hung in each of 9 tries (1 and 2 host
-devices, jaxlib 0.10.2), so the subprocess's timeout is the regression test. The QR's deadlock is rarer (a program
-with eight independent ``vmap(jnp.linalg.qr)`` of 16 matrices 64 x 64 in a loop of 100 steps hung on its first try,
-another of 30 steps did not in 4), so its regression test is structural: under ``vmap`` every LAPACK call of
-:func:`qr` gets one matrix, which jaxlib runs on the calling thread.
+devices, jaxlib 0.10.2), so a hang of the subprocess is the regression test: detected by progress (no CPU time and no
+output for a minute, see tests/progress_run.py), not by a wall-clock limit that a loaded machine could exceed. The
+QR's deadlock is rarer (a program with eight independent ``vmap(jnp.linalg.qr)`` of 16 matrices 64 x 64 in a loop of
+100 steps hung on its first try, another of 30 steps did not in 4), so its regression test is structural: under
+``vmap`` every LAPACK call of :func:`qr` gets one matrix, which jaxlib runs on the calling thread.
 """
 
 from __future__ import annotations
 
 import os
 import re
-import subprocess
 import sys
 import textwrap
 
@@ -24,6 +24,7 @@ import numpy as np
 import pytest
 
 from conftest import REPO
+from progress_run import run_with_progress
 from jaxmdp.jaxlib_workarounds.linalg import qr, solve
 
 
@@ -84,12 +85,11 @@ DEADLOCK_PROGRAM = textwrap.dedent(
 def test_many_concurrent_batched_solves_do_not_deadlock_the_cpu_pool():
     env = {**os.environ, "NPROC": "2", "JAX_PLATFORMS": "cpu", "PYTHONPATH": str(REPO)}
     env.pop("XLA_FLAGS", None)
-    try:
-        done = subprocess.run([sys.executable, "-c", DEADLOCK_PROGRAM], env=env, capture_output=True, text=True,
-                              timeout=90, cwd=REPO)
-    except subprocess.TimeoutExpired:
+    done = run_with_progress([sys.executable, "-c", DEADLOCK_PROGRAM], env=env, cwd=REPO, stall_s=60, limit_s=600)
+    if done.hung:
         pytest.fail("batched solves deadlocked XLA's CPU thread pool (jaxmdp.jaxlib_workarounds.linalg.solve must map "
                     "one system at a time)")
+    assert not done.over_limit, "the program still ran after 600 s"
     assert done.returncode == 0, done.stderr[-2000:]
     assert "finite True" in done.stdout
 

@@ -19,7 +19,7 @@ import agents
 import jaxmdp
 from jaxmdp.experiment import runner
 from jaxmdp.experiment.agent_interface import Agent
-from jaxmdp.experiment.indicators import AGENT_COLUMNS, CSV_COLUMNS
+from jaxmdp.experiment.indicators import CSV_COLUMNS
 from conftest import random_mdp
 from numpy_reference import finite_horizon_eval, finite_horizon_optimal, one_hot
 

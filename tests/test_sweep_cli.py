@@ -15,7 +15,6 @@ import io
 import json
 import os
 import shutil
-import subprocess
 import sys
 import types
 from pathlib import Path
@@ -28,6 +27,7 @@ from hardness.analysis import scenarios, sweep_cli
 from hardness.analysis.scenarios import MEASURES
 
 from hardness_helpers import normalize_by_hand
+from progress_run import run_with_progress
 
 REPO = Path(__file__).resolve().parents[1]
 SEEDS = (0, 1, 3)
@@ -459,7 +459,9 @@ def test_sweep_size_script_smoke(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(REPO), JAXMDP_COMPILATION_CACHE=str(tmp_path / "jax_cache"))
     cmd = [sys.executable, str(REPO / "scripts" / "sweep_size.py"), "--family", "DeepSea", "--setting", "continuous",
            "--values", "3", "4", "--seeds", "0", "--no-plot", "--out", str(tmp_path), "--agent-steps", "0"]
-    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    # A hang shows as a minute without CPU time or output (tests/progress_run.py); 600 s only bounds a spinning run.
+    proc = run_with_progress(cmd, env=env, cwd=tmp_path, stall_s=60, limit_s=600)
+    assert not proc.hung and not proc.over_limit, f"sweep_size.py hung or ran over 600 s:\n{proc.stderr[-2000:]}"
     assert proc.returncode == 0, proc.stderr
     csv_path = tmp_path / "scenario3_DeepSea_continuous.csv"
     assert proc.stdout.split() == [str(csv_path), str(tmp_path / "scenario3_DeepSea_continuous.json")]

@@ -6,11 +6,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from scipy import optimize
 
 import jaxmdp
 from agent_loop import make_runner, probe_mdps, seeds
 from agents import AGENTS
-from agents.extended_value_iteration import extended_value_iteration
 from agents.ucrl2 import UCRL2, UCRL2HParams, check_hparams, confidence_widths
 from jaxmdp import dynamic_programming as dp
 from jaxmdp.experiment.agent_interface import Transition, spec_of
@@ -145,10 +145,27 @@ def test_plan_solves_the_current_plausible_set_and_starts_an_epoch():
     state, _ = _feed([(s, a, r, s2, None) for s, a, r, s2, _ in stream], replan=False)
     state = state.replace(hparams=hp)
     planned = jax.jit(UCRL2.plan)(jax.random.key(0), state)
-    p_hat, width_p, r_tilde = confidence_widths(state)
-    ref = extended_value_iteration(p_hat, width_p, r_tilde, state.state_mask, state.action_mask)
-    np.testing.assert_allclose(planned.Q - planned.u[:, None], ref.Q - ref.u[:, None], atol=2e-3)
     assert bool(planned.evi_converged) and not bool(planned.plan_due)
+    # Independent reference: scipy's LP solves each pair's inner problem max {p . u : lo <= p <= hi, sum p = 1} at
+    # the plan's bias u (lo, hi from the closed-form widths, checked above), so Q_ref = r~ + LP(u).
+    p_hat, width_p, r_tilde = (np.asarray(x, np.float64) for x in confidence_widths(state))
+    u = np.asarray(planned.u, np.float64)
+    lo, hi = np.maximum(p_hat - width_p, 0.0), np.minimum(p_hat + width_p, 1.0)
+    Q_ref = np.zeros_like(r_tilde)
+    for s in range(3):
+        for a in range(2):
+            lp = optimize.linprog(-u, A_eq=np.ones((1, 3)), b_eq=[1.0], bounds=list(zip(lo[s, a], hi[s, a])),
+                                  method="highs")
+            assert lp.status == 0
+            Q_ref[s, a] = r_tilde[s, a] - lp.fun
+    np.testing.assert_allclose(planned.Q, Q_ref, rtol=1e-5, atol=1e-5)
+    # The span rule certifies u: EVI iterates T_tau = tau T + (1 - tau) I, so span(T u - u) <= evi_tol / tau, and
+    # min_s (T u - u)(s) <= optimistic gain <= max_s (T u - u)(s) (Puterman Thm 8.5.5).
+    gap = Q_ref.max(-1) - u
+    assert gap.max() - gap.min() <= hp.evi_tol / hp.aperiodicity + 1e-5
+    # The greedy action is an argmax of the independent Q (up to float32 ties).
+    greedy = np.asarray(planned.Q).argmax(-1)
+    assert np.all(Q_ref[np.arange(3), greedy] >= Q_ref.max(-1) - 1e-5)
     np.testing.assert_array_equal(planned.schedule.epoch_visits, 0)
     np.testing.assert_array_equal(planned.schedule.visits, state.schedule.visits)
 

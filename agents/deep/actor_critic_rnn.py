@@ -33,7 +33,6 @@ from __future__ import annotations
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
-from flax import struct
 
 from agents.deep import policy_gradient as pg
 from agents.deep.actor_critic import (

@@ -14,6 +14,9 @@ hyperparameter sets and drives them in lockstep:
   also calls it once right after ``init`` (the reference's ``before_start_interacting``);
 * ``policy(state) -> pi``: the agent's current best policy estimate, ``[S, A]`` (continuous) or ``[H, S, A]``
   (episodic), used only to compute expected regret.
+* ``diagnostics(state) -> {name: int scalar}`` (optional): counters of silent degradation kept in the state, e.g.
+  plans that stopped at their iteration cap; the runner writes each as a column of its per-record CSV and warns at
+  the end of a run where one is non-zero.
 
 What an agent observes is declared by ``Agent.observation``:
 
@@ -124,6 +127,8 @@ class Agent:
     check_hparams: Callable[[Any], None] = lambda hparams: None
     #: What ``obs`` is: ``"state"`` (a state index), ``"emission"`` (a BlockMDP observation) or ``"any"``.
     observation: Literal["state", "emission", "any"] = "state"
+    #: Optional ``state -> {name: int scalar}``: counters the runner records and warns about (module docstring).
+    diagnostics: Callable[[Any], dict[str, jax.Array]] | None = None
 
 
 def where_due(due: jax.Array, new: Any, old: Any) -> Any:

@@ -52,7 +52,8 @@ class RunResult:
 
     Attributes:
       steps: ``[R]`` step counts of the records.
-      values: ``[R, B, 4]`` running sums (:data:`jaxmdp.experiment.indicators.AGENT_COLUMNS`) at each record.
+      values: ``[R, B, 4 + D]`` running sums (:data:`jaxmdp.experiment.indicators.AGENT_COLUMNS`) at each record,
+        then the agent's ``D`` diagnostics (``diagnostic_names``).
       constants: the members' :class:`~jaxmdp.experiment.indicators.IndicatorConstants` (numpy, leading axis ``B``).
       grid: the members.
       agent: the agent's name.
@@ -62,6 +63,7 @@ class RunResult:
       agent_state: the members' final agent states (numpy, leading axis ``B``).
       visits: ``[B, S]`` counts of the states each member acted in, when the run was asked to record them
         (``run(..., record_visits=True)``), else None.
+      diagnostic_names: the agent's diagnostics (``Agent.diagnostics``), the last columns of ``values`` and the CSV.
     """
 
     steps: np.ndarray
@@ -77,6 +79,7 @@ class RunResult:
     variant: str
     agent_state: Any = None
     visits: np.ndarray | None = None
+    diagnostic_names: tuple[str, ...] = ()
 
     @property
     def agent_steps_per_second(self) -> float:
@@ -99,7 +102,7 @@ class RunResult:
         """Write every record to one CSV (``member, mdp, hparams, seed`` and the reference's columns)."""
         with open(path, "w", newline="") as f:
             writer = csv.writer(f)
-            writer.writerow(MEMBER_COLUMNS + CSV_COLUMNS)
+            writer.writerow(MEMBER_COLUMNS + CSV_COLUMNS + self.diagnostic_names)
             writer.writerows(format_row(r) for r in self.rows())
 
 
@@ -116,7 +119,8 @@ def _columns(steps, values, constants) -> dict[str, np.ndarray]:
 
 
 def csv_rows(g: Grid, steps, values, constants, per_second) -> list[list[Any]]:
-    """CSV rows (member columns, then the reference's) of records ``steps``/``values``, record-major."""
+    """CSV rows (member columns, the reference's, then the agent's diagnostics) of records ``steps``/``values``,
+    record-major."""
     cols = _columns(steps, values, constants)
     out = []
     for r in range(len(steps)):
@@ -125,6 +129,7 @@ def csv_rows(g: Grid, steps, values, constants, per_second) -> list[list[Any]]:
                 [b, g.mdp_labels[g.mdp_index[b]], int(g.hparams_index[b]), int(g.seeds[b]), int(steps[r])]
                 + [cols[name][r, b] for name in CSV_COLUMNS[1:-1]]
                 + [per_second[r]]
+                + [int(x) for x in np.asarray(values)[r, b, len(AGENT_COLUMNS):]]
             )
     return out
 
@@ -148,9 +153,9 @@ def append_rows(path: Path, rows: list[list[Any]]) -> None:
         csv.writer(f).writerows(format_row(r) for r in rows)
 
 
-def truncate_csv(path: Path, t: int) -> None:
+def truncate_csv(path: Path, t: int, diagnostic_names: tuple[str, ...] = ()) -> None:
     """Drop rows written after the checkpoint at step ``t`` (a crash between writing rows and checkpointing)."""
-    header = list(MEMBER_COLUMNS + CSV_COLUMNS)
+    header = list(MEMBER_COLUMNS + CSV_COLUMNS + tuple(diagnostic_names))
     rows = []
     if path.exists():
         with open(path, newline="") as f:

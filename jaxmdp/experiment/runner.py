@@ -39,6 +39,7 @@ import functools
 import os
 import sys
 import time
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -302,14 +303,15 @@ def _chunk_program(
                 steps, values, j = args
                 # The order of AGENT_COLUMNS: regret, reward, expected reward, normalised regret.
                 logged = c.logged.value
-                row = jnp.stack([logged[:, 0], c.reward.value, logged[:, 1], logged[:, 2]], axis=-1)
+                row = [logged[:, 0], c.reward.value, logged[:, 1], logged[:, 2]]
+                row = jnp.stack(row + [x.astype(dtype) for x in _diagnostic_values(agent, c.agent_state)], axis=-1)
                 return steps.at[j].set(c.t), values.at[j].set(row), j + 1
 
             steps, values, j = jax.lax.cond(is_record, record, lambda a: a, (steps, values, j))
             return c, steps, values, j
 
         steps0 = jnp.zeros((capacity,), jnp.int32)
-        values0 = jnp.zeros((capacity, B, len(AGENT_COLUMNS)), dtype)
+        values0 = jnp.zeros((capacity, B, len(AGENT_COLUMNS) + len(diagnostic_names(agent, carry.agent_state))), dtype)
         init = (carry, steps0, values0, jnp.zeros((), jnp.int32))
         return jax.lax.while_loop(lambda loop: loop[0].t < t_end, segment, init)
 
@@ -322,6 +324,34 @@ def _chunk_program(
     in_specs = (carry_specs, P(), P("members"), P("members"), P(), P())
     out_specs = (carry_specs, P(), P(None, "members"), P())
     return jax.jit(jax.shard_map(chunk, mesh=mesh, in_specs=in_specs, out_specs=out_specs, check_vma=False))
+
+
+def diagnostic_names(agent: Agent, agent_states: Any) -> tuple[str, ...]:
+    """The names of ``agent.diagnostics`` (sorted; none without it) for batched ``agent_states`` (or their shapes)."""
+    if agent.diagnostics is None:
+        return ()
+    return tuple(sorted(jax.eval_shape(jax.vmap(agent.diagnostics), agent_states)))
+
+
+def _diagnostic_values(agent: Agent, agent_states: Any) -> list[jax.Array]:
+    """``[B]`` arrays of the diagnostics of batched ``agent_states``, in :func:`diagnostic_names` order."""
+    if agent.diagnostics is None:
+        return []
+    d = jax.vmap(agent.diagnostics)(agent_states)
+    return [d[name] for name in sorted(d)]
+
+
+def _warn_diagnostics(agent: Agent, agent_states: Any) -> None:
+    """A warning per non-zero diagnostic at the end of a run: the agent, the total and how many members."""
+    for name, x in zip(diagnostic_names(agent, agent_states), _diagnostic_values(agent, agent_states)):
+        x = np.asarray(x)
+        if np.any(x != 0):
+            warnings.warn(
+                f"{agent.name}: {name} = {int(x.sum())} over the run ({int(np.sum(x != 0))} of {x.size} members); "
+                f"see the '{name}' column of the records",
+                RuntimeWarning,
+                stacklevel=3,
+            )
 
 
 @functools.lru_cache(maxsize=len(VARIANTS))
@@ -438,6 +468,7 @@ class _Program:
     consts: IndicatorConstants
     sched: Schedule
     compile_s: float
+    diagnostic_names: tuple[str, ...] = ()
 
 
 @dataclasses.dataclass
@@ -517,6 +548,7 @@ def _compile(agent: Agent, grid: Grid, settings: _Settings) -> _Program:
     return _Program(
         init=init_fn, chunk=chunk_exe, carry_shape=carry_shape, mdps=mdps, mdp_index=mdp_index, hparams=hparams,
         key_data=key_data, consts=consts, sched=sched, compile_s=time.perf_counter() - t0,
+        diagnostic_names=diagnostic_names(agent, carry_shape.agent_state),
     )
 
 
@@ -528,15 +560,16 @@ def _start_or_resume(
     if ckpt is not None and resume and ckpt.exists():
         carry, steps_done, values_done, meta = load_checkpoint(ckpt, program.carry_shape, run_id)
         if csv_file is not None:
-            truncate_csv(csv_file, int(carry.t))
+            truncate_csv(csv_file, int(carry.t), program.diagnostic_names)
         return _Progress(carry, steps_done, values_done, float(meta["run_s"]))
     carry = program.init(program.mdps, program.mdp_index, program.hparams, program.key_data, program.sched.n_steps)
     jax.block_until_ready(carry)
     if csv_file is not None:
         csv_file.parent.mkdir(parents=True, exist_ok=True)
-        truncate_csv(csv_file, -1)
+        truncate_csv(csv_file, -1, program.diagnostic_names)
     steps_done = np.zeros((0,), np.int64)
-    values_done = np.zeros((0, n_members, len(AGENT_COLUMNS)), np.dtype(dynamics(program.mdps).dtype))
+    n_columns = len(AGENT_COLUMNS) + len(program.diagnostic_names)
+    values_done = np.zeros((0, n_members, n_columns), np.dtype(dynamics(program.mdps).dtype))
     return _Progress(carry, steps_done, values_done, 0.0)
 
 
@@ -647,6 +680,7 @@ def run(
     done, run_s = _run_chunks(
         agent, grid, program, start, settings, run_id, ckpt, csv_file, progress, stop_after_chunks
     )
+    _warn_diagnostics(agent, done.carry.agent_state)
     return RunResult(
         steps=done.steps,
         values=done.values,
@@ -661,4 +695,5 @@ def run(
         variant=variant,
         agent_state=jax.tree.map(np.asarray, done.carry.agent_state),
         visits=np.asarray(done.carry.visits) if record_visits else None,
+        diagnostic_names=program.diagnostic_names,
     )

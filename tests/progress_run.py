@@ -1,0 +1,65 @@
+"""Run a subprocess and tell a hang from slowness by progress, not by a tight wall-clock limit.
+
+A process makes progress while its CPU time (user + system over all its threads, from ``/proc/<pid>/stat``) grows or
+its output grows. A deadlocked thread pool waits: neither grows. On a loaded machine a slow process still gets CPU
+ticks every few seconds, so ``stall_s`` seconds without either is a hang whatever the load; ``limit_s`` is only an
+outer bound against a process that spins forever.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+
+@dataclass(frozen=True)
+class Finished:
+    returncode: int | None  # None when the run was stopped (hung or over the outer bound)
+    stdout: str
+    stderr: str
+    hung: bool  # no CPU time and no output for ``stall_s`` seconds
+    over_limit: bool  # still progressing after ``limit_s`` seconds
+
+
+def cpu_ticks(pid: int) -> int | None:
+    """utime + stime of ``pid`` in clock ticks (its threads included), or ``None`` without ``/proc``."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except (OSError, IndexError):
+        return None
+    return int(fields[11]) + int(fields[12])  # fields 14 and 15 of proc(5), counted after the ")"
+
+
+def run_with_progress(cmd: list[str], *, env: dict, cwd, stall_s: float = 60.0, limit_s: float = 900.0,
+                      poll_s: float = 0.5) -> Finished:
+    """Run ``cmd``; stop it when it made no progress for ``stall_s`` seconds or ran ``limit_s`` seconds."""
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+        proc = subprocess.Popen(cmd, env=env, cwd=cwd, stdout=out, stderr=err)
+        start = last_progress = time.monotonic()
+        last = (cpu_ticks(proc.pid), 0)
+        hung = over = False
+        try:
+            while proc.poll() is None:
+                time.sleep(poll_s)
+                now = time.monotonic()
+                seen = (cpu_ticks(proc.pid), os.fstat(out.fileno()).st_size + os.fstat(err.fileno()).st_size)
+                if seen != last:
+                    last, last_progress = seen, now
+                elif now - last_progress > stall_s:
+                    hung = True
+                    break
+                if now - start > limit_s:
+                    over = True
+                    break
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+        out.seek(0)
+        err.seek(0)
+        return Finished(None if hung or over else proc.returncode, out.read().decode(errors="replace"),
+                        err.read().decode(errors="replace"), hung, over)

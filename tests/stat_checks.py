@@ -1,0 +1,111 @@
+"""Statistical checks with a stated false-failure probability, and the seed of the statistical tests.
+
+Every check compares a statistic with bounds that a correct sampler leaves with probability at most ``ALPHA = 1e-7``:
+the exact distribution of the statistic where it is known (a binomial count of draws below an exact quantile, a
+chi-square sum of squared Gaussians, a normal or Gamma sum, the Kolmogorov-Smirnov statistic's distribution), and
+otherwise Bernstein's inequality for bounded variables (no normal approximation). A test's false-failure probability
+is at most its number of checks times ``ALPHA``; tests state it and mark themselves ``statistical(p=...)`` so that
+``tests/fresh_seed_check.py`` can re-run them on fresh seeds.
+
+The seed: ``seed(default)`` is ``default`` unless ``JAXMDP_TEST_SEED`` is set, in which case it is a value derived
+from both (different tests get different streams for the same fresh seed).
+"""
+
+from __future__ import annotations
+
+import os
+
+import jax
+import numpy as np
+from scipy import stats
+
+ALPHA = 1e-7
+SEED_VARIABLE = "JAXMDP_TEST_SEED"
+
+
+def seed(default: int) -> int:
+    """``default``, or with ``$JAXMDP_TEST_SEED`` set a seed below 2**31 derived from it and ``default``."""
+    fresh = os.environ.get(SEED_VARIABLE)
+    if fresh is None:
+        return default
+    return int(np.random.SeedSequence([int(fresh), default]).generate_state(1)[0] >> 1)
+
+
+def key(default: int) -> jax.Array:
+    return jax.random.key(seed(default))
+
+
+def rng(default: int) -> np.random.Generator:
+    return np.random.default_rng(seed(default))
+
+
+class Checks:
+    """Counts a test's checks, each failing a correct sampler with probability at most ``alpha``."""
+
+    def __init__(self, alpha: float = ALPHA) -> None:
+        self.n = 0
+        self.alpha = alpha
+
+    def false_failure_bound(self) -> float:
+        return self.n * self.alpha
+
+    def _two_sided(self, dist) -> tuple[float, float]:
+        return dist.ppf(self.alpha / 2), dist.isf(self.alpha / 2)
+
+    def chi2(self, total: float, dof: float, what: str) -> None:
+        """``total ~ chi2(dof)`` exactly."""
+        self.n += 1
+        lo, hi = self._two_sided(stats.chi2(dof))
+        assert lo <= total <= hi, f"{what}: chi2({dof}) statistic {total} outside [{lo}, {hi}]"
+
+    def normal(self, z: float, what: str) -> None:
+        """``z ~ N(0, 1)`` exactly."""
+        self.n += 1
+        bound = stats.norm.isf(self.alpha / 2)
+        assert abs(z) <= bound, f"{what}: z = {z} beyond {bound}"
+
+    def gamma_sum(self, total: float, shape: float, what: str) -> None:
+        """``total`` is a sum of independent Gamma(a_i, 1): exactly Gamma(sum a_i, 1)."""
+        self.n += 1
+        lo, hi = self._two_sided(stats.gamma(shape))
+        assert lo <= total <= hi, f"{what}: Gamma({shape}) sum {total} outside [{lo}, {hi}]"
+
+    def binomial(self, count: int, n: int, p: float, what: str) -> None:
+        """``count ~ Binomial(n, p)`` exactly."""
+        self.n += 1
+        lo, hi = self._two_sided(stats.binom(n, p))
+        assert lo <= count <= hi, f"{what}: count {count} of {n} outside [{lo}, {hi}] (p = {p})"
+
+    def below_quantiles(self, x: np.ndarray, ppf, probs, what: str) -> None:
+        """i.i.d. ``x`` with quantile function ``ppf``: the count below each exact quantile is Binomial(n, p)."""
+        for p in probs:
+            self.binomial(int(np.sum(x <= ppf(p))), x.size, p, f"{what}: below its {p} quantile")
+
+    def ks(self, x: np.ndarray, cdf, what: str) -> None:
+        """i.i.d. ``x`` with a continuous CDF: the exact Kolmogorov-Smirnov p-value is uniform, above ``ALPHA``."""
+        self.n += 1
+        p = stats.kstest(x, cdf).pvalue
+        assert p > self.alpha, f"{what}: Kolmogorov-Smirnov p-value {p}"
+
+    def bernstein(self, x: np.ndarray, mean: float, var: float, bound: float, what: str) -> None:
+        """i.i.d. ``x`` with mean ``mean``, variance at most ``var`` and ``|x - mean| <= bound``: Bernstein's
+        inequality, P(|x̄ - mean| >= t) <= 2 exp(-n t^2 / (2 var + 2 bound t / 3)), solved for the ``t`` at which the
+        right side is ``alpha``."""
+        self.n += 1
+        n, log_term = x.size, np.log(2 / self.alpha)
+        t = (bound * log_term / 3 + np.sqrt((bound * log_term / 3) ** 2 + 2 * n * var * log_term)) / n
+        assert abs(x.mean() - mean) <= t, f"{what}: mean {x.mean()} differs from {mean} by more than {t}"
+
+    def bounded_moments(self, x: np.ndarray, dist, lo: float, hi: float, what: str) -> None:
+        """Mean and variance of i.i.d. ``x`` in ``[lo, hi]`` against the scipy distribution ``dist`` (2 Bernstein
+        checks: on ``x`` and on ``(x - mean)^2``, whose mean is the variance and variance ``mu_4 - sigma^4``)."""
+        mean, var, excess_kurtosis = (float(x) for x in dist.stats(moments="mvk"))
+        mu4 = (excess_kurtosis + 3.0) * var**2
+        self.bernstein(x, mean, var, max(hi - mean, mean - lo), f"{what}: mean")
+        reach = max(hi - mean, mean - lo) ** 2
+        self.bernstein((x - mean) ** 2, var, max(mu4 - var**2, 0.0), max(reach - var, var), f"{what}: variance")
+
+    def independent_signs(self, x: np.ndarray, y: np.ndarray, median_x: float, median_y: float, what: str) -> None:
+        """Pairs ``(x_i, y_i)`` i.i.d. across ``i`` with ``x_i`` independent of ``y_i`` and exact medians: the count
+        of pairs on the same side of their medians is Binomial(n, 1/2)."""
+        self.binomial(int(np.sum((x <= median_x) == (y <= median_y))), x.size, 0.5, f"{what}: sign agreement")
