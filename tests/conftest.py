@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import gc
 import json
 import os
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+import jax
 
 import jaxmdp
 
@@ -81,3 +84,14 @@ def random_mdp(
     conc = np.where(rng.random((S, A, S)) < 0.5, rng.uniform(1, 10, size=(S, A, S)), 0.0)
     P0 = rng.random(S)
     return jaxmdp.custom_mdp(T, P0=P0 / P0.sum(), H=H, reward_mean=mean, reward_conc=conc)
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _release_compiled_programs():
+    """After each test module, drop JAX's compiled programs. Every compiled CPU program keeps memory maps in the
+    process, and a long-lived xdist worker that ran most of the suite neared Linux's limit of 65 530 maps per process
+    (49 222 seen); past it XLA crashed while compiling (SIGSEGV or SIGABRT in ``backend_compile_and_load``, three full
+    runs out of three). Modules recompile what they need."""
+    yield
+    jax.clear_caches()
+    gc.collect()
