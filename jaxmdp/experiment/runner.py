@@ -535,11 +535,6 @@ def _compile(agent: Agent, grid: Grid, settings: _Settings) -> _Program:
     )
     t0 = time.perf_counter()
     consts = _constants_program(settings.variant)(mdps, mdp_index)
-    # Wait for the constants before compiling anything else: twice in a full test run (jaxlib 0.10.2, CPU), XLA
-    # crashed (SIGSEGV, SIGABRT) while compiling the chunk program as the constants program, now a long lax.map, was
-    # still running on the thread pool. Compiling and running at the same time is meant to be safe; this only removes
-    # the overlap, at the cost of the constants' run time (well under a second for the benchmark's MDPs).
-    jax.block_until_ready(consts)
     init_jit = _init_program(agent, settings.record_visits)
     init_fn = init_jit.lower(mdps, mdp_index, hparams, key_data, sched.n_steps).compile()
     carry_shape = jax.eval_shape(init_jit, mdps, mdp_index, hparams, key_data, sched.n_steps)
@@ -549,6 +544,7 @@ def _compile(agent: Agent, grid: Grid, settings: _Settings) -> _Program:
         agent, settings.variant, settings.capacity, settings.n_shards, carry_layout, settings.record_visits
     )
     chunk_exe = chunk_fn.lower(carry_shape, mdps, mdp_index, consts, sched, jnp.int32(0)).compile()
+    jax.block_until_ready(consts)
     return _Program(
         init=init_fn, chunk=chunk_exe, carry_shape=carry_shape, mdps=mdps, mdp_index=mdp_index, hparams=hparams,
         key_data=key_data, consts=consts, sched=sched, compile_s=time.perf_counter() - t0,
