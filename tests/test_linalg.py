@@ -1,5 +1,5 @@
-"""jaxmdp.jaxlib_workarounds.linalg.solve and .qr: jnp.linalg's numbers under any vmap, and no deadlock of jaxlib
-0.10.2's CPU pool.
+"""jaxmdp.jaxlib_workarounds.linalg.solve and .one_at_a_time (here around jnp.linalg.qr): jnp.linalg's numbers
+under any vmap, and no deadlock of jaxlib 0.10.2's CPU pool.
 
 The deadlock check runs in a subprocess with ``NPROC=2`` (XLA's intra-op pool of two threads, whatever the machine)
 and a program with eight independent batched solves in a loop. With ``vmap(jnp.linalg.solve)`` in place of
@@ -8,7 +8,8 @@ devices, jaxlib 0.10.2), so a hang of the subprocess is the regression test: det
 output for a minute, see tests/progress_run.py), not by a wall-clock limit that a loaded machine could exceed. The
 QR's deadlock is rarer (a program with eight independent ``vmap(jnp.linalg.qr)`` of 16 matrices 64 x 64 in a loop of
 100 steps hung on its first try, another of 30 steps did not in 4), so its regression test is structural: under
-``vmap`` every LAPACK call of :func:`qr` gets one matrix, which jaxlib runs on the calling thread.
+``vmap`` every LAPACK call of ``one_at_a_time(jnp.linalg.qr)`` gets one matrix, which jaxlib runs on the calling
+thread.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ import pytest
 
 from conftest import REPO
 from progress_run import run_with_progress
-from jaxmdp.jaxlib_workarounds.linalg import qr, solve
+from jaxmdp.jaxlib_workarounds.linalg import one_at_a_time, solve
 
 
 def _systems(key, shape, S):
@@ -95,8 +96,13 @@ def test_many_concurrent_batched_solves_do_not_deadlock_the_cpu_pool():
 
 
 # ---------------------------------------------------------------------------------------------------------------
-# qr
+# one_at_a_time, on a function with two outputs
 # ---------------------------------------------------------------------------------------------------------------
+
+
+@one_at_a_time
+def qr(a):
+    return jnp.linalg.qr(a)
 
 
 @pytest.mark.parametrize("shape", [(6, 4), (4, 6), (5, 5)])

@@ -3,16 +3,14 @@ and an orthogonal initialiser that is safe to ``vmap`` on jaxlib 0.10.2's CPU ba
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
-import numpy as np
 
-from jaxmdp.jaxlib_workarounds.linalg import qr
+from jaxmdp.jaxlib_workarounds.linalg import one_at_a_time
 
 __all__ = ["MLP", "orthogonal"]
 
@@ -43,26 +41,15 @@ class MLP(nn.Module):
 
 
 def orthogonal(scale: float = 1.0, column_axis: int = -1) -> Callable[..., jax.Array]:
-    """``jax.nn.initializers.orthogonal(scale, column_axis)`` (flax's default for recurrent kernels), draw for draw:
-    a uniformly distributed (Haar) orthogonal matrix, the ``Q`` of the QR decomposition of a standard normal matrix
-    with the signs of ``diag(R)`` moved into ``Q`` (Mezzadri 2007, "How to generate random matrices from the
-    classical compact groups"), times ``scale``.
-
-    The QR is :func:`jaxmdp.jaxlib_workarounds.linalg.qr`: an agent initialised under ``vmap`` (every runner grid)
+    """``jax.nn.initializers.orthogonal(scale, column_axis)`` (flax's default for recurrent kernels: a uniformly
+    distributed orthogonal matrix, the sign-corrected ``Q`` of the QR decomposition of a standard normal matrix,
+    Mezzadri 2007), draw for draw, with each key's draw wrapped in
+    :func:`jaxmdp.jaxlib_workarounds.linalg.one_at_a_time`: an agent initialised under ``vmap`` (every runner grid)
     would otherwise run one batched LAPACK QR per kernel, which deadlocks jaxlib 0.10.2's CPU thread pool when two of
-    them run at once (observed: the recurrent actor-critic's learning probes).
-    """
+    them run at once (observed: the recurrent actor-critic's learning probes)."""
+    init = jax.nn.initializers.orthogonal(scale, column_axis)
 
-    def init(key: jax.Array, shape: Sequence[int], dtype: Any = jnp.float32) -> jax.Array:
-        if len(shape) < 2:
-            raise ValueError(f"orthogonal initialiser: shape must have at least 2 axes; got {tuple(shape)}")
-        n_cols = shape[column_axis]
-        n_rows = math.prod(shape) // n_cols
-        z = jax.random.normal(key, (max(n_rows, n_cols), min(n_rows, n_cols)), dtype)
-        q, r = qr(z)
-        q = q * jnp.sign(jnp.diagonal(r))[None, :]
-        q = q.T if n_rows < n_cols else q
-        q = jnp.reshape(q, tuple(np.delete(np.asarray(shape), column_axis)) + (n_cols,))
-        return jnp.asarray(scale, dtype) * jnp.moveaxis(q, -1, column_axis)
+    def init_one_key_at_a_time(key: jax.Array, shape: Sequence[int], dtype: Any = jnp.float32) -> jax.Array:
+        return one_at_a_time(lambda k: init(k, shape, dtype))(key)
 
-    return init
+    return init_one_key_at_a_time

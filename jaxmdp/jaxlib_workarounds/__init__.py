@@ -1,4 +1,4 @@
 """Workarounds for defects of jaxlib 0.10.2's CPU backend, kept in one place so that they can be deleted together
 once jaxlib is fixed: the YNNPACK miscompilation guard (:mod:`jaxmdp.jaxlib_workarounds.xla_cpu`), and a linear
-solve and a QR decomposition that cannot deadlock the thread pool under ``vmap``
+solve, and a wrapper for any function of matrices (a QR, say), that cannot deadlock the thread pool under ``vmap``
 (:mod:`jaxmdp.jaxlib_workarounds.linalg`)."""

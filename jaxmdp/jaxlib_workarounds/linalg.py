@@ -17,51 +17,45 @@ asleep. Observed in jaxmdp:
   initialisations (``jax.random.orthogonal``, a QR of a normal draw) waiting on each other's chunks.
 
 (The parallel path is reportedly compiled out of later jaxlib releases.) ``ParallelBatchMap`` runs a batch of one
-inline, on the calling thread, so :func:`solve` and :func:`qr` are the ``jnp.linalg`` functions for one matrix whose
-``vmap`` rule handles the batch one matrix after another (``lax.map``). Each matrix goes through the same LAPACK
-routines as in the batched call, so the results are bitwise those of the batched call. For :func:`solve` it is also
-faster for the batches jaxmdp uses (on the project's 2-core CPU: 64 x 25 x 25 in 0.6 ms instead of 1.0 ms, 80 x 55 x
-55 1.1 vs 1.3 ms, 4 x 400 x 400 0.29 vs 0.68 s) except for very many tiny systems (1 024 x 5 x 5: 2.3 ms instead of
-0.55 ms).
+inline, on the calling thread, so :func:`one_at_a_time` gives a function a ``vmap`` rule that handles the batch one
+set of arguments after another (``lax.map``): :func:`solve` is ``jnp.linalg.solve`` so wrapped, and the recurrent
+actor-critic wraps its orthogonal initialiser (``agents.deep.networks.orthogonal``). Each matrix goes through the
+same LAPACK routines as in the batched call, so the results are bitwise those of the batched call. For :func:`solve`
+it is also faster for the batches jaxmdp uses (on the project's 2-core CPU: 64 x 25 x 25 in 0.6 ms instead of 1.0 ms,
+80 x 55 x 55 1.1 vs 1.3 ms, 4 x 400 x 400 0.29 vs 0.68 s) except for very many tiny systems (1 024 x 5 x 5: 2.3 ms
+instead of 0.55 ms).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 
-__all__ = ["solve", "qr"]
+__all__ = ["solve", "one_at_a_time"]
 
 
-def _one_at_a_time(fn: Callable[..., jax.Array]) -> Callable[..., jax.Array]:
-    """The ``custom_vmap`` rule of :func:`solve` and :func:`qr`: unbatched arguments are broadcast to the batch, and
-    ``fn`` (the workaround itself, so that an enclosing ``vmap`` applies the rule again) runs on one set of
-    arguments at a time under ``lax.map``."""
+def one_at_a_time(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """``fn`` with a ``vmap`` rule that runs it on one set of arguments at a time: unbatched arguments are broadcast
+    to the batch and the wrapped function itself runs under ``lax.map`` (so that an enclosing ``vmap`` applies the rule
+    again). Every LAPACK call inside ``fn`` then sees one matrix and runs inline (module docstring); the numbers are
+    those of ``vmap(fn)``. Every parameter of ``fn`` must be an array (JAX key arrays included): ``custom_vmap``
+    passes defaults as arguments, so options such as ``mode="reduced"`` are fixed inside ``fn``."""
+    wrapped = jax.custom_batching.custom_vmap(fn)
 
-    def rule(axis_size: int, in_batched: list[bool], *args: jax.Array):
+    def rule(axis_size: int, in_batched: list[bool], *args: Any):
         args = tuple(a if b else jnp.broadcast_to(a, (axis_size, *a.shape)) for a, b in zip(args, in_batched))
-        out = jax.lax.map(lambda xs: fn(*xs), args)
+        out = jax.lax.map(lambda xs: wrapped(*xs), args)
         return out, jax.tree.map(lambda _: True, out)
 
-    return rule
+    wrapped.def_vmap(rule)
+    return wrapped
 
 
-@jax.custom_batching.custom_vmap
+@one_at_a_time
 def solve(a: jax.Array, b: jax.Array) -> jax.Array:
     """``x`` with ``a x = b`` for one square ``a[S, S]`` and ``b[S]`` (or ``b[S, K]``), by LU with partial pivoting
     (``jnp.linalg.solve``); batched systems are solved one at a time (module docstring). Not differentiable."""
     return jnp.linalg.solve(a, b)
-
-
-@jax.custom_batching.custom_vmap
-def qr(a: jax.Array) -> tuple[jax.Array, jax.Array]:
-    """The reduced QR decomposition ``a = q r`` of one matrix ``a[M, N]`` (``jnp.linalg.qr``, Householder
-    reflections): ``q[M, K]`` with orthonormal columns and upper-triangular ``r[K, N]``, ``K = min(M, N)``; batched
-    matrices are decomposed one at a time (module docstring). Not differentiable."""
-    return jnp.linalg.qr(a)
-
-
-solve.def_vmap(_one_at_a_time(solve))
-qr.def_vmap(_one_at_a_time(qr))
