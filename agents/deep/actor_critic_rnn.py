@@ -77,7 +77,7 @@ class PolicyValueRNN(nn.Module):
     @nn.compact
     def __call__(self, carry: LSTMCarry, obs: jax.Array) -> tuple[LSTMCarry, tuple[jax.Array, jax.Array]]:
         embedding = MLP([self.width] * self.depth, n_outputs=None, activate_final=True)(obs)
-        # flax's default recurrent-kernel initialiser, with a QR that cannot deadlock jaxlib 0.10.2 under vmap.
+        # flax's default recurrent-kernel initialiser, drawn one key at a time under vmap (no jaxlib 0.10.2 deadlock).
         carry, y = nn.OptimizedLSTMCell(self.width, recurrent_kernel_init=orthogonal())(carry, embedding)
         embedding = embedding + nn.relu(y)
         return carry, (nn.Dense(self.n_actions)(embedding), nn.Dense(1)(embedding)[0])
