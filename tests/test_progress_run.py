@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import sys
 
+import progress_run
 from progress_run import run_with_progress
 
 
@@ -24,4 +25,12 @@ def test_a_printing_idle_process_is_not_a_hang():
 def test_a_computing_silent_process_is_not_a_hang_but_the_outer_bound_stops_it():
     done = run_with_progress([sys.executable, "-c", "while True: pass"], env=dict(os.environ), cwd=".",
                              stall_s=2.0, limit_s=4.0, poll_s=0.1)
+    assert done.over_limit and not done.hung and done.returncode is None
+
+
+def test_without_cpu_readings_silence_alone_is_not_a_hang(monkeypatch):
+    # No /proc (not Linux): a silent process may be compiling, so only the outer bound stops it.
+    monkeypatch.setattr(progress_run, "cpu_ticks", lambda pid: None)
+    done = run_with_progress([sys.executable, "-c", "import time; time.sleep(30)"], env=dict(os.environ), cwd=".",
+                             stall_s=1.0, limit_s=3.0, poll_s=0.1)
     assert done.over_limit and not done.hung and done.returncode is None
