@@ -29,6 +29,7 @@ use_every_core()  # before any JAX computation: one lockstep loop per core (the 
 
 import argparse  # noqa: E402
 import csv  # noqa: E402
+import math  # noqa: E402
 import os  # noqa: E402
 import platform  # noqa: E402
 import sys  # noqa: E402
@@ -292,8 +293,8 @@ def write(out: Path, rows: list[dict], profile: list[dict], args, load0, elapsed
         cells = []
         for s in seed_counts:
             r = next((r for r in rows if (r["agent"], r["mdp"], r["seeds"]) == (agent, mdp, s)), None)
-            cells.append("-" if r is None else "skipped" if r["skipped"] else
-                         f"{fmt_rate(r['steps_per_s'])} ({r['compile_s']:.1f} s)")
+            compiled = "" if r is None or math.isnan(r["compile_s"]) else f" ({r['compile_s']:.1f} s)"  # bsuite: none
+            cells.append("-" if r is None else "skipped" if r["skipped"] else f"{fmt_rate(r['steps_per_s'])}{compiled}")
         lines.append(f"| {agent} | {mdp} | {S} | " + " | ".join(cells) + f" | {REFERENCE.get((agent, mdp), '-')} |")
     baselines = [r for r in rows if r["agent"].startswith("bsuite_jax_dqn")]
     if baselines:
