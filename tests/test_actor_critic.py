@@ -273,6 +273,40 @@ def test_a_learning_step_moves_value_and_policy_towards_the_return():
         assert sign * (float(jax.nn.softmax(z1)[1]) - float(jax.nn.softmax(z0)[1])) > 0
 
 
+def _first_adam_moves(field: str, value: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A 4-step sequence learned once with ``field = value``: the parameters' moves, the gradient of
+    :func:`pg.actor_critic_loss` (tested against closed forms above) at the state's hyperparameters, and at the
+    defaults, each flattened."""
+    agent = agents.get("actor_critic_continuous")
+    hp = agent.default_hparams.replace(width=8, depth=1, learning_rate=1e-2, max_sequence_length=4, **{field: value})
+    learned, _, states = probes.stream(agent, hp, terminals=set(), n=4)
+    before, after = states[learned[0] + 1]
+
+    def grad(h):
+        def loss(p):
+            logits, values = jax.vmap(lambda o: before.net.apply(p, o))(before.buffer.observations)
+            return pg.actor_critic_loss(logits, values, before.buffer, before.action_mask, h.td_lambda, h.discount,
+                                        h.entropy_cost)[0]
+
+        return np.concatenate([np.ravel(g) for g in jax.tree.leaves(jax.grad(loss)(before.params))])
+
+    flat = lambda t: np.concatenate([np.ravel(x) for x in jax.tree.leaves(t)])  # noqa: E731
+    default = jax.tree.map(jnp.float32, agent.default_hparams)
+    return flat(after.params) - flat(before.params), grad(before.hparams), grad(default)
+
+
+@pytest.mark.parametrize("field, value", [("td_lambda", 0.2), ("discount", 0.3), ("entropy_cost", 0.8)])
+def test_a_learning_step_uses_the_state_s_td_lambda_discount_and_entropy_cost(field, value):
+    """Adam's first step moves each parameter by ``-lr * g / (|g| + 1e-8)``, ``g`` the loss gradient at the state's
+    own hyperparameters; at the defaults some gradient has the other sign, so a learning step that dropped ``field``
+    would fail here."""
+    moved, g, g_default = _first_adam_moves(field, value)
+    big = np.abs(g) > 1e-4
+    np.testing.assert_allclose(moved[big], -1e-2 * np.sign(g[big]), atol=1e-6)
+    assert np.all(np.abs(moved) <= 1e-2 + 1e-6)
+    assert np.any(np.sign(g_default[big]) != np.sign(g[big]))
+
+
 @pytest.mark.parametrize("name", AC_NAMES)
 def test_policy_estimate_is_read_from_the_emission_table(name):
     agent = agents.get(name)
