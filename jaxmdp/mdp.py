@@ -340,21 +340,28 @@ def custom_mdp(
     np_dtype = np.dtype(jnp.dtype(dtype))
     start, start_cdf = start_lists(P0.astype(np_dtype))
     take = lambda x: np.take_along_axis(x, succ, axis=-1)  # noqa: E731 (successor_rewards, host side)
+    # Every leaf is cast on the host and transferred in one device_put: a jnp.asarray(x, dtype=...) per leaf would
+    # compile a small conversion program per leaf and shape.
+    leaves = jax.device_put(
+        dict(
+            T=T.astype(np_dtype),
+            R=R.astype(np_dtype),
+            P0=P0.astype(np_dtype),
+            reward_mean=reward_mean.astype(np_dtype),
+            reward_conc=reward_conc.astype(np_dtype),
+            succ=succ,
+            succ_p=succ_p.astype(np_dtype),
+            succ_reward_mean=take(reward_mean).astype(np_dtype),
+            succ_reward_conc=take(reward_conc).astype(np_dtype),
+            start=start,
+            start_cdf=start_cdf,
+            state_mask=np.ones((S,), dtype=bool),
+            action_mask=np.ones((A,), dtype=bool),
+            horizon=np.asarray(H if H is not None else 0, dtype=np.int32),
+        )
+    )
     return MDP(
-        T=jnp.asarray(T, dtype=np_dtype),
-        R=jnp.asarray(R, dtype=np_dtype),
-        P0=jnp.asarray(P0, dtype=np_dtype),
-        reward_mean=jnp.asarray(reward_mean, dtype=np_dtype),
-        reward_conc=jnp.asarray(reward_conc, dtype=np_dtype),
-        succ=jnp.asarray(succ),
-        succ_p=jnp.asarray(succ_p, dtype=np_dtype),
-        succ_reward_mean=jnp.asarray(take(reward_mean), dtype=np_dtype),
-        succ_reward_conc=jnp.asarray(take(reward_conc), dtype=np_dtype),
-        start=jnp.asarray(start),
-        start_cdf=jnp.asarray(start_cdf),
-        state_mask=jnp.ones((S,), dtype=bool),
-        action_mask=jnp.ones((A,), dtype=bool),
-        horizon=jnp.asarray(H if H is not None else 0, dtype=jnp.int32),
+        **leaves,
         H=H,
         info=info,
         stochastic_rewards=bool(np.any(reward_conc[T > 0] > 0)),
