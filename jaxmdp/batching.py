@@ -7,8 +7,8 @@ Padding rules (so that one compiled program serves a grid and no trajectory can 
 * padded **actions** of a real state are copies of action 0 (same transitions and rewards), so maxima and minima over
   actions are unchanged; ``action_mask`` is False there and every average or sum over actions (random policy, gap
   sums, ``p_rand``) uses the mask;
-* successor lists are padded with zero-probability self entries (their reward slots hold the row's own
-  ``reward_mean[s, a, s]``), start lists by repeating the last start (:func:`jaxmdp.mdp.start_lists`);
+* successor lists are padded with zero-probability self entries, start lists by repeating the last start
+  (:func:`jaxmdp.mdp.start_lists`);
 * time: the static ``H`` becomes the largest horizon and each member keeps its own traced ``horizon``.
 
 Padding costs work: every member of a stack pays for the largest one. :func:`size_buckets` splits a heterogeneous
@@ -40,8 +40,6 @@ _ARRAY_FIELDS = (
     "reward_conc",
     "succ",
     "succ_p",
-    "succ_reward_mean",
-    "succ_reward_conc",
     "start",
     "start_cdf",
     "state_mask",
@@ -87,7 +85,6 @@ def _pad_host(
     succ_p[S:, :, 0] = 1.0
 
     reward_mean, reward_conc = dense(mdp.reward_mean), dense(mdp.reward_conc)
-    slot_mean, slot_conc = (np.take_along_axis(x, succ, axis=-1) for x in (reward_mean, reward_conc))
 
     def pad_starts(x):
         x = np.asarray(x)
@@ -101,8 +98,6 @@ def _pad_host(
         reward_conc=reward_conc,
         succ=succ,
         succ_p=succ_p,
-        succ_reward_mean=slot_mean,
-        succ_reward_conc=slot_conc,
         start=pad_starts(mdp.start),
         start_cdf=pad_starts(mdp.start_cdf),
         state_mask=np.pad(np.asarray(mdp.state_mask), (0, n_states - S)),
@@ -224,8 +219,6 @@ def unstack(batch: MDP | BlockMDP) -> list[MDP] | list[BlockMDP]:
             reward_conc=conc,
             succ=m["succ"][:S, :A, :K],
             succ_p=m["succ_p"][:S, :A, :K],
-            succ_reward_mean=m["succ_reward_mean"][:S, :A, :K],
-            succ_reward_conc=m["succ_reward_conc"][:S, :A, :K],
             start=m["start"][:K0],
             start_cdf=m["start_cdf"][:K0],
             state_mask=m["state_mask"][:S],
@@ -262,8 +255,6 @@ def permute_states(mdp: MDP, perm: Sequence[int] | np.ndarray) -> MDP:
         reward_conc=mdp.reward_conc[perm][:, :, perm],
         succ=jnp.asarray(inv, mdp.succ.dtype)[mdp.succ[perm]],
         succ_p=mdp.succ_p[perm],
-        succ_reward_mean=mdp.succ_reward_mean[perm],
-        succ_reward_conc=mdp.succ_reward_conc[perm],
         start=jnp.asarray(start),
         start_cdf=jnp.asarray(start_cdf),
         state_mask=mdp.state_mask[perm],

@@ -60,6 +60,7 @@ __all__ = [
     "recurrent_classes",
     "chain_gain",
     "chain_bias",
+    "cesaro_limit",
     "successor_policy_matrix",
     "gain_vector",
     "GainBounds",
@@ -481,16 +482,23 @@ def chain_bias(P: jax.Array, r: jax.Array, n_squarings: int = 48) -> jax.Array:
     ``n_squarings`` squarings (48: ``2^48`` steps, each renormalised to stay stochastic); the bias then solves
     Puterman 1994 Thm. A.7. Dense ``O(S^3)``; :func:`chain_gain` is the accurate route to the gain ``P* r`` alone.
     """
-    S = P.shape[0]
-    eye = jnp.eye(S, dtype=P.dtype)
+    eye = jnp.eye(P.shape[0], dtype=P.dtype)
+    Pstar = cesaro_limit(P, n_squarings)
+    g = Pstar @ r
+    return linear_solve(eye - P + Pstar, r - g)
+
+
+def cesaro_limit(P: jax.Array, n_squarings: int = 48) -> jax.Array:
+    """``P* = lim_n (1/n) sum_{t<n} P^t``, taken as ``((I + P) / 2)^(2^n_squarings)`` (the lazy chain is aperiodic with
+    the same limit; Puterman 1994 App. A.4), each square renormalised to stay stochastic. Dense ``O(S^3 n)``;
+    periodic and multichain matrices alike."""
+    eye = jnp.eye(P.shape[0], dtype=P.dtype)
 
     def square(_, M):
         M = M @ M
         return M / jnp.sum(M, axis=1, keepdims=True)
 
-    Pstar = jax.lax.fori_loop(0, n_squarings, square, 0.5 * (eye + P))
-    g = Pstar @ r
-    return linear_solve(eye - P + Pstar, r - g)
+    return jax.lax.fori_loop(0, n_squarings, square, 0.5 * (eye + P))
 
 
 def successor_policy_matrix(succ: jax.Array, succ_p: jax.Array, pi: jax.Array) -> jax.Array:

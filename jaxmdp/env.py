@@ -9,9 +9,9 @@ reference). Continuous MDPs never terminate and ``h`` counts steps since the res
 (there is no time limit other than the horizon).
 
 Rewards are drawn from the transition's distribution (``Beta`` or point mass, see :class:`~jaxmdp.MDP`). Everything
-is jittable and vmaps over keys, states and stacked MDPs. A step costs ``O(K)`` (successor lists, rewards per
-successor slot, sparse start lists; :func:`step`). An invalid action raises ``ValueError`` when it is concrete and is
-a flagged no-op under ``jit`` (NaN reward, the state does not move; :func:`step`).
+is jittable and vmaps over keys, states and stacked MDPs. A step costs ``O(K)`` (successor lists, one entry of
+the reward tables, sparse start lists; :func:`step`). An invalid action raises ``ValueError`` when it is concrete
+and is a flagged no-op under ``jit`` (NaN reward, the state does not move; :func:`step`).
 
 BlockMDPs (:class:`jaxmdp.BlockMDP`): ``reset`` and ``step`` take one wherever they take an MDP and return its
 observations (emission-table row plus a noise draw from ``noise_key(key)``) instead of state indices, with the same
@@ -156,12 +156,12 @@ def step(
     ``info`` holds ``final_observation`` (the state reached by this action, before any reset) and ``discount``
     (0 on termination, else 1); for a BlockMDP see the module docstring.
 
-    Cost ``O(K)``: the next state is an inverse CDF over the successor list, its reward is read from the slot's
-    ``succ_reward_*``, and the reset of a finished episode an inverse CDF over the sparse start list (nothing at all
-    with one start state; computed branch-free, as ``vmap`` would turn a ``cond`` into a select anyway). Random
-    numbers per step: one key split (reward key, uniform key) and one draw of two uniforms (next state, reset); what
-    a step cannot use is not compiled (no Beta draw without Beta rewards, no uniforms when ``K = 1`` and there is one
-    start state), the stream staying the same.
+    Cost ``O(K)``: the next state is an inverse CDF over the successor list, its reward distribution one entry
+    ``reward_mean[s, a, s']`` / ``reward_conc[s, a, s']`` (a single-element gather), and the reset of a finished
+    episode an inverse CDF over the sparse start list (nothing at all with one start state; computed branch-free, as
+    ``vmap`` would turn a ``cond`` into a select anyway). Random numbers per step: one key split (reward key, uniform
+    key) and one draw of two uniforms (next state, reset); what a step cannot use is not compiled (no Beta draw
+    without Beta rewards, no uniforms when ``K = 1`` and there is one start state), the stream staying the same.
 
     Invalid actions: a concrete ``action`` outside ``[0, A)`` or masked out by ``action_mask`` (a padded action of a
     stacked MDP) raises ``ValueError``. A traced one cannot raise: the step is then a no-op that is flagged, i.e. the
@@ -184,7 +184,7 @@ def step(
     k = _slot_from_uniform(u_next, mdp, state.state, a)
     s_next = mdp.succ[state.state, a, k].astype(jnp.int32)
     reward = _reward_draw(
-        k_reward, mdp, mdp.succ_reward_mean[state.state, a, k], mdp.succ_reward_conc[state.state, a, k]
+        k_reward, mdp, mdp.reward_mean[state.state, a, s_next], mdp.reward_conc[state.state, a, s_next]
     )
     h_next = state.h + 1
     terminated = ((h_next >= mdp.horizon) & valid) if mdp.episodic else jnp.zeros((), bool)

@@ -11,17 +11,14 @@ An MDP ``M = (S, A, P, P0, R)`` (paper §2.1) is held as dense arrays:
 * ``succ[s, a, k]`` / ``succ_p[s, a, k]``: the same kernel as successor lists (``K`` entries per row, padded with
   zero-probability entries). They are derived from ``T`` by every constructor and let samplers and hitting-time
   solvers work in ``O(S A K)`` instead of ``O(S^2 A)``. Entries may repeat a state; probabilities then add up.
-* ``succ_reward_mean[s, a, k]`` / ``succ_reward_conc[s, a, k]``: the reward distribution of successor slot ``k``,
-  i.e. ``reward_mean[s, a, succ[s, a, k]]`` (likewise ``conc``), so that a step reads ``O(K)`` contiguous numbers
-  instead of one entry of an ``S x A x S`` table,
 * ``start[j]`` / ``start_cdf[j]``: the sparse form of ``P0`` used by :func:`jaxmdp.reset` and auto-resets: the
   states of positive ``P0`` in increasing order and the cumulative sums ``sum_{s <= start[j]} P0[s]`` (the entries
   of ``cumsum(P0)`` at those states), padded to a static length ``K0`` by repeating the last start and its (total)
   cumulative sum.
 
 The sparse fields are derived from the dense ones by every constructor and transform of the package
-(:func:`successor_rewards`, :func:`start_lists`); code that replaces ``succ``, ``P0`` or the reward tables by hand
-must rebuild them with those functions.
+(:func:`successor_lists`, :func:`start_lists`); code that replaces ``T`` or ``P0`` by hand must rebuild them with
+those functions.
 
 Batching: ``state_mask`` and ``action_mask`` mark the real states and actions of an MDP padded by
 :func:`jaxmdp.stack`; ``horizon`` is the (traced) episode length, while the static ``H`` is the length of time-indexed
@@ -47,7 +44,7 @@ import numpy as np
 from jaxmdp._checks import check_int
 from flax import struct
 
-__all__ = ["MDP", "MDPInfo", "custom_mdp", "successor_lists", "start_lists", "successor_rewards"]
+__all__ = ["MDP", "MDPInfo", "custom_mdp", "successor_lists", "start_lists"]
 
 # Tolerance used to check that host-side arrays are stochastic.
 _ROW_SUM_ATOL = 1e-5
@@ -98,8 +95,6 @@ class MDP:
     reward_conc: jax.Array
     succ: jax.Array
     succ_p: jax.Array
-    succ_reward_mean: jax.Array
-    succ_reward_conc: jax.Array
     start: jax.Array
     start_cdf: jax.Array
     state_mask: jax.Array
@@ -165,8 +160,6 @@ class MDP:
             reward_mean=cast(self.reward_mean),
             reward_conc=cast(self.reward_conc),
             succ_p=cast(self.succ_p),
-            succ_reward_mean=cast(self.succ_reward_mean),
-            succ_reward_conc=cast(self.succ_reward_conc),
             start_cdf=cast(self.start_cdf),
         )
 
@@ -220,13 +213,6 @@ def start_lists(P0: Any, n_starts: int | None = None) -> tuple[np.ndarray, np.nd
         raise ValueError(f"n_starts must be at least the number of start states ({idx.size}); got {n_starts}")
     start = np.concatenate([idx, np.full(n_starts - idx.size, idx[-1])]).astype(np.int32)
     return start, np.cumsum(P0.astype(np.float64))[start].astype(P0.dtype)
-
-
-def successor_rewards(reward_mean: jax.Array, reward_conc: jax.Array, succ: jax.Array) -> tuple[jax.Array, jax.Array]:
-    """Rewards per successor slot: ``reward_mean[s, a, succ[s, a, k]]`` and likewise ``reward_conc`` (jittable)."""
-    succ = jnp.asarray(succ)
-    take = lambda x: jnp.take_along_axis(jnp.asarray(x), succ, axis=-1)  # noqa: E731
-    return take(reward_mean), take(reward_conc)
 
 
 def _check_finite(name: str, x: np.ndarray) -> None:
@@ -339,22 +325,26 @@ def custom_mdp(
     succ, succ_p = successor_lists(T)
     np_dtype = np.dtype(jnp.dtype(dtype))
     start, start_cdf = start_lists(P0.astype(np_dtype))
-    take = lambda x: np.take_along_axis(x, succ, axis=-1)  # noqa: E731 (successor_rewards, host side)
+    # Every leaf is cast on the host and transferred in one device_put: a jnp.asarray(x, dtype=...) per leaf would
+    # compile a small conversion program per leaf and shape.
+    leaves = jax.device_put(
+        dict(
+            T=T.astype(np_dtype),
+            R=R.astype(np_dtype),
+            P0=P0.astype(np_dtype),
+            reward_mean=reward_mean.astype(np_dtype),
+            reward_conc=reward_conc.astype(np_dtype),
+            succ=succ,
+            succ_p=succ_p.astype(np_dtype),
+            start=start,
+            start_cdf=start_cdf,
+            state_mask=np.ones((S,), dtype=bool),
+            action_mask=np.ones((A,), dtype=bool),
+            horizon=np.asarray(H if H is not None else 0, dtype=np.int32),
+        )
+    )
     return MDP(
-        T=jnp.asarray(T, dtype=np_dtype),
-        R=jnp.asarray(R, dtype=np_dtype),
-        P0=jnp.asarray(P0, dtype=np_dtype),
-        reward_mean=jnp.asarray(reward_mean, dtype=np_dtype),
-        reward_conc=jnp.asarray(reward_conc, dtype=np_dtype),
-        succ=jnp.asarray(succ),
-        succ_p=jnp.asarray(succ_p, dtype=np_dtype),
-        succ_reward_mean=jnp.asarray(take(reward_mean), dtype=np_dtype),
-        succ_reward_conc=jnp.asarray(take(reward_conc), dtype=np_dtype),
-        start=jnp.asarray(start),
-        start_cdf=jnp.asarray(start_cdf),
-        state_mask=jnp.ones((S,), dtype=bool),
-        action_mask=jnp.ones((A,), dtype=bool),
-        horizon=jnp.asarray(H if H is not None else 0, dtype=jnp.int32),
+        **leaves,
         H=H,
         info=info,
         stochastic_rewards=bool(np.any(reward_conc[T > 0] > 0)),

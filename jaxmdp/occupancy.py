@@ -1,6 +1,7 @@
-"""State-visitation distributions of a policy: the Cesàro limit of its chain, and its long-run, discounted or
-in-episode state distribution from ``P0``. Used by the hardness measures of ``hardness.mismatch`` and
-``hardness.mixing`` and by the pictures of :mod:`jaxmdp.plotting`. Jittable; vmaps over a stacked batch.
+"""State-visitation distributions of a policy: the Cesàro limit of its chain (re-exported from
+:func:`jaxmdp.dynamic_programming.cesaro_limit`), and its long-run, discounted or in-episode state distribution from
+``P0``. Used by the hardness measures of ``hardness.mismatch`` and ``hardness.mixing`` and by the pictures of
+:mod:`jaxmdp.plotting`. Jittable; vmaps over a stacked batch.
 """
 
 from __future__ import annotations
@@ -9,26 +10,11 @@ import jax
 import jax.numpy as jnp
 
 from jaxmdp import dynamic_programming as dp
+from jaxmdp.dynamic_programming import cesaro_limit
 from jaxmdp.jaxlib_workarounds.linalg import solve as linear_solve
 from jaxmdp.mdp import MDP
 
 __all__ = ["cesaro_limit", "state_distribution"]
-
-#: Squarings of the lazy chain that give the Cesàro limit (``2^48`` steps, as in ``dynamic_programming.chain_bias``).
-CESARO_SQUARINGS = 48
-
-
-def cesaro_limit(P: jax.Array, n_squarings: int = CESARO_SQUARINGS) -> jax.Array:
-    """``P* = lim_n (1/n) sum_{t<n} P^t``, taken as ``((I + P) / 2)^(2^n_squarings)`` (the lazy chain is aperiodic with
-    the same limit; Puterman 1994 App. A.4), each square renormalised to stay stochastic. Dense ``O(S^3 n)``;
-    periodic and multichain matrices alike."""
-    eye = jnp.eye(P.shape[0], dtype=P.dtype)
-
-    def square(_, M):
-        M = M @ M
-        return M / jnp.sum(M, axis=1, keepdims=True)
-
-    return jax.lax.fori_loop(0, n_squarings, square, 0.5 * (eye + P))
 
 
 def state_distribution(mdp: MDP, policy: jax.Array, gamma: float | jax.Array | None = None) -> jax.Array:

@@ -23,7 +23,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from jaxmdp.mdp import MDP, successor_rewards
+from jaxmdp.mdp import MDP
 
 __all__ = ["apply_p_rand", "apply_p_lazy", "apply_noise", "MAX_NOISE_PROBABILITY"]
 
@@ -47,8 +47,7 @@ def _nan_unless_valid(x: jax.Array, p: jax.Array) -> jax.Array:
 
 def _with_kernel(mdp: MDP, T: jax.Array, succ: jax.Array, succ_p: jax.Array) -> MDP:
     R = jnp.sum(T * mdp.reward_mean, axis=-1)
-    slot_mean, slot_conc = successor_rewards(mdp.reward_mean, mdp.reward_conc, succ)
-    return mdp.replace(T=T, R=R, succ=succ, succ_p=succ_p, succ_reward_mean=slot_mean, succ_reward_conc=slot_conc)
+    return mdp.replace(T=T, R=R, succ=succ, succ_p=succ_p)
 
 
 def apply_p_rand(mdp: MDP, p_rand: float | jax.Array) -> MDP:

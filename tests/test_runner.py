@@ -166,9 +166,35 @@ def test_random_agent_regret_is_the_random_baseline(episodic):
     ]:
         np.testing.assert_allclose(res.column(ours), res.column(baseline), rtol=2e-5, err_msg=ours)
     assert np.all(res.column("random_cumulative_regret") > 0)
-    # The sampled reward is a noisy version of the expected one (20 standard errors is a generous bound).
-    np.testing.assert_allclose(res.column("cumulative_reward")[-1], res.column("cumulative_expected_reward")[-1],
-                               rtol=0.5)
+    # The sampled reward: the sum of the very rewards that a replay of each member's key stream draws (float64 sum).
+    for member, key_data in enumerate(runner.product([mdp], [agent.default_hparams], seeds=[0, 1]).key_data):
+        want = np.cumsum(replay_rewards(agent, mdp, key_data, 1000).astype(np.float64))[res.steps - 1]
+        np.testing.assert_allclose(res.values[:, member, 1], want, rtol=1e-6, atol=1e-6)
+
+
+def replay_rewards(agent, mdp, key_data, n_steps):
+    """The rewards of one member of an agent that never plans, replayed step by step from its key as the runner's
+    key stream is laid out: ``sub = split(key, 4)``; reset and init with ``fold_in(sub[3], 0 | 1)``; step ``t``
+    draws the environment from ``fold_in(sub[0], t)`` and the action from ``fold_in(sub[1], t)``."""
+    from jaxmdp.experiment.agent_interface import Transition, spec_of
+
+    sub = jax.random.split(jax.random.wrap_key_data(jnp.asarray(key_data)), 4)
+    obs, env_state = jaxmdp.reset(jax.random.fold_in(sub[3], 0), mdp)
+    state = agent.init(jax.random.fold_in(sub[3], 1), spec_of(mdp, n_steps), agent.default_hparams)
+
+    def body(carry, t):
+        obs, env_state, state = carry
+        needs_plan = agent.needs_plan(state)
+        action = agent.act(jax.random.fold_in(sub[1], t), state, obs, env_state.h)
+        k_env = jax.random.fold_in(sub[0], t)
+        obs2, env_state2, reward, terminated, _, info = jaxmdp.step(k_env, env_state, action, mdp)
+        tr = Transition(obs=obs, action=action, reward=reward, next_obs=info["final_observation"], h=env_state.h,
+                        terminated=terminated)
+        return (obs2, env_state2, agent.update(state, tr)), (reward, needs_plan)
+
+    _, (rewards, plans) = jax.jit(lambda c: jax.lax.scan(body, c, jnp.arange(n_steps)))((obs, env_state, state))
+    assert not np.any(np.asarray(plans))
+    return np.asarray(rewards)
 
 
 # ---------------------------------------------------------------------------------------------------------------

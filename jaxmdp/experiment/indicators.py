@@ -142,7 +142,10 @@ def _safe_ratio(num: jax.Array, den: jax.Array, scale: jax.Array) -> jax.Array:
 
 #: Sweeps over the successor lists that :func:`policy_values` spends trying to certify a gain before it falls back
 #: to the dense solve (on the benchmark's quick-test MDPs, near-optimal policies certify within 32 to 128 sweeps,
-#: and 128 sweeps cost about a tenth of the dense solve at S = 144).
+#: and 128 sweeps cost about a tenth of the dense solve at S = 144). Counted over the policies that the runner
+#: evaluated in 20 000-step runs (log period 100, 2 MDPs x 2 seeds) of Q-learning, UCRL2 and PSRL on continuous
+#: RiverSwim, DeepSea, FrozenLake, SimpleGrid and MiniGridEmpty: 2694 of 2916 certified (92%; every failure on
+#: FrozenLake: 210 of Q-learning's 799 evaluations there, 7 of UCRL2's 120, 5 of PSRL's 155).
 ITERATIVE_GAIN_SWEEPS = 128
 
 

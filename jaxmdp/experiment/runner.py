@@ -142,9 +142,11 @@ def _evaluate_changed(
     On a CPU the members are taken one at a time (``lax.map``) and an unchanged member costs nothing: under ``vmap``
     every member paid for the evaluation (a dense ``O(S^3)`` one when continuous) as soon as one member's policy
     changed, so a grid whose policies change at different times (epochs of UCRL2 and PSRL, Q-learning once its
-    greedy policy settles) paid for all members at almost every log. A continuous member's gain is first certified on
-    the successor lists (:func:`~jaxmdp.experiment.indicators.policy_values`), the dense solve running only when that
-    fails. Elsewhere (GPU) the members stay in lockstep with the dense solve.
+    greedy policy settles) paid for all members at almost every log (counted on 4-member grids of 20 000 steps: UCRL2
+    evaluates 120, 203 and 475 member policies on FrozenLake, SimpleGrid and MiniGridEmpty instead of 296, 528 and
+    748; Q-learning's policies change at nearly every log, 781 of 800 on DeepSea). A continuous member's gain is first
+    certified on the successor lists (:func:`~jaxmdp.experiment.indicators.policy_values`), the dense solve running
+    only when that fails. Elsewhere (GPU) the members stay in lockstep with the dense solve.
     """
     dtype = cache.dtype
 
