@@ -44,6 +44,23 @@ def test_kendall_tau_b_hand_worked():
     assert math.isnan(me.kendall_tau_b([2, 2], [1, 2]))
 
 
+def test_rank_correlations_match_scipy_on_tied_random_data():
+    # Independent computation: scipy.stats (rankdata 'average', spearmanr, kendalltau variant 'b') on small integer
+    # samples, so that most draws hold ties in x, in y and in both.
+    stats = pytest.importorskip("scipy.stats")
+    rng = np.random.default_rng(7)
+    for n in (2, 3, 5, 8, 13, 40):
+        for _ in range(20):
+            x, y = rng.integers(0, 4, n).astype(float), rng.integers(0, 3, n).astype(float)
+            np.testing.assert_array_equal(me.rankdata(x), stats.rankdata(x))
+            if np.ptp(x) == 0 or np.ptp(y) == 0:
+                assert math.isnan(me.spearman(x, y)) and math.isnan(me.kendall_tau_b(x, y))
+                continue
+            assert math.isclose(me.spearman(x, y), stats.spearmanr(x, y).statistic, rel_tol=1e-12, abs_tol=1e-12)
+            assert math.isclose(me.kendall_tau_b(x, y), stats.kendalltau(x, y, variant="b").statistic,
+                                rel_tol=1e-12, abs_tol=1e-12)
+
+
 def _rows(rng, n_seeds=4, n_values=5):
     rows = []
     for s in range(n_seeds):
