@@ -3,10 +3,8 @@ examples, the bootstrap over seeds, the extra measures rebuilt from a sweep's se
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,7 +14,7 @@ import jaxmdp
 from hardness.analysis import measure_evaluation as me
 from hardness.analysis import scenarios, sweep_cli
 
-ROOT = Path(__file__).resolve().parent.parent
+from script_loader import load_script
 
 
 def test_rankdata_mid_ranks():
@@ -111,9 +109,7 @@ def test_script_writes_table_csv_and_figure(tmp_path):
     table = tmp_path / "scenario1.csv"
     sweep_cli.write_table(table, sweep_cli.rows_from_raw(spec, [0, 1, 2], raw))
     table.with_suffix(".json").write_text(json.dumps(sweep_cli.config_of(spec)))
-    loader = importlib.util.spec_from_file_location("measure_evaluation_script", ROOT / "scripts" / "measure_evaluation.py")
-    script = importlib.util.module_from_spec(loader)
-    loader.loader.exec_module(script)
+    script = load_script("measure_evaluation")
     assert script.main([str(table), "--out", str(tmp_path / "out"), "--n-boot", "50"]) == 0
     md = (tmp_path / "out" / "measure_evaluation.md").read_text()
     for m in (*scenarios.MEASURES, *me.EXTRA_MEASURES):
