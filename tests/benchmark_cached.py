@@ -47,3 +47,14 @@ def check_setting(setting: str, large: bool) -> None:
     if not chosen:
         pytest.skip("no cached entry of this size in this setting")
     check_cached(chosen)
+
+
+def large_entries_test(kind: str):
+    """The slow test of the entries above the size cut in the settings of type ``kind`` (episodic, continuous)."""
+
+    @pytest.mark.slow
+    @pytest.mark.parametrize("setting", [s for s in bs.SETTINGS if s.startswith(kind)])
+    def test_cached_seed0_diameter_and_value_norm_large(setting):
+        check_setting(setting, large=True)
+
+    return test_cached_seed0_diameter_and_value_norm_large

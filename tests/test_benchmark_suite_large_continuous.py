@@ -2,13 +2,6 @@
 tests/benchmark_cached.py (slow; CI runs them). A file of its own so that ``--dist loadfile`` can run it beside
 the other setting type's."""
 
-import pytest
+from benchmark_cached import large_entries_test
 
-from benchmark_cached import check_setting
-from hardness.benchmark import suite as bs
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("setting", [s for s in bs.SETTINGS if s.startswith("continuous")])
-def test_cached_seed0_diameter_and_value_norm_large(setting):
-    check_setting(setting, large=True)
+test_cached_seed0_diameter_and_value_norm_large = large_entries_test("continuous")
