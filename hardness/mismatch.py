@@ -30,6 +30,7 @@ import functools
 import jax
 import jax.numpy as jnp
 
+from hardness.mixing import policy_check
 from hardness.result import MeasureResult
 from jaxmdp._checks import check_range
 from jaxmdp.mdp import MDP
@@ -37,13 +38,6 @@ from jaxmdp.occupancy import state_distribution
 from jaxmdp.values import optimal_policy
 
 __all__ = ["distribution_mismatch", "mismatch_ratio"]
-
-
-def _check_policy(mdp: MDP, x, name: str) -> None:
-    S, A = mdp.n_states, mdp.n_actions
-    shapes = [(S, A)] + ([(mdp.H, S, A)] if mdp.episodic else [])
-    if tuple(jnp.shape(x)) not in shapes:
-        raise ValueError(f"{name} must be a policy of shape {' or '.join(map(str, shapes))}; got {jnp.shape(x)}")
 
 
 def distribution_mismatch(
@@ -74,11 +68,10 @@ def distribution_mismatch(
       ValueError: for shapes that fit neither a policy nor a distribution, ``gamma`` with an episodic MDP or outside
       ``(0, 1)``.
     """
-    if policy is not None:
-        _check_policy(mdp, policy, "policy")
+    policy_check(mdp, policy, "policy", time_indexed=True)
     ref_is_policy = jnp.ndim(reference) >= 2
     if ref_is_policy:
-        _check_policy(mdp, reference, "reference")
+        policy_check(mdp, reference, "reference", time_indexed=True)
     elif tuple(jnp.shape(reference)) != (mdp.n_states,):
         raise ValueError(
             f"reference must be a distribution of shape ({mdp.n_states},) or a policy of shape "

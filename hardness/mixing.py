@@ -36,7 +36,8 @@ from jaxmdp.mdp import MDP
 from jaxmdp.occupancy import cesaro_limit
 from jaxmdp.values import optimal_policy
 
-__all__ = ["mixing_time", "chain_mixing_time", "stationary_policy_check"]
+__all__ = ["mixing_time", "chain_mixing_time", "policy_check"]
+
 
 def _distance(M: jax.Array, Pstar: jax.Array, state_mask: jax.Array) -> jax.Array:
     """``max_s TV(M(s, .), P*(s, .))`` over the real states."""
@@ -89,13 +90,15 @@ def chain_mixing_time(
     return MeasureResult.make(value, found | (d0 <= eps))
 
 
-def stationary_policy_check(mdp: MDP, policy: jax.Array | None, name: str = "policy") -> None:
-    """Raise ``ValueError`` unless ``policy`` is ``None`` or an ``[S, A]`` array of ``mdp``'s shape."""
+def policy_check(mdp: MDP, policy: jax.Array | None, name: str = "policy", *, time_indexed: bool = False) -> None:
+    """Raise ``ValueError`` unless ``policy`` is ``None`` or a policy of ``mdp``: ``[S, A]``, or with
+    ``time_indexed`` and an episodic MDP also ``[H, S, A]``."""
     if policy is None:
         return
-    shape = (mdp.n_states, mdp.n_actions)
-    if tuple(jnp.shape(policy)[-2:]) != shape or jnp.ndim(policy) != mdp.T.ndim - 1:
-        raise ValueError(f"{name} must be a stationary policy of shape {shape}; got shape {jnp.shape(policy)}")
+    S, A = mdp.n_states, mdp.n_actions
+    shapes = [(S, A)] + ([(mdp.H, S, A)] if time_indexed and mdp.episodic else [])
+    if tuple(jnp.shape(policy)) not in shapes:
+        raise ValueError(f"{name} must be a policy of shape {' or '.join(map(str, shapes))}; got {jnp.shape(policy)}")
 
 
 def mixing_time(
@@ -130,7 +133,7 @@ def mixing_time(
         )
     check_range("eps", eps, 0.0, 1.0, low_open=True, high_open=True)
     max_doublings = check_int("max_doublings", max_doublings, 1, 30)
-    stationary_policy_check(mdp, policy)
+    policy_check(mdp, policy)
     return _mixing_time(mdp.strip(), policy, jnp.asarray(eps, mdp.dtype), lazy, max_doublings)
 
 

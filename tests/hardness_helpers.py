@@ -123,6 +123,17 @@ def reference_fixture_mdp(z) -> tuple[jaxmdp.MDP, np.ndarray | None]:
     return m, (z["episodic_graph_nodes"] if H is not None else None)
 
 
+#: The reference's stored measures (index.json keys) and the relative tolerance of the colosseum variants against them.
+REFERENCE_KEYS = ("diameter", "value_norm", "sum_reciprocals_suboptimality_gaps")
+REFERENCE_RTOL = 1e-3
+
+
+def assert_matches_reference(values, entries) -> None:
+    """``values``: per :data:`REFERENCE_KEYS`, an array over ``entries`` (reference index entries) to match."""
+    for name, got in zip(REFERENCE_KEYS, values):
+        expected = np.array([e[name] for e in entries])
+        np.testing.assert_allclose(np.asarray(got), expected, rtol=REFERENCE_RTOL, atol=1e-6, err_msg=name)
+
 def normalize_by_hand(x: np.ndarray) -> np.ndarray:
     """Paper App. E with the 0.5 rule of docs/measures.md §6.5, entry by entry: ``(x - min) / (max - min)`` over all
     finite entries; 0.5 for every finite entry when ``max - min < 1e-4``; NaN for non-finite entries."""

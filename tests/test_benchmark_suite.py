@@ -3,14 +3,11 @@ diameter and value norm of each entry (printed with 4 decimals)."""
 
 import collections
 
-import jax
-import numpy as np
 import pytest
 
-import hardness
 import jaxmdp
+from benchmark_cached import cached_entries, check_setting
 from hardness.benchmark import suite as bs
-from jaxmdp import episodic
 
 # Paper Table 1 / docs/benchmark.md §3: MDPs per setting and family.
 COUNTS = {
@@ -60,49 +57,15 @@ def test_built_entry_structure(entry):
     assert jaxmdp.communication_class(m).name == entry.communication_class
 
 
-# Cached-value checks run as one stacked call per setting and size class (one compilation each), mapped so that each
-# member stops at its own convergence. Every cached entry is checked: the small ones in the quick test, the larger
-# ones (all 40 continuous entries up to 948 states took ~2 min) in the slow one, which CI runs too.
-MAX_STATES_CACHED_CHECK = {"episodic": 150, "continuous": 300}
-
-
-def _cached_entries(setting: str, large: bool) -> list:
-    cut = MAX_STATES_CACHED_CHECK[setting.split()[0]]
-    return [e for e in bs.entries(setting) if e.family in jaxmdp.families() and (e.n_states > cut) == large
-            and e.cached_diameter is not None]
-
-
-def _check_cached(chosen: list) -> None:
-    mdps = [bs.build(e, seed=0) for e in chosen]
-    batch = jaxmdp.stack(mdps)
-    forms = episodic.stack_continuous_forms([episodic.continuous_form(m) for m in mdps]) if mdps[0].episodic else None
-
-    def both(m, cf):
-        return (
-            hardness.diameter(m, variant="colosseum").value,
-            hardness.value_norm(m, variant="colosseum", continuous_form=cf).value,
-        )
-
-    d, vn = jax.jit(lambda b, f: jax.lax.map(lambda x: both(*x), (b, f)))(batch, forms)
-    # The cache prints 4 decimals.
-    np.testing.assert_allclose(d, [e.cached_diameter for e in chosen], rtol=1e-4, atol=6e-5)
-    np.testing.assert_allclose(vn, [e.cached_value_norm for e in chosen], rtol=1e-3, atol=6e-5)
-
-
-@pytest.mark.parametrize(
-    "setting, large",
-    [(setting, False) for setting in bs.SETTINGS]
-    + [pytest.param(setting, True, marks=pytest.mark.slow) for setting in bs.SETTINGS],
-)
-def test_cached_seed0_diameter_and_value_norm(setting, large):
-    chosen = _cached_entries(setting, large)
-    if not chosen:
-        pytest.skip("no cached entry of this size in this setting")
-    _check_cached(chosen)
+# Cached-value checks (tests/benchmark_cached.py): the small entries here, the larger ones in
+# test_benchmark_suite_large_episodic.py and test_benchmark_suite_large_continuous.py (slow; CI runs them too).
+@pytest.mark.parametrize("setting", bs.SETTINGS)
+def test_cached_seed0_diameter_and_value_norm(setting):
+    check_setting(setting, large=False)
 
 
 def test_every_cached_value_is_checked():
     for setting in bs.SETTINGS:
         cached = [e for e in bs.entries(setting) if e.cached_diameter is not None]
         assert all(e.family in jaxmdp.families() for e in cached)
-        assert len(_cached_entries(setting, False)) + len(_cached_entries(setting, True)) == len(cached)
+        assert len(cached_entries(setting, False)) + len(cached_entries(setting, True)) == len(cached)

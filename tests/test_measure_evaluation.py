@@ -3,10 +3,8 @@ examples, the bootstrap over seeds, the extra measures rebuilt from a sweep's se
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,7 +14,7 @@ import jaxmdp
 from hardness.analysis import measure_evaluation as me
 from hardness.analysis import scenarios, sweep_cli
 
-ROOT = Path(__file__).resolve().parent.parent
+from script_loader import load_script
 
 
 def test_rankdata_mid_ranks():
@@ -42,6 +40,23 @@ def test_kendall_tau_b_hand_worked():
     assert math.isclose(me.kendall_tau_b([1, 2, 3, 4], [1, 3, 2, 4]), 4 / 6, rel_tol=1e-12)
     assert me.kendall_tau_b([3, 2, 1], [1, 2, 3]) == -1.0
     assert math.isnan(me.kendall_tau_b([2, 2], [1, 2]))
+
+
+def test_rank_correlations_match_scipy_on_tied_random_data():
+    # Independent computation: scipy.stats (rankdata 'average', spearmanr, kendalltau variant 'b') on small integer
+    # samples, so that most draws hold ties in x, in y and in both.
+    stats = pytest.importorskip("scipy.stats")
+    rng = np.random.default_rng(7)
+    for n in (2, 3, 5, 8, 13, 40):
+        for _ in range(20):
+            x, y = rng.integers(0, 4, n).astype(float), rng.integers(0, 3, n).astype(float)
+            np.testing.assert_array_equal(me.rankdata(x), stats.rankdata(x))
+            if np.ptp(x) == 0 or np.ptp(y) == 0:
+                assert math.isnan(me.spearman(x, y)) and math.isnan(me.kendall_tau_b(x, y))
+                continue
+            assert math.isclose(me.spearman(x, y), stats.spearmanr(x, y).statistic, rel_tol=1e-12, abs_tol=1e-12)
+            assert math.isclose(me.kendall_tau_b(x, y), stats.kendalltau(x, y, variant="b").statistic,
+                                rel_tol=1e-12, abs_tol=1e-12)
 
 
 def _rows(rng, n_seeds=4, n_values=5):
@@ -94,9 +109,7 @@ def test_script_writes_table_csv_and_figure(tmp_path):
     table = tmp_path / "scenario1.csv"
     sweep_cli.write_table(table, sweep_cli.rows_from_raw(spec, [0, 1, 2], raw))
     table.with_suffix(".json").write_text(json.dumps(sweep_cli.config_of(spec)))
-    loader = importlib.util.spec_from_file_location("measure_evaluation_script", ROOT / "scripts" / "measure_evaluation.py")
-    script = importlib.util.module_from_spec(loader)
-    loader.loader.exec_module(script)
+    script = load_script("measure_evaluation")
     assert script.main([str(table), "--out", str(tmp_path / "out"), "--n-boot", "50"]) == 0
     md = (tmp_path / "out" / "measure_evaluation.md").read_text()
     for m in (*scenarios.MEASURES, *me.EXTRA_MEASURES):

@@ -314,7 +314,6 @@ def test_normalize_measures_half_rule_and_all_infinite():
     np.testing.assert_array_equal(scenarios.normalize_measures(raw)["diameter"], [[0.5, np.nan], [0.5, 0.5]])
 
 
-
 @pytest.mark.parametrize("n", [1, 7, 64, 65, 130])
 def test_normalize_padded_is_bit_identical_to_unpadded(n):
     # The NaN padding to a power of two must change no bit of the float32 normalisation of the real entries.
@@ -325,6 +324,7 @@ def test_normalize_padded_is_bit_identical_to_unpadded(n):
     got = scenarios.normalize_padded(x.reshape(1, n))
     assert got.shape == (1, n) and got.dtype == np.float64
     np.testing.assert_array_equal(got[0], want)
+
 
 # ---------------------------------------------------------------------------------------------------------------
 # scenario_spec: defaults and validation

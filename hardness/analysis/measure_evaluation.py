@@ -71,18 +71,9 @@ EXTRA_MEASURES = ("mixing_time", "distribution_mismatch")
 
 def rankdata(x: Sequence[float]) -> np.ndarray:
     """Mid-ranks ``1..n`` of ``x`` (tied entries share the mean of the ranks they span)."""
-    x = np.asarray(x, np.float64)
-    order = np.argsort(x, kind="stable")
-    ranks = np.empty(len(x))
-    sorted_x = x[order]
-    i = 0
-    while i < len(x):
-        j = i
-        while j + 1 < len(x) and sorted_x[j + 1] == sorted_x[i]:
-            j += 1
-        ranks[order[i:j + 1]] = 0.5 * (i + j) + 1.0
-        i = j + 1
-    return ranks
+    _, inverse, counts = np.unique(np.asarray(x, np.float64), return_inverse=True, return_counts=True)
+    last = np.cumsum(counts)  # 1-based rank of each distinct value's last copy
+    return (last - 0.5 * (counts - 1))[inverse].astype(np.float64)
 
 
 def spearman(x: Sequence[float], y: Sequence[float]) -> float:
