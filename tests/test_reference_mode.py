@@ -212,6 +212,30 @@ def test_colosseum_evi_by_hand():
     assert int(bad.iterations) == 50 and not bool(bad.converged)
 
 
+def test_colosseum_confidence_closed_form():
+    # Every entry of the reference's widths from its formulas (docs/agents.md §3), at an arbitrary lagged model,
+    # visits and iteration, with alpha_p, alpha_r, r_max away from 1 (the stream test below pins two entries).
+    S, A = 3, 2
+    rng = np.random.default_rng(3)
+    agent = agents.get("ucrl2", "colosseum")
+    hp = agent.default_hparams.replace(alpha_p=0.7, alpha_r=0.4, r_max=2.0)
+    state = agent.init(jax.random.key(0), _spec(S, A), hp)
+    P, R = rng.dirichlet(np.ones(S), size=(S, A)), rng.random((S, A)) * 2.0
+    visits = np.array([[0, 1], [2, 7], [40, 3]])
+    state = state.replace(p_model=jnp.asarray(P, jnp.float32), r_model=jnp.asarray(R, jnp.float32),
+                          schedule=state.schedule.replace(visits=jnp.asarray(visits, jnp.int32)),
+                          iteration=jnp.int32(57))
+    width, r_tilde = (np.asarray(x, np.float64) for x in colosseum_confidence(state))
+    delta = 1 / math.sqrt(57 + 1)
+    L = math.log(2 * S * A * (57 + 1) / delta)
+    n1, n2 = np.maximum(visits, 1), np.maximum(visits - 1, 1)
+    p0 = P[..., 0]
+    np.testing.assert_allclose(width, math.sqrt(0.7) * np.sqrt(14 * p0 * (1 - p0) / n1 * L) + 0.7 * 49 * L / (3 * n2),
+                               rtol=1e-5)
+    np.testing.assert_allclose(r_tilde, np.minimum(2.0, R + 0.4 * 2.0 * np.sqrt(3.5 * L / n1)), rtol=1e-5)
+    assert np.any(r_tilde < 2.0)  # the cap does not hide the reward width everywhere
+
+
 # (s, a, r, s'): each step ends an epoch (first visits of (0, 1) and (1, 0), then N(1, 0) = 2 with nu = 1).
 UCRL2_STREAM = [(0, 1, 0.5, 1), (1, 0, 0.2, 1), (1, 0, 0.4, 0)]
 
