@@ -18,12 +18,12 @@ _UNROLLED_MAX_ACTIONS = 16
 
 
 def row_max(x: jax.Array) -> jax.Array:
-    """``jnp.max(x)`` of a 1-D ``x`` (NaN propagates), unrolled for few entries."""
+    """``jnp.max(x, axis=-1)`` (NaN propagates), unrolled for few entries."""
     if x.shape[-1] > _UNROLLED_MAX_ACTIONS:
-        return jnp.max(x)
-    best = x[0]
+        return jnp.max(x, axis=-1)
+    best = x[..., 0]
     for a in range(1, x.shape[-1]):
-        best = jnp.maximum(best, x[a])
+        best = jnp.maximum(best, x[..., a])
     return best
 
 
