@@ -55,8 +55,7 @@ from flax import struct
 
 from agents.epochs import EpochSchedule, epoch_schedule, record_visit, start_epoch
 from agents.extended_value_iteration import colosseum_extended_value_iteration, extended_value_iteration
-from agents.tabular_common import greedy_action, valid_counts
-from jaxmdp import dynamic_programming as dp
+from agents.tabular_common import discounted_greedy_policy, greedy_action, valid_counts
 from jaxmdp._checks import check_int, check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
 
@@ -244,23 +243,19 @@ def plan(key: jax.Array, state: UCRL2State) -> UCRL2State:
 
 
 def estimated_model(state: UCRL2State) -> tuple[jax.Array, jax.Array]:
-    """``(p_hat, r_hat)`` with unvisited pairs at a uniform next state and reward ``r_max``; padded actions mirror
-    action 0 so they never change a maximum."""
+    """``(p_hat, r_hat)`` with unvisited pairs at a uniform next state and reward ``r_max``."""
     dtype = state.reward_mean.dtype
     N = state.schedule.visits
     visited = N > 0
     uniform = state.state_mask.astype(dtype) / jnp.sum(state.state_mask)
     P = jnp.where(visited[..., None], state.counts.astype(dtype) / jnp.maximum(N, 1)[..., None], uniform)
-    R = jnp.where(visited, state.reward_mean, state.hparams.r_max)
-    keep = state.action_mask[None, :]
-    return jnp.where(keep[..., None], P, P[:, :1]), jnp.where(keep, R, R[:, :1])
+    return P, jnp.where(visited, state.reward_mean, state.hparams.r_max)
 
 
 def policy(state: UCRL2State) -> jax.Array:
     """Greedy ``[S, A]`` policy of the discounted optimal values of the estimated MDP."""
     P, R = estimated_model(state)
-    res = dp.solve_discounted(P, state.hparams.policy_discount, rewards=R)
-    return dp.greedy(res.Q, state.action_mask)
+    return discounted_greedy_policy(P, R, state.hparams.policy_discount, state.action_mask)
 
 
 UCRL2 = Agent(
@@ -374,11 +369,7 @@ def plan_colosseum(key: jax.Array, state: UCRL2ColosseumState) -> UCRL2Colosseum
 
 def policy_colosseum(state: UCRL2ColosseumState) -> jax.Array:
     """Greedy ``[S, A]`` policy of the discounted optimal values of the lagged model ``(p_model, r_model)``."""
-    keep = state.action_mask[None, :]
-    P = jnp.where(keep[..., None], state.p_model, state.p_model[:, :1])
-    R = jnp.where(keep, state.r_model, state.r_model[:, :1])
-    res = dp.solve_discounted(P, state.hparams.policy_discount, rewards=R)
-    return dp.greedy(res.Q, state.action_mask)
+    return discounted_greedy_policy(state.p_model, state.r_model, state.hparams.policy_discount, state.action_mask)
 
 
 UCRL2_COLOSSEUM = dataclasses.replace(
