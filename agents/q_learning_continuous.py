@@ -107,7 +107,7 @@ class QLearningContinuousState(struct.PyTreeNode):
 
     @property
     def V(self) -> jax.Array:
-        return jnp.max(jnp.where(self.action_mask, self.Q_hat, -jnp.inf), axis=-1)
+        return row_max(jnp.where(self.action_mask[..., None, :], self.Q_hat, -jnp.inf))
 
 
 def check_hparams(hparams: QLearningContinuousHParams) -> None:

@@ -147,6 +147,8 @@ def test_wei_update_matches_numpy():
     np.testing.assert_allclose(state.Q_hat, Qh, rtol=1e-5)
     np.testing.assert_allclose(state.V, V, rtol=1e-5)
     np.testing.assert_array_equal(state.N, N)
+    batch = jax.tree.map(lambda x: jnp.stack([x, x]), state)  # V of a batch of states (as the runner holds them)
+    np.testing.assert_array_equal(batch.V, np.stack([state.V, state.V]))
 
 
 # ---------------------------------------------------------------------------------------------------------------
