@@ -57,6 +57,7 @@ from agents.epochs import EpochSchedule, epoch_schedule, record_visit, start_epo
 from agents.extended_value_iteration import colosseum_extended_value_iteration, extended_value_iteration
 from agents.tabular_common import discounted_greedy_policy, greedy_action, valid_counts
 from jaxmdp._checks import check_int, check_range
+from jaxmdp.dynamic_programming import PlanResult
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
 
 __all__ = [
@@ -230,8 +231,14 @@ def plan(key: jax.Array, state: UCRL2State) -> UCRL2State:
         aperiodicity=hp.aperiodicity,
         active=state.plan_due,
     )
-    new = state.replace(
-        Q=res.Q,
+    return where_due(state.plan_due, _start_epoch(state, res.Q, res), state)
+
+
+def _start_epoch(state: UCRL2State, Q: jax.Array, res: PlanResult) -> UCRL2State:
+    """``state`` after a plan (both variants): ``Q``, the bias and sweep report of ``res``, a new epoch, and
+    ``plans_unconverged`` counting this plan if EVI stopped at ``evi_max_iter``."""
+    return state.replace(
+        Q=Q,
         u=res.u,
         schedule=start_epoch(state.schedule),
         plan_due=jnp.zeros((), bool),
@@ -239,7 +246,6 @@ def plan(key: jax.Array, state: UCRL2State) -> UCRL2State:
         evi_converged=res.converged,
         plans_unconverged=state.plans_unconverged + (~res.converged).astype(jnp.int32),
     )
-    return where_due(state.plan_due, new, state)
 
 
 def estimated_model(state: UCRL2State) -> tuple[jax.Array, jax.Array]:
@@ -352,13 +358,7 @@ def plan_colosseum(key: jax.Array, state: UCRL2ColosseumState) -> UCRL2Colosseum
     played = nu > 0
     r_model = jnp.where(played, (state.r_model * (N + 1.0) + state.epoch_rewards) / (N + nu + 1.0), state.r_model)
     p_model = state.counts.astype(dtype) / jnp.maximum(N, 1.0)[..., None]
-    new = state.replace(
-        Q=jnp.where(res.converged, res.Q, state.Q),
-        u=res.u,
-        schedule=start_epoch(state.schedule),
-        plan_due=jnp.zeros((), bool),
-        evi_iterations=res.iterations,
-        evi_converged=res.converged,
+    new = _start_epoch(state, jnp.where(res.converged, res.Q, state.Q), res).replace(
         p_model=jnp.where(played[..., None], p_model, state.p_model),
         r_model=r_model,
         epoch_rewards=jnp.zeros_like(state.epoch_rewards),

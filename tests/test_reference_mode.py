@@ -353,6 +353,7 @@ def test_ucrl2_stream(variant):
     stuck = before.replace(Q=sentinel, r_model=before.r_model.at[0].set(0.0), hparams=hp.replace(evi_max_iter=1))
     stuck = agent.plan(jax.random.key(1), stuck)
     assert not bool(stuck.evi_converged)
+    assert int(stuck.plans_unconverged) == int(before.plans_unconverged) + 1  # the runner's diagnostic counts it
     np.testing.assert_array_equal(stuck.Q, sentinel)
 
 
