@@ -80,7 +80,7 @@ from agents.posteriors import (
     normal_gamma_prior,
     normal_gamma_sample,
 )
-from agents.tabular_common import greedy_action
+from agents.tabular_common import copy_action_zero, discounted_greedy_policy, greedy_action
 from jaxmdp import dynamic_programming as dp
 from jaxmdp._checks import Variant, check_int, check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
@@ -319,7 +319,7 @@ def extended_mdp(R: jax.Array, P: jax.Array, action_mask: jax.Array) -> tuple[ja
     ``(s, a)`` and reward ``R[s, a]``. Returns ``(T[S, A max_psi, S], R[S, A max_psi], action_mask[A max_psi])``;
     padded actions mirror action 0."""
     K, S, A, _ = P.shape
-    R = jnp.where(action_mask[None, :], R, R[:, :1])
+    R = copy_action_zero(R, action_mask)
     P = jnp.where(action_mask[None, None, :, None], P, P[:, :, :1])
     T = jnp.transpose(P, (1, 2, 0, 3)).reshape(S, A * K, S)
     return T, jnp.repeat(R, K, axis=1), jnp.repeat(action_mask, K)
@@ -393,11 +393,7 @@ def policy(state: PSRLContinuousState) -> jax.Array:
     """Greedy ``[S, A]`` policy of the discounted optimal values of the posterior-mean MDP."""
     P = dirichlet_mean(_posterior_alpha(state))
     R = normal_gamma_mean(state.rewards)
-    keep = state.action_mask[None, :]
-    P = jnp.where(keep[..., None], P, P[:, :1])
-    R = jnp.where(keep, R, R[:, :1])
-    res = dp.solve_discounted(P, state.hparams.policy_discount, rewards=R)
-    return dp.greedy(res.Q, state.action_mask)
+    return discounted_greedy_policy(P, R, state.hparams.policy_discount, state.action_mask)
 
 
 PSRL_CONTINUOUS = Agent(

@@ -50,7 +50,7 @@ from agents.posteriors import (
     normal_gamma_prior,
     normal_gamma_sample,
 )
-from agents.tabular_common import greedy_action
+from agents.tabular_common import copy_action_zero, greedy_action
 from jaxmdp import dynamic_programming as dp
 from jaxmdp._checks import Variant, check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
@@ -143,12 +143,6 @@ def needs_plan(state: PSRLEpisodicState) -> jax.Array:
     return state.plan_due
 
 
-def _copy_action_zero(x: jax.Array, action_mask: jax.Array) -> jax.Array:
-    # Padded actions mirror action 0 (as jaxmdp.stack does), so they never change a maximum over actions.
-    mask = action_mask.reshape((1, -1) + (1,) * (x.ndim - 2))
-    return jnp.where(mask, x, x[:, :1])
-
-
 def _alpha(state: PSRLEpisodicState) -> jax.Array:
     return dirichlet_concentration(state.hparams.transition_prior, state.counts, state.state_mask)
 
@@ -168,16 +162,16 @@ def plan(
     """
     k_p, k_r = jax.random.split(key)
     offset = COLOSSEUM_DIRICHLET_OFFSET if variant == "colosseum" else 0.0
-    P = _copy_action_zero(dirichlet_sample(k_p, _alpha(state), log_gamma, offset=offset), state.action_mask)
-    R = _copy_action_zero(normal_gamma_sample(k_r, state.rewards, log_gamma), state.action_mask)
+    P = copy_action_zero(dirichlet_sample(k_p, _alpha(state), log_gamma, offset=offset), state.action_mask)
+    R = copy_action_zero(normal_gamma_sample(k_r, state.rewards, log_gamma), state.action_mask)
     Q, _ = dp.finite_horizon_value_iteration(P, rewards=R, H=state.Q.shape[0], horizon=state.horizon)
     return where_due(state.plan_due, state.replace(Q=Q, plan_due=jnp.zeros((), bool)), state)
 
 
 def policy(state: PSRLEpisodicState) -> jax.Array:
     """Greedy ``[H, S, A]`` policy of backward induction on the posterior means."""
-    P = _copy_action_zero(dirichlet_mean(_alpha(state)), state.action_mask)
-    R = _copy_action_zero(normal_gamma_mean(state.rewards), state.action_mask)
+    P = copy_action_zero(dirichlet_mean(_alpha(state)), state.action_mask)
+    R = copy_action_zero(normal_gamma_mean(state.rewards), state.action_mask)
     Q, _ = dp.finite_horizon_value_iteration(P, rewards=R, H=state.Q.shape[0], horizon=state.horizon)
     return dp.greedy(Q, state.action_mask)
 

@@ -63,9 +63,6 @@ __all__ = [
 
 # Below this value the reference's learning-rate floor is switched off (docs/agents.md §5).
 _MIN_AT_CUTOFF = 0.009
-
-# Below this value the reference's learning-rate floor is switched off (docs/agents.md §5).
-_MIN_AT_CUTOFF = 0.009
 # The reference's approximation of the exponent 1/3 in H (reference mode).
 _COLOSSEUM_EXPONENT = 0.333
 
@@ -110,7 +107,7 @@ class QLearningContinuousState(struct.PyTreeNode):
 
     @property
     def V(self) -> jax.Array:
-        return jnp.max(jnp.where(self.action_mask, self.Q_hat, -jnp.inf), axis=-1)
+        return row_max(jnp.where(self.action_mask[..., None, :], self.Q_hat, -jnp.inf))
 
 
 def check_hparams(hparams: QLearningContinuousHParams) -> None:
@@ -162,16 +159,23 @@ def init(
     )
 
 
-def update(state: QLearningContinuousState, tr: Transition) -> QLearningContinuousState:
-    """One optimistic Q-learning step at ``(s, a)`` (module docstring)."""
+def _stepped_table(state: QLearningContinuousState, tr: Transition, v_next: jax.Array, start: int) -> jax.Array:
+    """The table after the step at ``(s, a)`` with next-state value ``v_next``: ``tau = n(s, a) + 1``,
+    ``Q(s, a) <- (1 - alpha_tau) X + alpha_tau (r + gamma v_next + b_tau)`` with ``X`` the table column ``start``
+    at ``(s, a)`` (``_Q`` for the paper, ``_Q_HAT`` for the reference), ``Q_hat(s, a) <- min(Q_hat(s, a), Q(s, a))``."""
     s, a = tr.obs, tr.action
     row = state.table[s, a]
-    v_next = row_max(jnp.where(state.action_mask, state.table[tr.next_obs, :, _Q_HAT], -jnp.inf))
     tau = row[_N] + 1.0
     alpha = jnp.maximum(state.min_at, (state.H + 1.0) / (state.H + tau))
     target = tr.reward.astype(tau.dtype) + state.gamma * v_next + state.bonus_scale / jnp.sqrt(tau)
-    q = (1.0 - alpha) * row[_Q] + alpha * target
-    return state.replace(table=state.table.at[s, a].set(jnp.stack([q, jnp.minimum(row[_Q_HAT], q), tau])))
+    q = (1.0 - alpha) * row[start] + alpha * target
+    return state.table.at[s, a].set(jnp.stack([q, jnp.minimum(row[_Q_HAT], q), tau]))
+
+
+def update(state: QLearningContinuousState, tr: Transition) -> QLearningContinuousState:
+    """One optimistic Q-learning step at ``(s, a)`` (module docstring)."""
+    v_next = row_max(jnp.where(state.action_mask, state.table[tr.next_obs, :, _Q_HAT], -jnp.inf))
+    return state.replace(table=_stepped_table(state, tr, v_next, _Q))
 
 
 def act(key: jax.Array, state: QLearningContinuousState, obs: jax.Array, h: jax.Array) -> jax.Array:
@@ -204,8 +208,15 @@ Q_LEARNING_CONTINUOUS = Agent(
 
 class QLearningContinuousColosseumState(QLearningContinuousState):
     """The reference's state: as :class:`QLearningContinuousState` plus a stored ``V[S]``, which the reference
-    refreshes at the next state ``s'`` (so it can lag ``max_a Q_hat``) and which therefore cannot be read off the
-    table."""
+    refreshes at the next state ``s'``, so it lags ``max_a Q_hat``.
+
+    ``V`` cannot be read off the table (unlike the episodic reference mode's,
+    :func:`agents.q_learning_episodic.table_values`): after a step at ``(s, a)`` with ``s' != s``, ``Q_hat(s, a) <- min(Q_hat(s, a), Q(s, a))``
+    may lower ``Q_hat(s, a)`` while ``V(s)`` keeps ``max_a Q_hat(s, .)`` from *before* that step until ``s`` is
+    next reached as a next state. That older ``Q_hat(s, a)`` is overwritten in the table (the minimum discards it,
+    and the running ``Q(s, a)`` column cannot restore it without the target), so ``V(s)`` would need one stored
+    number per state anyway: the stored ``V`` itself. (E.g. ``tests/test_reference_mode.py``: after the stream
+    ``0 -> 1, 0 -> 1, 1 -> 0, 0 -> 0``, ``V(1) = H`` while ``max_a Q_hat(1, a) < H``.)"""
 
     v: jax.Array
 
@@ -229,13 +240,7 @@ def update_colosseum(
     """The reference's step at ``(s, a)``: the running estimate restarts from the monotone one,
     ``Q(s, a) <- (1 - alpha_tau) Q_hat(s, a) + alpha_tau (r + gamma V(s') + b_tau)``, ``Q_hat(s, a) <- min(Q_hat(s, a),
     Q(s, a))``, and the *next* state's value is refreshed, ``V(s') <- max_a Q_hat(s', a)``."""
-    s, a = tr.obs, tr.action
-    row = state.table[s, a]
-    tau = row[_N] + 1.0
-    alpha = jnp.maximum(state.min_at, (state.H + 1.0) / (state.H + tau))
-    target = tr.reward.astype(tau.dtype) + state.gamma * state.v[tr.next_obs] + state.bonus_scale / jnp.sqrt(tau)
-    q = (1.0 - alpha) * row[_Q_HAT] + alpha * target
-    table = state.table.at[s, a].set(jnp.stack([q, jnp.minimum(row[_Q_HAT], q), tau]))
+    table = _stepped_table(state, tr, state.v[tr.next_obs], _Q_HAT)
     v_next = row_max(jnp.where(state.action_mask, table[tr.next_obs, :, _Q_HAT], -jnp.inf))
     return state.replace(table=table, v=state.v.at[tr.next_obs].set(v_next))
 

@@ -40,6 +40,8 @@ Differences from the reference (Colosseum), each a return to the published algor
 from __future__ import annotations
 
 import dataclasses
+from typing import ClassVar
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -47,7 +49,7 @@ from flax import struct
 
 from agents.tabular_common import greedy_action_single_draw, row_max, valid_counts
 from jaxmdp import dynamic_programming as dp
-from jaxmdp._checks import check_range
+from jaxmdp._checks import Variant, check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
 
 __all__ = ["QLearningEpisodicHParams", "QLearningEpisodicState", "Q_LEARNING_EPISODIC", "Q_LEARNING_EPISODIC_COLOSSEUM"]
@@ -67,12 +69,31 @@ class QLearningEpisodicHParams(struct.PyTreeNode):
 _Q, _N, _SUM_V, _SUM_V2, _BETA = range(5)
 
 
+def table_values(
+    rows: jax.Array, action_mask: jax.Array, horizon: jax.Array, variant: Variant = "paper"
+) -> jax.Array:
+    """``V_h(s) = min(H, max_a Q_h(s, a))`` from rows ``[..., A, 5]`` of the table.
+
+    ``variant="colosseum"``: the reference's ``V``, which starts at 0 (``Q`` at ``H``) and is set to
+    ``min(H, max_a Q_h(s, a))`` after every update at ``(h, s)``. ``Q_h(s, .)`` changes only in those updates, so
+    ``V_h(s)`` is that value from the first update at ``(h, s)`` on and 0 before it; the reference's counts start
+    at 1 and only updates raise them, so "updated" is ``max_a N_h(s, a) > 1``. (The paper's ``V`` starts at
+    ``H = max_a Q`` of the initial table, so it needs no such test.) Rows from the horizon on are the caller's.
+    """
+    v = jnp.minimum(horizon, row_max(jnp.where(action_mask, rows[..., _Q], -jnp.inf)))
+    if variant == "colosseum":
+        v = jnp.where(row_max(rows[..., _N]) > 1.0, v, 0.0)
+    return v
+
+
 class QLearningEpisodicState(struct.PyTreeNode):
     """Per-``(h, s, a)`` table ``[H, S, A, 5]`` holding ``Q``, the count ``N`` (as a float, exact up to 2^24 in
     float32), the Bernstein statistics (running sums of the next values and their squares, last ``beta``), in the
     MDP's dtype, and the member's constants (horizon ``H``, ``iota``, ``S A``). ``V_h(s) = min(H, max_a Q_h(s, a))``
-    (0 from the horizon on) is read from the table rather than stored: the same numbers, as ``V_h(s)`` is refreshed
-    exactly when ``Q_h(s, .)`` changes."""
+    (0 from the horizon on) is read from the table rather than stored (:func:`table_values`): the same numbers, as
+    ``V_h(s)`` is refreshed exactly when ``Q_h(s, .)`` changes."""
+
+    variant: ClassVar[Variant] = "paper"  # how V is read off the table (table_values)
 
     table: jax.Array
     horizon: jax.Array
@@ -98,9 +119,14 @@ class QLearningEpisodicState(struct.PyTreeNode):
         """``V[H + 1, S]`` (row ``H`` and rows from the horizon on are 0)."""
         H = self.table.shape[-4]
         live = (jnp.arange(H) < self.horizon[..., None])[..., None]
-        best = jnp.max(jnp.where(self.action_mask[..., None, None, :], self.Q, -jnp.inf), axis=-1)
-        V = jnp.where(live, jnp.minimum(self.horizon[..., None, None], best), 0.0)
+        mask, horizon = self.action_mask[..., None, None, :], self.horizon[..., None, None]
+        V = jnp.where(live, table_values(self.table, mask, horizon, self.variant), 0.0)
         return jnp.concatenate([V, jnp.zeros_like(V[..., :1, :])], axis=-2)
+
+    def value(self, h: jax.Array, s: jax.Array) -> jax.Array:
+        """``V_h(s)`` of one unbatched state (0 from the horizon on, so ``h = H`` reads 0)."""
+        row = self.table[jnp.minimum(h, self.table.shape[0] - 1), s]
+        return jnp.where(h < self.horizon, table_values(row, self.action_mask, self.horizon, self.variant), 0.0)
 
 
 def check_hparams(hparams: QLearningEpisodicHParams) -> None:
@@ -143,13 +169,18 @@ def bonus(
     """The bonus ``b_t`` of the ``t``-th visit and the new ``beta_t``.
 
     ``sum_v``/``sum_v2``: sums of the ``t`` next-state values seen so far and of their squares (this visit
-    included); ``beta_prev = beta_{t-1}``. Hoeffding ignores the statistics (``beta`` is then irrelevant).
+    included); ``beta_prev = beta_{t-1}``. Hoeffding ignores the statistics (``beta`` is then irrelevant). The
+    variance term of ``beta_t`` is ``H / t (W_t + H)`` (module docstring), or for the reference's state
+    (:class:`QLearningEpisodicColosseumState`) ``H (sum V^2 - sum V)^2 / t^2 + H``.
     """
     hp, H, iota = state.hparams, state.horizon, state.iota
     hoeffding = hp.c_1 * jnp.sqrt(H**3 * iota / t)
-    W = jnp.maximum(sum_v2 / t - (sum_v / t) ** 2, 0.0)
+    if state.variant == "colosseum":
+        variance = H * (sum_v2 - sum_v) ** 2 / t**2 + H
+    else:
+        variance = H / t * (jnp.maximum(sum_v2 / t - (sum_v / t) ** 2, 0.0) + H)
     beta = jnp.minimum(
-        hp.c_1 * (jnp.sqrt(H / t * (W + H) * iota) + jnp.sqrt(H**7 * state.n_pairs) * iota / t),
+        hp.c_1 * (jnp.sqrt(variance * iota) + jnp.sqrt(H**7 * state.n_pairs) * iota / t),
         hp.c_2 * jnp.sqrt(H**3 * iota / t),
     )
     bernstein = (beta - (1.0 - alpha) * beta_prev) / (2.0 * alpha)
@@ -157,19 +188,25 @@ def bonus(
 
 
 def update(state: QLearningEpisodicState, tr: Transition) -> QLearningEpisodicState:
-    """One Q-learning step at ``(h, s, a)`` (module docstring)."""
+    """One Q-learning step at ``(h, s, a)`` (module docstring).
+
+    For the reference's state (:class:`QLearningEpisodicColosseumState`, counts from 1) its rules: the variance term
+    of :func:`bonus` and the swapped weights ``Q <- alpha_t Q + (1 - alpha_t) (r + V_{h+1}(s') + b_t)``; its refresh
+    ``V_h(s) <- min(H, max_a Q_h(s, a))`` is implicit (:func:`table_values` reads ``V`` off the table).
+    """
     h, s, a = tr.h, tr.obs, tr.action
     row = state.table[h, s, a]
     t = row[_N] + 1.0
     H = state.horizon
     alpha = jnp.maximum(state.hparams.min_at, (H + 1.0) / (H + t))
-    # V_{h+1}(s'): 0 at the end of the episode, else min(H, max_a Q_{h+1}(s', a)).
-    q_next = state.table[jnp.minimum(h + 1, state.table.shape[0] - 1), tr.next_obs, :, _Q]
-    best_next = row_max(jnp.where(state.action_mask, q_next, -jnp.inf))
-    v_next = jnp.where(h + 1 < H, jnp.minimum(H, best_next), 0.0)
+    v_next = state.value(h + 1, tr.next_obs)  # 0 at the end of the episode
     sum_v, sum_v2 = row[_SUM_V] + v_next, row[_SUM_V2] + v_next**2
     b, beta = bonus(state, t, sum_v, sum_v2, row[_BETA], alpha)
-    q = (1.0 - alpha) * row[_Q] + alpha * (tr.reward.astype(t.dtype) + v_next + b)
+    target = tr.reward.astype(t.dtype) + v_next + b
+    if state.variant == "colosseum":
+        q = alpha * row[_Q] + (1.0 - alpha) * target
+    else:
+        q = (1.0 - alpha) * row[_Q] + alpha * target
     return state.replace(table=state.table.at[h, s, a].set(jnp.stack([q, t, sum_v, sum_v2, beta])))
 
 
@@ -201,50 +238,24 @@ Q_LEARNING_EPISODIC = Agent(
 
 
 class QLearningEpisodicColosseumState(QLearningEpisodicState):
-    """The reference's state: as :class:`QLearningEpisodicState` plus a stored ``V[H + 1, S]`` that starts at 0
-    while ``Q`` starts at ``H`` (so it cannot be read off the table)."""
+    """The reference's state: :class:`QLearningEpisodicState` with counts from 1 and the reference's ``V``, which
+    starts at 0 while ``Q`` starts at ``H``; it is read off the table too (:func:`table_values`), not stored.
+    :func:`bonus` and :func:`update` apply the reference's rules to it."""
 
-    v: jax.Array
-
-    @property
-    def V(self) -> jax.Array:
-        return self.v
+    variant: ClassVar[Variant] = "colosseum"
 
 
 def init_colosseum(
     key: jax.Array, spec: MDPSpec, hparams: QLearningEpisodicHParams
 ) -> QLearningEpisodicColosseumState:
-    """The reference's tables: counts start at 1 and ``V`` at 0 (``Q = H`` as in :func:`init`)."""
+    """The reference's tables: counts start at 1 (``Q = H`` as in :func:`init`; ``V = 0``, :func:`table_values`)."""
     state = init(key, spec, hparams)
     fields = {f.name: getattr(state, f.name) for f in dataclasses.fields(state)}
     fields["table"] = state.table.at[..., _N].set(1.0)
-    return QLearningEpisodicColosseumState(**fields, v=jnp.zeros((spec.H + 1, spec.n_states), state.table.dtype))
+    return QLearningEpisodicColosseumState(**fields)
 
 
-def update_colosseum(state: QLearningEpisodicColosseumState, tr: Transition) -> QLearningEpisodicColosseumState:
-    """The reference's step at ``(h, s, a)``: with ``t = N + 1`` (counts from 1),
-    ``beta_t = min(c_1 (sqrt((H (sum V^2 - sum V)^2 / t^2 + H) iota) + sqrt(H^7 S A) iota / t), c_2 sqrt(H^3 iota/t))``,
-    ``b_t = (beta_t - (1 - alpha_t) beta_{t-1}) / (2 alpha_t)`` (Hoeffding as :func:`bonus`) and the swapped weights
-    ``Q <- alpha_t Q + (1 - alpha_t) (r + V_{h+1}(s') + b_t)``; ``V_h(s) <- min(H, max_a Q_h(s, a))``."""
-    h, s, a = tr.h, tr.obs, tr.action
-    hp, H, iota = state.hparams, state.horizon, state.iota
-    row = state.table[h, s, a]
-    t = row[_N] + 1.0
-    alpha = jnp.maximum(hp.min_at, (H + 1.0) / (H + t))
-    v_next = state.v[h + 1, tr.next_obs]
-    sum_v, sum_v2 = row[_SUM_V] + v_next, row[_SUM_V2] + v_next**2
-    beta = jnp.minimum(
-        hp.c_1 * (jnp.sqrt((H * (sum_v2 - sum_v) ** 2 / t**2 + H) * iota) + jnp.sqrt(H**7 * state.n_pairs) * iota / t),
-        hp.c_2 * jnp.sqrt(H**3 * iota / t),
-    )
-    bernstein = (beta - (1.0 - alpha) * row[_BETA]) / (2.0 * alpha)
-    b = jnp.where(hp.bernstein > 0, bernstein, hp.c_1 * jnp.sqrt(H**3 * iota / t))
-    q = alpha * row[_Q] + (1.0 - alpha) * (tr.reward.astype(t.dtype) + v_next + b)
-    table = state.table.at[h, s, a].set(jnp.stack([q, t, sum_v, sum_v2, beta]))
-    q_row = jnp.where(state.action_mask, table[h, s, :, _Q], -jnp.inf)
-    return state.replace(table=table, v=state.v.at[h, s].set(jnp.minimum(H, jnp.max(q_row))))
-
-
+# The same update, with the reference's rules for the reference's state (:func:`update`).
 Q_LEARNING_EPISODIC_COLOSSEUM = dataclasses.replace(
-    Q_LEARNING_EPISODIC, name="q_learning_episodic@colosseum", init=init_colosseum, update=update_colosseum
+    Q_LEARNING_EPISODIC, name="q_learning_episodic@colosseum", init=init_colosseum
 )

@@ -1,6 +1,6 @@
-"""Pieces shared by the tabular agents: the greedy actor with random tie-breaking and the counts of real states and
-actions of a (possibly padded) MDP. Hyperparameter checks are :func:`jaxmdp._checks.check_range` and
-:func:`jaxmdp._checks.check_int`."""
+"""Pieces shared by the tabular agents: the greedy actor with random tie-breaking, the counts of real states and
+actions of a (possibly padded) MDP, and the discounted policy estimate of a model with padded actions.
+Hyperparameter checks are :func:`jaxmdp._checks.check_range` and :func:`jaxmdp._checks.check_int`."""
 
 from __future__ import annotations
 
@@ -9,7 +9,17 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-__all__ = ["first_argmax", "greedy_action", "greedy_action_single_draw", "row_max", "valid_counts"]
+from jaxmdp import dynamic_programming as dp
+
+__all__ = [
+    "copy_action_zero",
+    "discounted_greedy_policy",
+    "first_argmax",
+    "greedy_action",
+    "greedy_action_single_draw",
+    "row_max",
+    "valid_counts",
+]
 
 
 # Up to this many actions the argmax of :func:`greedy_action` is unrolled into elementwise passes: XLA's variadic
@@ -18,12 +28,12 @@ _UNROLLED_MAX_ACTIONS = 16
 
 
 def row_max(x: jax.Array) -> jax.Array:
-    """``jnp.max(x)`` of a 1-D ``x`` (NaN propagates), unrolled for few entries."""
+    """``jnp.max(x, axis=-1)`` (NaN propagates), unrolled for few entries."""
     if x.shape[-1] > _UNROLLED_MAX_ACTIONS:
-        return jnp.max(x)
-    best = x[0]
+        return jnp.max(x, axis=-1)
+    best = x[..., 0]
     for a in range(1, x.shape[-1]):
-        best = jnp.maximum(best, x[a])
+        best = jnp.maximum(best, x[..., a])
     return best
 
 
@@ -70,3 +80,18 @@ def greedy_action_single_draw(key: jax.Array, q: jax.Array, action_mask: jax.Arr
 def valid_counts(state_mask: jax.Array, action_mask: jax.Array, dtype: Any = jnp.float32) -> tuple[jax.Array, jax.Array]:
     """Numbers of real (unpadded) states and actions, as floats."""
     return jnp.sum(state_mask).astype(dtype), jnp.sum(action_mask).astype(dtype)
+
+
+def copy_action_zero(x: jax.Array, action_mask: jax.Array) -> jax.Array:
+    """``x[:, A, ...]`` (actions on axis 1) with the padded actions' entries replaced by action 0's, as
+    :func:`jaxmdp.stack` pads, so that they never change a maximum over actions."""
+    mask = action_mask.reshape((1, -1) + (1,) * (x.ndim - 2))
+    return jnp.where(mask, x, x[:, :1])
+
+
+def discounted_greedy_policy(P: jax.Array, R: jax.Array, discount: Any, action_mask: jax.Array) -> jax.Array:
+    """Greedy one-hot ``[S, A]`` policy (lowest-index ties) of the ``discount``-discounted optimal values of the
+    model ``(P[S, A, S], R[S, A])``, padded actions mirroring action 0: the policy estimate of the continuous
+    model-based agents (docs/agents.md §3, §4)."""
+    res = dp.solve_discounted(copy_action_zero(P, action_mask), discount, rewards=copy_action_zero(R, action_mask))
+    return dp.greedy(res.Q, action_mask)

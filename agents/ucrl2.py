@@ -55,14 +55,15 @@ from flax import struct
 
 from agents.epochs import EpochSchedule, epoch_schedule, record_visit, start_epoch
 from agents.extended_value_iteration import colosseum_extended_value_iteration, extended_value_iteration
-from agents.tabular_common import greedy_action
-from jaxmdp import dynamic_programming as dp
+from agents.tabular_common import discounted_greedy_policy, greedy_action, valid_counts
 from jaxmdp._checks import check_int, check_range
+from jaxmdp.dynamic_programming import PlanResult
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
 
 __all__ = [
     "UCRL2HParams",
     "UCRL2State",
+    "plausible_set",
     "confidence_widths",
     "UCRL2",
     "UCRL2ColosseumState",
@@ -168,24 +169,45 @@ def needs_plan(state: UCRL2State) -> jax.Array:
     return state.plan_due
 
 
-def confidence_widths(state: UCRL2State) -> tuple[jax.Array, jax.Array, jax.Array]:
-    """``(p_hat[S, A, S], width_p[S, A, S], r_tilde[S, A])`` of the current plausible set (module docstring)."""
-    hp = state.hparams
-    dtype = state.reward_mean.dtype
-    N = state.schedule.visits.astype(dtype)
+def plausible_set(
+    hparams: UCRL2HParams,
+    visits: jax.Array,
+    p: jax.Array,
+    r_estimate: jax.Array,
+    n_samples: jax.Array,
+    state_mask: jax.Array,
+    action_mask: jax.Array,
+) -> tuple[jax.Array, jax.Array]:
+    """``(width_p, r_tilde)``: the confidence widths of both variants (module docstring; docs/agents.md §3).
+
+    With ``N`` = ``visits[S, A]``, ``N' = max(1, N)``, ``N'' = max(1, N - 1)``, ``S``, ``A`` the real numbers of
+    states and actions and ``L = ln(2 S A (n + 1) / delta)``, ``delta = (n + 1)^(-1/2)``, ``n`` = ``n_samples``:
+    ``width_p = sqrt(alpha_p) sqrt(14 p (1 - p) / N' L) + alpha_p 49 L / (3 N'')`` for each entry of ``p[S, A, k]``
+    (the next-state probabilities the widths are taken at) and
+    ``r_tilde = min(r_max, r_estimate + alpha_r r_max sqrt(3.5 L / N'))``. No masking of unvisited pairs here.
+    """
+    dtype = r_estimate.dtype
+    N = visits.astype(dtype)
     n1, n2 = jnp.maximum(N, 1.0), jnp.maximum(N - 1.0, 1.0)
-    S = jnp.sum(state.state_mask).astype(dtype)
-    A = jnp.sum(state.action_mask).astype(dtype)
-    t = state.t.astype(dtype)
-    L = jnp.log(2.0 * S * A) + 1.5 * jnp.log1p(t)  # ln(2 S A (t + 1) / delta_t), delta_t = (t + 1)^(-1/2)
+    S, A = valid_counts(state_mask, action_mask, dtype)
+    L = jnp.log(2.0 * S * A) + 1.5 * jnp.log1p(n_samples.astype(dtype))
+    width_p = jnp.sqrt(hparams.alpha_p) * jnp.sqrt(14.0 * p * (1.0 - p) / n1[..., None] * L)
+    width_p = width_p + hparams.alpha_p * 49.0 * L / (3.0 * n2[..., None])
+    width_r = hparams.alpha_r * hparams.r_max * jnp.sqrt(3.5 * L / n1)
+    return width_p, jnp.minimum(hparams.r_max, r_estimate + width_r)
+
+
+def confidence_widths(state: UCRL2State) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """``(p_hat[S, A, S], width_p[S, A, S], r_tilde[S, A])`` of the current plausible set (module docstring):
+    :func:`plausible_set` at the empirical estimates and ``t``, unvisited pairs unconstrained."""
+    N = state.schedule.visits
     visited = N > 0
-    p_hat = state.counts.astype(dtype) / n1[..., None]
-    width_p = jnp.sqrt(hp.alpha_p) * jnp.sqrt(14.0 * p_hat * (1.0 - p_hat) * L / n1[..., None])
-    width_p = width_p + hp.alpha_p * 49.0 * L / (3.0 * n2[..., None])
+    p_hat = state.counts.astype(state.reward_mean.dtype) / jnp.maximum(N, 1)[..., None]
+    width_p, r_tilde = plausible_set(
+        state.hparams, N, p_hat, state.reward_mean, state.t, state.state_mask, state.action_mask
+    )
     width_p = jnp.where(visited[..., None], width_p, 1.0)
-    width_r = hp.alpha_r * hp.r_max * jnp.sqrt(3.5 * L / n1)
-    r_tilde = jnp.where(visited, jnp.minimum(hp.r_max, state.reward_mean + width_r), hp.r_max)
-    return p_hat, width_p, r_tilde
+    return p_hat, width_p, jnp.where(visited, r_tilde, state.hparams.r_max)
 
 
 def plan(key: jax.Array, state: UCRL2State) -> UCRL2State:
@@ -209,8 +231,14 @@ def plan(key: jax.Array, state: UCRL2State) -> UCRL2State:
         aperiodicity=hp.aperiodicity,
         active=state.plan_due,
     )
-    new = state.replace(
-        Q=res.Q,
+    return where_due(state.plan_due, _start_epoch(state, res.Q, res), state)
+
+
+def _start_epoch(state: UCRL2State, Q: jax.Array, res: PlanResult) -> UCRL2State:
+    """``state`` after a plan (both variants): ``Q``, the bias and sweep report of ``res``, a new epoch, and
+    ``plans_unconverged`` counting this plan if EVI stopped at ``evi_max_iter``."""
+    return state.replace(
+        Q=Q,
         u=res.u,
         schedule=start_epoch(state.schedule),
         plan_due=jnp.zeros((), bool),
@@ -218,27 +246,22 @@ def plan(key: jax.Array, state: UCRL2State) -> UCRL2State:
         evi_converged=res.converged,
         plans_unconverged=state.plans_unconverged + (~res.converged).astype(jnp.int32),
     )
-    return where_due(state.plan_due, new, state)
 
 
 def estimated_model(state: UCRL2State) -> tuple[jax.Array, jax.Array]:
-    """``(p_hat, r_hat)`` with unvisited pairs at a uniform next state and reward ``r_max``; padded actions mirror
-    action 0 so they never change a maximum."""
+    """``(p_hat, r_hat)`` with unvisited pairs at a uniform next state and reward ``r_max``."""
     dtype = state.reward_mean.dtype
     N = state.schedule.visits
     visited = N > 0
     uniform = state.state_mask.astype(dtype) / jnp.sum(state.state_mask)
     P = jnp.where(visited[..., None], state.counts.astype(dtype) / jnp.maximum(N, 1)[..., None], uniform)
-    R = jnp.where(visited, state.reward_mean, state.hparams.r_max)
-    keep = state.action_mask[None, :]
-    return jnp.where(keep[..., None], P, P[:, :1]), jnp.where(keep, R, R[:, :1])
+    return P, jnp.where(visited, state.reward_mean, state.hparams.r_max)
 
 
 def policy(state: UCRL2State) -> jax.Array:
     """Greedy ``[S, A]`` policy of the discounted optimal values of the estimated MDP."""
     P, R = estimated_model(state)
-    res = dp.solve_discounted(P, state.hparams.policy_discount, rewards=R)
-    return dp.greedy(res.Q, state.action_mask)
+    return discounted_greedy_policy(P, R, state.hparams.policy_discount, state.action_mask)
 
 
 UCRL2 = Agent(
@@ -294,22 +317,20 @@ def update_colosseum(state: UCRL2ColosseumState, tr: Transition) -> UCRL2Colosse
 
 
 def colosseum_confidence(state: UCRL2ColosseumState) -> tuple[jax.Array, jax.Array]:
-    """``(width[S, A], r_tilde[S, A])`` of the reference's plausible set: with ``N`` the visits (up to date),
-    ``N' = max(1, N)``, ``N'' = max(1, N - 1)``, ``delta = 1 / sqrt(iteration + 1)`` and
-    ``L = ln(2 S A (iteration + 1) / delta)`` (``iteration`` lags one epoch), the transition width of next-state index
-    0, ``sqrt(alpha_p) sqrt(14 p(0) (1 - p(0)) L / N') + alpha_p 49 L / (3 N'')`` with ``p = p_model``, used for the
-    whole row, and ``r~ = min(r_max, r_model + alpha_r r_max sqrt(3.5 L / N'))``."""
-    hp = state.hparams
-    dtype = state.r_model.dtype
-    N = state.schedule.visits.astype(dtype)
-    n1, n2 = jnp.maximum(N, 1.0), jnp.maximum(N - 1.0, 1.0)
-    S = jnp.sum(state.state_mask).astype(dtype)
-    A = jnp.sum(state.action_mask).astype(dtype)
-    L = jnp.log(2.0 * S * A) + 1.5 * jnp.log1p(state.iteration.astype(dtype))
-    p0 = state.p_model[..., 0]
-    width = jnp.sqrt(hp.alpha_p) * jnp.sqrt(14.0 * p0 * (1.0 - p0) / n1 * L) + hp.alpha_p * 49.0 * L / (3.0 * n2)
-    r_tilde = jnp.minimum(hp.r_max, state.r_model + hp.alpha_r * hp.r_max * jnp.sqrt(3.5 * L / n1))
-    return width, r_tilde
+    """``(width[S, A], r_tilde[S, A])`` of the reference's plausible set: :func:`plausible_set` at the lagged model,
+    ``p = p_model(0 | s, a)`` (the width of next-state index 0 serves the whole row) and ``r_model``, with the
+    up-to-date visits and ``n = iteration`` (which lags one epoch); unvisited pairs are not masked (their model is
+    the initial uniform kernel and ``r_max``)."""
+    width, r_tilde = plausible_set(
+        state.hparams,
+        state.schedule.visits,
+        state.p_model[..., :1],
+        state.r_model,
+        state.iteration,
+        state.state_mask,
+        state.action_mask,
+    )
+    return width[..., 0], r_tilde
 
 
 def plan_colosseum(key: jax.Array, state: UCRL2ColosseumState) -> UCRL2ColosseumState:
@@ -337,13 +358,7 @@ def plan_colosseum(key: jax.Array, state: UCRL2ColosseumState) -> UCRL2Colosseum
     played = nu > 0
     r_model = jnp.where(played, (state.r_model * (N + 1.0) + state.epoch_rewards) / (N + nu + 1.0), state.r_model)
     p_model = state.counts.astype(dtype) / jnp.maximum(N, 1.0)[..., None]
-    new = state.replace(
-        Q=jnp.where(res.converged, res.Q, state.Q),
-        u=res.u,
-        schedule=start_epoch(state.schedule),
-        plan_due=jnp.zeros((), bool),
-        evi_iterations=res.iterations,
-        evi_converged=res.converged,
+    new = _start_epoch(state, jnp.where(res.converged, res.Q, state.Q), res).replace(
         p_model=jnp.where(played[..., None], p_model, state.p_model),
         r_model=r_model,
         epoch_rewards=jnp.zeros_like(state.epoch_rewards),
@@ -354,11 +369,7 @@ def plan_colosseum(key: jax.Array, state: UCRL2ColosseumState) -> UCRL2Colosseum
 
 def policy_colosseum(state: UCRL2ColosseumState) -> jax.Array:
     """Greedy ``[S, A]`` policy of the discounted optimal values of the lagged model ``(p_model, r_model)``."""
-    keep = state.action_mask[None, :]
-    P = jnp.where(keep[..., None], state.p_model, state.p_model[:, :1])
-    R = jnp.where(keep, state.r_model, state.r_model[:, :1])
-    res = dp.solve_discounted(P, state.hparams.policy_discount, rewards=R)
-    return dp.greedy(res.Q, state.action_mask)
+    return discounted_greedy_policy(state.p_model, state.r_model, state.hparams.policy_discount, state.action_mask)
 
 
 UCRL2_COLOSSEUM = dataclasses.replace(

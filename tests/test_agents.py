@@ -15,7 +15,7 @@ import agents
 import jaxmdp
 from agents import q_learning_continuous as qlc
 from agents import q_learning_episodic as qle
-from agents.tabular_common import greedy_action, greedy_action_single_draw
+from agents.tabular_common import discounted_greedy_policy, greedy_action, greedy_action_single_draw, row_max
 from jaxmdp.experiment import runner
 from jaxmdp.experiment.agent_interface import Transition, spec_of
 
@@ -147,6 +147,8 @@ def test_wei_update_matches_numpy():
     np.testing.assert_allclose(state.Q_hat, Qh, rtol=1e-5)
     np.testing.assert_allclose(state.V, V, rtol=1e-5)
     np.testing.assert_array_equal(state.N, N)
+    batch = jax.tree.map(lambda x: jnp.stack([x, x]), state)  # V of a batch of states (as the runner holds them)
+    np.testing.assert_array_equal(batch.V, np.stack([state.V, state.V]))
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -178,6 +180,34 @@ def test_single_draw_greedy_ties_are_uniform_over_valid_actions():
     assert set(np.asarray(draw(keys[:200], q.at[1].set(2.0), mask)).tolist()) == {1}
     wide = jnp.zeros(17).at[jnp.asarray([3, 16])].set(1.0)
     assert set(np.asarray(draw(keys[:400], wide, jnp.ones(17, bool))).tolist()) == {3, 16}
+
+
+@pytest.mark.parametrize("A", [3, 20])  # 20: above the unrolling threshold
+def test_row_max_reduces_the_last_axis(A):
+    x = np.random.default_rng(A).normal(size=(4, 5, A)).astype(np.float32)
+    np.testing.assert_array_equal(row_max(jnp.asarray(x)), x.max(-1))
+    np.testing.assert_array_equal(row_max(jnp.asarray(x[1, 2])), x[1, 2].max())
+    assert np.isnan(row_max(jnp.asarray(x).at[0, 0, 1].set(jnp.nan))[0, 0])
+
+
+def test_discounted_greedy_policy_by_enumeration():
+    # S = 3, A = 3 with action 2 padded (its junk model would be the best): the policy estimate is the greedy policy
+    # of the best of the 2^3 deterministic policies of the real actions, found by solving each one's values.
+    S, gamma = 3, 0.9
+    rng = np.random.default_rng(5)
+    P, R = rng.dirichlet(np.ones(S), size=(S, 3)), rng.random((S, 3))
+    R[:, 2] = 10.0
+    mask = np.array([True, True, False])
+    best_v, best_pi = None, None
+    for pi in np.ndindex(2, 2, 2):
+        P_pi, R_pi = P[np.arange(S), pi], R[np.arange(S), pi]
+        v = np.linalg.solve(np.eye(S) - gamma * P_pi, R_pi)
+        if best_v is None or np.all(v >= best_v - 1e-12):
+            best_v, best_pi = v, pi
+    Q = R[:, :2] + gamma * P[:, :2] @ best_v
+    assert np.all(np.abs(Q[:, 0] - Q[:, 1]) > 1e-3)  # no near-ties for float32 to break otherwise
+    got = discounted_greedy_policy(jnp.asarray(P, jnp.float32), jnp.asarray(R, jnp.float32), gamma, jnp.asarray(mask))
+    np.testing.assert_array_equal(got, np.eye(3)[list(best_pi)])
 
 
 @pytest.mark.parametrize("name, H", [("q_learning_continuous", None), ("q_learning_episodic", 3)])

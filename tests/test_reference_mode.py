@@ -103,6 +103,78 @@ def test_q_learning_episodic_stream(variant):
     np.testing.assert_allclose(state.V[0, 0], H)
 
 
+def _replay_reference_q_learning(stream, S, A, horizon, n_steps, hp):
+    """A plain float64 replay of the reference's episodic Q-learning (docs/agents.md §2, reference mode), with its
+    stored ``V[horizon + 1, S]`` refreshed after every update, step by step: ``[(Q, N, beta, V)]`` after each step."""
+    H = float(horizon)
+    iota = math.log(S * A * n_steps / float(hp.p))
+    Q, N = np.full((horizon, S, A), H), np.ones((horizon, S, A))
+    mu, sigma, beta = np.zeros((horizon, S, A)), np.zeros((horizon, S, A)), np.zeros((horizon, S, A))
+    V = np.zeros((horizon + 1, S))
+    out = []
+    for s, a, r, s2, h, _ in stream:
+        N[h, s, a] += 1
+        t = N[h, s, a]
+        alpha = max(float(hp.min_at), (H + 1) / (H + t))
+        mu[h, s, a] += V[h + 1, s2]
+        sigma[h, s, a] += V[h + 1, s2] ** 2
+        new_beta = min(float(hp.c_1) * (math.sqrt((H * (sigma[h, s, a] - mu[h, s, a]) ** 2 / t**2 + H) * iota)
+                                        + math.sqrt(H**7 * S * A) * iota / t),
+                       float(hp.c_2) * math.sqrt(H**3 * iota / t))
+        if hp.bernstein:
+            b = (new_beta - (1 - alpha) * beta[h, s, a]) / (2 * alpha)
+        else:
+            b = float(hp.c_1) * math.sqrt(H**3 * iota / t)
+        beta[h, s, a] = new_beta
+        Q[h, s, a] = alpha * Q[h, s, a] + (1 - alpha) * (r + V[h + 1, s2] + b)
+        V[h, s] = min(H, Q[h, s].max())
+        out.append((Q.copy(), N.copy(), beta.copy(), V.copy()))
+    return out
+
+
+@pytest.mark.parametrize("bernstein", [True, False])
+@pytest.mark.parametrize("horizon", [3, 2])  # 2: a member whose horizon is shorter than the table's (H = 3)
+def test_q_learning_episodic_reference_values_match_a_replay(horizon, bernstein):
+    # The reference stores V beside Q; reference mode reads it off the table (V_h(s) = 0 until the first update at
+    # (h, s), then min(H, max_a Q_h(s, a))). A plain replay of the stored-V rule checks that reading after every
+    # step. Small c_1, c_2 and rewards keep Q below H once updated, so V_h(s) lies strictly between 0 and H where
+    # every action of (h, s) was updated; state 3 only starts episode 10 (one update, at h = 0; never updated at
+    # h >= 1, where its V stays 0), and every first visit of a next state reads the initial V = 0.
+    S, A, n_steps = 4, 2, 500
+    rng = np.random.default_rng(7)
+    stream = []
+    for episode in range(30):
+        s = 3 if episode == 10 else int(rng.integers(3))
+        for h in range(horizon):
+            a, s2 = int(rng.integers(A)), int(rng.integers(3))
+            stream.append((s, a, round(float(rng.random()) * 0.3, 3), s2, h, h == horizon - 1))
+            s = s2
+    hp = QLE_HP.replace(c_1=0.01, c_2=0.02, min_at=0.05, bernstein=bernstein)
+    agent = agents.get("q_learning_episodic", "colosseum")
+    spec = _spec(S, A, H=3, n_steps=n_steps).replace(horizon=jnp.int32(horizon))
+    state = agent.init(jax.random.key(0), spec, hp)
+    update = jax.jit(agent.update)
+    expected = _replay_reference_q_learning(stream, S, A, horizon, n_steps, hp)
+    for tr, (Q, N, beta, V) in zip(stream, expected):
+        state = update(state, _tr(*tr))
+        got_V = np.asarray(state.V)
+        np.testing.assert_array_equal(got_V[:horizon] == 0.0, V[:horizon] == 0.0)  # never-updated pairs read 0
+        np.testing.assert_allclose(got_V[:horizon], V[:horizon], rtol=2e-5)
+        np.testing.assert_array_equal(got_V[horizon:], 0.0)
+    np.testing.assert_allclose(state.Q[:horizon], Q, rtol=2e-5)
+    np.testing.assert_array_equal(state.N[:horizon], N)
+    np.testing.assert_allclose(state.beta[:horizon], beta, rtol=2e-5, atol=1e-7)
+    # The stream has what the test is for: state 3 updated once at h = 0 (V_0(3) = H: its other action is
+    # untouched) and never after, V strictly inside (0, H) elsewhere.
+    assert np.sum(N[0, 3]) == A + 1 and np.all(N[1:, 3] == 1)
+    np.testing.assert_array_equal(V[:, 3], [horizon] + [0.0] * horizon)
+    assert np.any((V[:horizon] > 0) & (V[:horizon] < horizon))
+    # Q stayed the reference's: the paper's rules on the same stream give another table.
+    paper = _feed(agents.get("q_learning_episodic"), agents.get("q_learning_episodic").init(jax.random.key(0), spec,
+                                                                                             hp), stream)
+    assert not np.allclose(paper.Q[:horizon], Q, rtol=1e-3)
+
+
 # ---------------------------------------------------------------------------------------------------------------
 # Optimistic Q-learning, continuous (docs/agents.md §5)
 # ---------------------------------------------------------------------------------------------------------------
@@ -212,6 +284,30 @@ def test_colosseum_evi_by_hand():
     assert int(bad.iterations) == 50 and not bool(bad.converged)
 
 
+def test_colosseum_confidence_closed_form():
+    # Every entry of the reference's widths from its formulas (docs/agents.md §3), at an arbitrary lagged model,
+    # visits and iteration, with alpha_p, alpha_r, r_max away from 1 (the stream test below pins two entries).
+    S, A = 3, 2
+    rng = np.random.default_rng(3)
+    agent = agents.get("ucrl2", "colosseum")
+    hp = agent.default_hparams.replace(alpha_p=0.7, alpha_r=0.4, r_max=2.0)
+    state = agent.init(jax.random.key(0), _spec(S, A), hp)
+    P, R = rng.dirichlet(np.ones(S), size=(S, A)), rng.random((S, A)) * 2.0
+    visits = np.array([[0, 1], [2, 7], [40, 3]])
+    state = state.replace(p_model=jnp.asarray(P, jnp.float32), r_model=jnp.asarray(R, jnp.float32),
+                          schedule=state.schedule.replace(visits=jnp.asarray(visits, jnp.int32)),
+                          iteration=jnp.int32(57))
+    width, r_tilde = (np.asarray(x, np.float64) for x in colosseum_confidence(state))
+    delta = 1 / math.sqrt(57 + 1)
+    L = math.log(2 * S * A * (57 + 1) / delta)
+    n1, n2 = np.maximum(visits, 1), np.maximum(visits - 1, 1)
+    p0 = P[..., 0]
+    np.testing.assert_allclose(width, math.sqrt(0.7) * np.sqrt(14 * p0 * (1 - p0) / n1 * L) + 0.7 * 49 * L / (3 * n2),
+                               rtol=1e-5)
+    np.testing.assert_allclose(r_tilde, np.minimum(2.0, R + 0.4 * 2.0 * np.sqrt(3.5 * L / n1)), rtol=1e-5)
+    assert np.any(r_tilde < 2.0)  # the cap does not hide the reward width everywhere
+
+
 # (s, a, r, s'): each step ends an epoch (first visits of (0, 1) and (1, 0), then N(1, 0) = 2 with nu = 1).
 UCRL2_STREAM = [(0, 1, 0.5, 1), (1, 0, 0.2, 1), (1, 0, 0.4, 0)]
 
@@ -257,6 +353,7 @@ def test_ucrl2_stream(variant):
     stuck = before.replace(Q=sentinel, r_model=before.r_model.at[0].set(0.0), hparams=hp.replace(evi_max_iter=1))
     stuck = agent.plan(jax.random.key(1), stuck)
     assert not bool(stuck.evi_converged)
+    assert int(stuck.plans_unconverged) == int(before.plans_unconverged) + 1  # the runner's diagnostic counts it
     np.testing.assert_array_equal(stuck.Q, sentinel)
 
 
