@@ -170,6 +170,7 @@ def _plan_keys():
 
 
 plan_jit = jax.jit(AGENT.plan)
+plan_vmapped = jax.jit(jax.vmap(AGENT.plan))
 
 
 def planned(name):
@@ -288,7 +289,7 @@ def test_a_grid_mixing_both_criteria_plans_each_member_like_alone():
     (s_d, news_d), (s_g, news_g) = planned("discounted"), planned("gain")
     both = jax.tree.map(lambda a, b: jnp.stack([a, b]), s_d, s_g)
     k = _plan_keys()[0]
-    out = jax.jit(jax.vmap(AGENT.plan))(jnp.stack([k, k]), both)
+    out = plan_vmapped(jnp.stack([k, k]), both)
     np.testing.assert_allclose(out.Q[0], news_d[0].Q, rtol=1e-5)
     np.testing.assert_allclose(out.Q[1], news_g[0].Q, rtol=1e-5, atol=1e-5)
     np.testing.assert_array_equal(out.plans_unconverged, [news_d[0].plans_unconverged, news_g[0].plans_unconverged])
