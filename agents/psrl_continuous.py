@@ -345,9 +345,9 @@ def plan(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "pape
 
     Discounted (default): policy iteration with exact evaluation, started from the policy greedy on one backup of
     the previous values (optimal to the precision of the module docstring, typically a few linear solves). Average
-    reward (``discount == 1``): relative value iteration with the span stopping rule. A no-op unless :func:`needs_plan` (the runner keeps the result only
-    for members that asked). ``variant="colosseum"``: the reference's candidates (:func:`candidate_kernels`) and
-    extended rewards (:func:`colosseum_extended_rewards`).
+    reward (``discount == 1``): relative value iteration with the span stopping rule. A no-op unless
+    :func:`needs_plan` (the runner keeps the result only for members that asked). ``variant="colosseum"``: the
+    reference's candidates (:func:`candidate_kernels`) and extended rewards (:func:`colosseum_extended_rewards`).
     """
     hp = state.hparams
     S, A = state.Q.shape
