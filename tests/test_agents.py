@@ -169,6 +169,9 @@ def test_greedy_ties_are_uniform_over_valid_actions():
     assert set(nan.tolist()) <= {0, 1, 2}
 
 
+single_draws = jax.jit(jax.vmap(greedy_action_single_draw, in_axes=(0, None, None)))  # compiled once per shape
+
+
 @pytest.mark.statistical(p=1e-7)
 def test_single_draw_greedy_ties_are_uniform_over_valid_actions():
     # 20 000 draws tied between actions 0 and 2: the count of action 0 is Binomial(20 000, 1/2) given that every draw
@@ -176,7 +179,7 @@ def test_single_draw_greedy_ties_are_uniform_over_valid_actions():
     keys = jax.random.split(key(0), 20_000)
     q = jnp.asarray([1.0, 0.5, 1.0, 1.0, 1.0])
     mask = jnp.asarray([True, True, True, False, False])
-    draw = jax.jit(jax.vmap(greedy_action_single_draw, in_axes=(0, None, None)))
+    draw = single_draws
     a = np.asarray(draw(keys, q, mask))
     assert set(a.tolist()) <= {0, 2}
     Checks().binomial(int(np.sum(a == 0)), a.size, 0.5, "action 0 among the tied actions 0 and 2")
