@@ -257,7 +257,7 @@ def test_discounted_planning_matches_exact_solution():
     # a policy pi that no single switch improves by more than eps = rtol (1 + max|V|) in Q, so
     #   0 <= V* - V_pi <= eps / (1 - gamma)   and   0 <= Q* - Q_pi <= gamma eps / (1 - gamma)
     # (V_pi >= T* V_pi - eps, iterated). Near-tied actions make this bound real: one seed's draw has a Q gap of 0.015
-    # below eps = 0.021 at a nearly absorbing state, and the plan's value is 1.4 (7e-4 relative) below V*, whatever
+    # below eps = 0.021 at one state, and the plan's value is 1.4 (7e-4 relative) below V*, whatever
     # the arithmetic. The float32 evaluation adds eta = kappa(I - gamma P_pi) * 4 S eps_32 * max|V| with
     # kappa <= (1 + gamma) / (1 - gamma) = 199, S = 4: eta <= 2e-4 max|V| either way.
     state, plans = planned("discounted")
