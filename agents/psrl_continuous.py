@@ -27,9 +27,13 @@ Candidate kernels of ``(s, a)`` with ``N(s, a)`` visits:
   independently per pair and candidate.
 
 Planning: the extended MDP (:func:`extended_mdp`) is solved for ``discount`` (default 0.99, as the reference):
-exactly, by policy iteration warm-started from the previous epoch's values, rather than by value iteration to
-``1e-3``. ``discount = 1`` asks for Agrawal & Jia's gain-optimal policy instead, by relative value iteration with the
-span stopping rule (``plan_tol``, at most ``plan_max_iter`` sweeps). It is not the default: the sampled extended MDPs
+by policy iteration with exact (linear-solve) evaluation, warm-started from the previous epoch's values, rather
+than by value iteration to ``1e-3``. Its stopping rule (:func:`jaxmdp.dynamic_programming.policy_iteration`, no switch
+gains more than ``eps = 1e-5 (1 + max|V|)`` in ``Q``) bounds the plan's values by ``V* - eps / (1 - discount) <= u <=
+V*``: at ``discount = 0.99`` up to ``1e-3 max|V|`` below the optimum when actions are nearly tied (float32 cannot
+resolve such ties much better), with ``V*`` typically met to float32 precision. ``discount = 1`` asks for Agrawal &
+Jia's gain-optimal policy instead, by relative value iteration with the span stopping rule (``plan_tol``, at most
+``plan_max_iter`` sweeps). It is not the default: the sampled extended MDPs
 are often nearly decomposable (simple optimistic sampling draws deterministic rows, and posterior draws with the
 ``1/S`` prior put ``1e-30``-sized mass on most states), their optimal gain then depends on the state and relative
 value iteration needs thousands to hundreds of thousands of sweeps (one 3 000-step run on RiverSwim 25: median 44
@@ -51,7 +55,7 @@ Differences from the reference (Colosseum), each deliberate:
 * The simple optimistic sampling uses the pair's visit count ``N(s, a)`` in the deviation term, as Agrawal & Jia do
   (the reference divides by the per-next-state count ``N(s, a, s')``), and draws the state receiving the missing mass
   independently per pair and candidate (the reference shares one state per candidate across all pairs).
-* Planning is exact (policy iteration) instead of value iteration stopped at ``1e-3`` from zero.
+* Planning is policy iteration to the precision above instead of value iteration stopped at ``1e-3`` from zero.
 * Dirichlet draws are normalised exactly and computed in log space; reward draws are always finite.
 
 ``PSRL_CONTINUOUS_COLOSSEUM`` (``agents.get("psrl_continuous", variant="colosseum")``) restores the first two and the
@@ -340,10 +344,10 @@ def plan(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "pape
     """Start an epoch: draw the extended MDP and solve it (module docstring).
 
     Discounted (default): policy iteration with exact evaluation, started from the policy greedy on one backup of
-    the previous values (exact optimum, typically a few linear solves). Average reward (``discount == 1``): relative
-    value iteration with the span stopping rule. A no-op unless :func:`needs_plan` (the runner keeps the result only
-    for members that asked). ``variant="colosseum"``: the reference's candidates (:func:`candidate_kernels`) and
-    extended rewards (:func:`colosseum_extended_rewards`).
+    the previous values (optimal to the precision of the module docstring, typically a few linear solves). Average
+    reward (``discount == 1``): relative value iteration with the span stopping rule. A no-op unless
+    :func:`needs_plan` (the runner keeps the result only for members that asked). ``variant="colosseum"``: the
+    reference's candidates (:func:`candidate_kernels`) and extended rewards (:func:`colosseum_extended_rewards`).
     """
     hp = state.hparams
     S, A = state.Q.shape

@@ -304,9 +304,10 @@ def policy_iteration(
 ) -> ValueIterationResult:
     """Howard's policy iteration with exact (linear-solve) evaluation, from ``policy`` (default: greedy on ``R``).
 
-    An action is replaced only when another improves its ``Q`` by more than ``rtol * (1 + max|V|)``, so floating-
-    point noise cannot make it cycle; the result is optimal to that precision. ``Q``/``V`` are those of the final
-    policy; ``iterations`` counts evaluations.
+    An action is replaced only when another improves its ``Q`` by more than ``eps = rtol * (1 + max|V|)``, so
+    floating-point noise cannot make it cycle. The final policy is then within ``eps`` of greedy, so
+    ``V* - eps / (1 - gamma) <= V <= V*`` (a bound met only when actions are nearly tied). ``Q``/``V`` are those of
+    the final policy; ``iterations`` counts evaluations.
     """
     R = _rewards(model, rewards)
     mask = _action_mask(model)

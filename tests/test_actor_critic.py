@@ -20,6 +20,7 @@ from agents.deep import actor_critic as ac
 from agents.deep import policy_gradient as pg
 from agents.search_spaces import CHOICE_SPACES, sample_candidate_groups
 from jaxmdp.experiment.agent_interface import Transition
+from stat_checks import Checks, key
 
 AC_NAMES = ("actor_critic_episodic", "actor_critic_continuous")
 ALL_NAMES = AC_NAMES + ("actor_critic_rnn_episodic", "actor_critic_rnn_continuous")
@@ -154,15 +155,16 @@ def test_argmax_policy_marks_ties_and_skips_padding():
     np.testing.assert_allclose(pg.argmax_policy(z, mask), want, rtol=1e-7)
 
 
+@pytest.mark.statistical(p=1e-7)
 def test_sampling_follows_the_softmax_and_never_a_padded_action():
     # 20000 draws of pi = softmax(0, log 3, 9 [padded]) = (1/4, 3/4, 0): the count of action 1 is Binomial(n, 3/4)
-    # with sd 61; the band +-8 sd fails with probability < 1e-15.
+    # exactly. 1 check (tests/stat_checks.py): false-failure probability <= 1e-7.
     n = 20000
     logits = jnp.asarray([0.0, np.log(3.0), 9.0])
     mask = jnp.asarray([True, True, False])
-    a = jax.vmap(lambda k: pg.sample_action(k, logits, mask))(jax.random.split(jax.random.key(0), n))
+    a = jax.vmap(lambda k: pg.sample_action(k, logits, mask))(jax.random.split(key(0), n))
     assert set(np.unique(np.asarray(a))) <= {0, 1}
-    assert abs(int(jnp.sum(a == 1)) - 0.75 * n) < 8 * np.sqrt(n * 0.75 * 0.25)
+    Checks().binomial(int(jnp.sum(a == 1)), n, 0.75, "action 1, probability 3/4")
     nan = pg.sample_action(jax.random.key(1), jnp.full(3, jnp.nan), mask)
     assert int(nan) == 0
 

@@ -18,6 +18,7 @@ from agents import q_learning_episodic as qle
 from agents.tabular_common import discounted_greedy_policy, greedy_action, greedy_action_single_draw, row_max
 from jaxmdp.experiment import runner
 from jaxmdp.experiment.agent_interface import Transition, spec_of
+from stat_checks import Checks, key
 
 
 def tr(s, a, r, s2, h=0):
@@ -156,25 +157,34 @@ def test_wei_update_matches_numpy():
 # ---------------------------------------------------------------------------------------------------------------
 
 
+@pytest.mark.statistical(p=1e-7)
 def test_greedy_ties_are_uniform_over_valid_actions():
-    keys = jax.random.split(jax.random.key(0), 6000)
+    # 6000 draws tied between actions 0 and 2: the count of action 0 is Binomial(6000, 1/2) given that every draw is
+    # 0 or 2 (asserted exactly). 1 check (tests/stat_checks.py): false-failure probability <= 1e-7.
+    keys = jax.random.split(key(0), 6000)
     q = jnp.asarray([1.0, 0.5, 1.0, 1.0])
     mask = jnp.asarray([True, True, True, False])
     a = np.asarray(jax.vmap(greedy_action, in_axes=(0, None, None))(keys, q, mask))
-    freq = np.bincount(a, minlength=4) / a.size
-    np.testing.assert_allclose(freq, [0.5, 0.0, 0.5, 0.0], atol=0.025)  # ~5 standard errors
+    assert set(a.tolist()) <= {0, 2}
+    Checks().binomial(int(np.sum(a == 0)), a.size, 0.5, "action 0 among the tied actions 0 and 2")
     nan = np.asarray(jax.vmap(greedy_action, in_axes=(0, None, None))(keys[:500], q * jnp.nan, mask))
     assert set(nan.tolist()) <= {0, 1, 2}
 
 
+single_draws = jax.jit(jax.vmap(greedy_action_single_draw, in_axes=(0, None, None)))  # compiled once per shape
+
+
+@pytest.mark.statistical(p=1e-7)
 def test_single_draw_greedy_ties_are_uniform_over_valid_actions():
-    # 20 000 draws, tolerance 0.02 = 5.66 standard errors of a frequency 1/2: false-failure probability < 1e-7.
-    keys = jax.random.split(jax.random.key(0), 20_000)
+    # 20 000 draws tied between actions 0 and 2: the count of action 0 is Binomial(20 000, 1/2) given that every draw
+    # is 0 or 2 (asserted exactly). 1 check (tests/stat_checks.py): false-failure probability <= 1e-7.
+    keys = jax.random.split(key(0), 20_000)
     q = jnp.asarray([1.0, 0.5, 1.0, 1.0, 1.0])
     mask = jnp.asarray([True, True, True, False, False])
-    draw = jax.jit(jax.vmap(greedy_action_single_draw, in_axes=(0, None, None)))
-    freq = np.bincount(np.asarray(draw(keys, q, mask)), minlength=5) / keys.shape[0]
-    np.testing.assert_allclose(freq, [0.5, 0.0, 0.5, 0.0, 0.0], atol=0.02)
+    draw = single_draws
+    a = np.asarray(draw(keys, q, mask))
+    assert set(a.tolist()) <= {0, 2}
+    Checks().binomial(int(np.sum(a == 0)), a.size, 0.5, "action 0 among the tied actions 0 and 2")
     assert set(np.asarray(draw(keys[:500], q * jnp.nan, mask)).tolist()) <= {0, 1, 2}
     # A unique maximiser is taken whatever the draw; 17 actions exercise the non-unrolled path.
     assert set(np.asarray(draw(keys[:200], q.at[1].set(2.0), mask)).tolist()) == {1}
@@ -225,16 +235,21 @@ def test_q_learning_keeps_the_mdp_dtype(name, H, dtype):
     assert int(res.agent_state.N.sum()) == 2 * 40
 
 
+@pytest.mark.statistical(p=3e-7)
 @pytest.mark.parametrize("mask", [[True, True, True, False], [True, False, True, False]])
 def test_random_agent_acts_uniformly_on_valid_actions(mask):
+    # 6000 draws: each valid action's count is Binomial(6000, 1 / #valid). At most 3 checks (tests/stat_checks.py):
+    # false-failure probability <= 3e-7.
     agent = agents.get("random_continuous")
     mdp = jaxmdp.custom_mdp(np.full((2, 4, 2), 0.5), R=np.zeros((2, 4))).replace(action_mask=jnp.asarray(mask))
     state = agent.init(jax.random.key(0), spec_of(mdp, 10), agent.default_hparams)
-    keys = jax.random.split(jax.random.key(1), 6000)
+    keys = jax.random.split(key(1), 6000)
     a = np.asarray(jax.vmap(lambda k: agent.act(k, state, jnp.int32(0), jnp.int32(0)))(keys))
     valid = np.flatnonzero(mask)
-    np.testing.assert_allclose(np.bincount(a, minlength=4)[valid] / a.size, 1 / valid.size, atol=0.03)
     assert set(a.tolist()) <= set(valid.tolist())
+    checks = Checks()
+    for v in valid:
+        checks.binomial(int(np.sum(a == v)), a.size, 1 / valid.size, f"valid action {v}")
     np.testing.assert_allclose(agent.policy(state), np.broadcast_to(np.asarray(mask) / sum(mask), (2, 4)))
     ep = agents.get("random_episodic")
     mdp_e = jaxmdp.custom_mdp(np.full((2, 4, 2), 0.5), R=np.zeros((2, 4)), H=3)

@@ -158,23 +158,27 @@ def test_one_sgd_call_trains_every_head_through_one_vmapped_network():
     assert counts[0] == counts[1] > 0
 
 
+@pytest.mark.statistical(p=1e-7)
 def test_active_head_is_resampled_at_episode_ends_only_when_episodic():
-    state = boot_dqn.init(jax.random.key(0), make_spec(), SMALL)
+    state = boot_dqn.init(key(3), make_spec(), SMALL)
     _, heads = _fill(state, jnp.arange(3001))
     heads = np.asarray(heads)  # heads[t]: the active head before transition t
     changed = np.flatnonzero(heads[1:] != heads[:-1])  # transition t changed the head
     assert np.all(changed % 2 == 1)  # only the last step of an episode (t odd) resamples
-    # 1500 episode ends, each a uniform draw among 3 heads: a change with probability 2/3 (sd 18.3; 6 sd < 2e-9).
-    assert abs(len(changed) - 1000) < 6 * 18.3
+    # 1500 episode ends, each a uniform draw among 3 heads: the number of changes is Binomial(1500, 2/3) exactly.
+    # 1 check (tests/stat_checks.py): false-failure probability <= 1e-7.
+    Checks().binomial(len(changed), 1500, 2 / 3, "head changes at episode ends")
 
 
+@pytest.mark.statistical(p=1e-7)
 def test_active_head_switches_with_probability_switch_prob_when_continuous():
     hp = boot_dqn.BootDQNContinuousHParams(**{f: getattr(SMALL, f) for f in SMALL.__dataclass_fields__})
-    state = boot_dqn.init(jax.random.key(0), make_spec(episodic=False), hp.replace(switch_prob=0.1))
+    state = boot_dqn.init(key(4), make_spec(episodic=False), hp.replace(switch_prob=0.1))
     _, heads = _fill(state, jnp.arange(3001))
     changes = np.sum(np.asarray(heads)[1:] != np.asarray(heads)[:-1])
-    # A change needs a switch (0.1) to another head (2/3): p = 1/15 over 3000 steps, mean 200, sd 13.7 (6 sd < 2e-9).
-    assert abs(changes - 200) < 6 * 13.7
+    # A change needs a switch (0.1) to another head (2/3), independently at each of the 3000 steps: the number of
+    # changes is Binomial(3000, 1/15) exactly. 1 check (tests/stat_checks.py): false-failure probability <= 1e-7.
+    Checks().binomial(int(changes), 3000, 1 / 15, "head changes")
 
 
 @pytest.mark.parametrize("episodic", [True, False])
