@@ -63,18 +63,22 @@ class QLearningEpisodicHParams(struct.PyTreeNode):
     bernstein: bool | jax.Array = True
 
 
-# Columns of the per-(h, s, a) table: one gather and one scatter per update instead of five (about 1.7x faster).
-_Q, _N, _SUM_V, _SUM_V2, _BETA = range(5)
+# Columns of the per-(h, s, a) statistics table: one gather and one scatter per update instead of four. ``Q`` has an
+# array of its own: acting, the next state's value and the greedy policy read only ``Q``, and a dense ``[H, S, A]``
+# table is a fifth of the memory they would otherwise stride through (the policy is extracted for every member at
+# every log).
+_N, _SUM_V, _SUM_V2, _BETA = range(4)
 
 
 class QLearningEpisodicState(struct.PyTreeNode):
-    """Per-``(h, s, a)`` table ``[H, S, A, 5]`` holding ``Q``, the count ``N`` (as a float, exact up to 2^24 in
-    float32), the Bernstein statistics (running sums of the next values and their squares, last ``beta``), in the
-    MDP's dtype, and the member's constants (horizon ``H``, ``iota``, ``S A``). ``V_h(s) = min(H, max_a Q_h(s, a))``
-    (0 from the horizon on) is read from the table rather than stored: the same numbers, as ``V_h(s)`` is refreshed
-    exactly when ``Q_h(s, .)`` changes."""
+    """``q[H, S, A]``, the statistics table ``stats[H, S, A, 4]`` holding the count ``N`` (as a float, exact up to
+    2^24 in float32), the Bernstein statistics (running sums of the next values and their squares) and the last
+    ``beta``, in the MDP's dtype, and the member's constants (horizon ``H``, ``iota``, ``S A``).
+    ``V_h(s) = min(H, max_a Q_h(s, a))`` (0 from the horizon on) is read from ``q`` rather than stored: the same
+    numbers, as ``V_h(s)`` is refreshed exactly when ``Q_h(s, .)`` changes."""
 
-    table: jax.Array
+    q: jax.Array
+    stats: jax.Array
     horizon: jax.Array
     iota: jax.Array
     n_pairs: jax.Array
@@ -83,20 +87,20 @@ class QLearningEpisodicState(struct.PyTreeNode):
 
     @property
     def Q(self) -> jax.Array:
-        return self.table[..., _Q]
+        return self.q
 
     @property
     def N(self) -> jax.Array:
-        return self.table[..., _N].astype(jnp.int32)
+        return self.stats[..., _N].astype(jnp.int32)
 
     @property
     def beta(self) -> jax.Array:
-        return self.table[..., _BETA]
+        return self.stats[..., _BETA]
 
     @property
     def V(self) -> jax.Array:
         """``V[H + 1, S]`` (row ``H`` and rows from the horizon on are 0)."""
-        H = self.table.shape[-4]
+        H = self.q.shape[-3]
         live = (jnp.arange(H) < self.horizon[..., None])[..., None]
         best = jnp.max(jnp.where(self.action_mask[..., None, None, :], self.Q, -jnp.inf), axis=-1)
         V = jnp.where(live, jnp.minimum(self.horizon[..., None, None], best), 0.0)
@@ -120,10 +124,11 @@ def init(key: jax.Array, spec: MDPSpec, hparams: QLearningEpisodicHParams) -> QL
     horizon = spec.horizon.astype(dtype)
     live = (jnp.arange(H) < spec.horizon)[:, None, None]
     n_s, n_a = valid_counts(spec.state_mask, spec.action_mask, dtype)
-    table = jnp.zeros((H, S, A, 5), dtype).at[..., _Q].set(jnp.where(live, horizon, 0.0))
+    q = jnp.broadcast_to(jnp.where(live, horizon, 0.0).astype(dtype), (H, S, A))
     hparams = jax.tree.map(lambda x: jnp.asarray(x, dtype), hparams)
     return QLearningEpisodicState(
-        table=table,
+        q=q,
+        stats=jnp.zeros((H, S, A, 4), dtype),
         horizon=horizon,
         iota=jnp.log(n_s * n_a * spec.n_steps.astype(dtype) / hparams.p),
         n_pairs=n_s * n_a,
@@ -159,28 +164,35 @@ def bonus(
 def update(state: QLearningEpisodicState, tr: Transition) -> QLearningEpisodicState:
     """One Q-learning step at ``(h, s, a)`` (module docstring)."""
     h, s, a = tr.h, tr.obs, tr.action
-    row = state.table[h, s, a]
+    row = state.stats[h, s, a]
     t = row[_N] + 1.0
     H = state.horizon
     alpha = jnp.maximum(state.hparams.min_at, (H + 1.0) / (H + t))
     # V_{h+1}(s'): 0 at the end of the episode, else min(H, max_a Q_{h+1}(s', a)).
-    q_next = state.table[jnp.minimum(h + 1, state.table.shape[0] - 1), tr.next_obs, :, _Q]
+    q_next = state.q[jnp.minimum(h + 1, state.q.shape[0] - 1), tr.next_obs]
     best_next = row_max(jnp.where(state.action_mask, q_next, -jnp.inf))
     v_next = jnp.where(h + 1 < H, jnp.minimum(H, best_next), 0.0)
     sum_v, sum_v2 = row[_SUM_V] + v_next, row[_SUM_V2] + v_next**2
     b, beta = bonus(state, t, sum_v, sum_v2, row[_BETA], alpha)
-    q = (1.0 - alpha) * row[_Q] + alpha * (tr.reward.astype(t.dtype) + v_next + b)
-    return state.replace(table=state.table.at[h, s, a].set(jnp.stack([q, t, sum_v, sum_v2, beta])))
+    q = (1.0 - alpha) * state.q[h, s, a] + alpha * (tr.reward.astype(t.dtype) + v_next + b)
+    return state.replace(
+        q=state.q.at[h, s, a].set(q), stats=state.stats.at[h, s, a].set(jnp.stack([t, sum_v, sum_v2, beta]))
+    )
 
 
 def act(key: jax.Array, state: QLearningEpisodicState, obs: jax.Array, h: jax.Array) -> jax.Array:
     """Greedy in ``Q_h(obs, .)``, exact ties at random (one uniform draw)."""
-    return greedy_action_single_draw(key, state.table[h, obs, :, _Q], state.action_mask)
+    return greedy_action_single_draw(key, state.q[h, obs], state.action_mask)
 
 
 def policy(state: QLearningEpisodicState) -> jax.Array:
     """Greedy one-hot policy of ``Q``, ``[H, S, A]`` (lowest-index ties)."""
     return dp.greedy(state.Q, state.action_mask)
+
+
+def greedy_actions(state: QLearningEpisodicState) -> jax.Array:
+    """:func:`policy` as action indices, ``[H, S]`` (what the runner compares and evaluates)."""
+    return dp.greedy_actions(state.Q, state.action_mask)
 
 
 Q_LEARNING_EPISODIC = Agent(
@@ -191,6 +203,7 @@ Q_LEARNING_EPISODIC = Agent(
     act=act,
     update=update,
     policy=policy,
+    greedy_actions=greedy_actions,
     check_hparams=check_hparams,
 )
 
@@ -217,8 +230,8 @@ def init_colosseum(
     """The reference's tables: counts start at 1 and ``V`` at 0 (``Q = H`` as in :func:`init`)."""
     state = init(key, spec, hparams)
     fields = {f.name: getattr(state, f.name) for f in dataclasses.fields(state)}
-    fields["table"] = state.table.at[..., _N].set(1.0)
-    return QLearningEpisodicColosseumState(**fields, v=jnp.zeros((spec.H + 1, spec.n_states), state.table.dtype))
+    fields["stats"] = state.stats.at[..., _N].set(1.0)
+    return QLearningEpisodicColosseumState(**fields, v=jnp.zeros((spec.H + 1, spec.n_states), state.q.dtype))
 
 
 def update_colosseum(state: QLearningEpisodicColosseumState, tr: Transition) -> QLearningEpisodicColosseumState:
@@ -228,7 +241,7 @@ def update_colosseum(state: QLearningEpisodicColosseumState, tr: Transition) -> 
     ``Q <- alpha_t Q + (1 - alpha_t) (r + V_{h+1}(s') + b_t)``; ``V_h(s) <- min(H, max_a Q_h(s, a))``."""
     h, s, a = tr.h, tr.obs, tr.action
     hp, H, iota = state.hparams, state.horizon, state.iota
-    row = state.table[h, s, a]
+    row = state.stats[h, s, a]
     t = row[_N] + 1.0
     alpha = jnp.maximum(hp.min_at, (H + 1.0) / (H + t))
     v_next = state.v[h + 1, tr.next_obs]
@@ -239,10 +252,14 @@ def update_colosseum(state: QLearningEpisodicColosseumState, tr: Transition) -> 
     )
     bernstein = (beta - (1.0 - alpha) * row[_BETA]) / (2.0 * alpha)
     b = jnp.where(hp.bernstein > 0, bernstein, hp.c_1 * jnp.sqrt(H**3 * iota / t))
-    q = alpha * row[_Q] + (1.0 - alpha) * (tr.reward.astype(t.dtype) + v_next + b)
-    table = state.table.at[h, s, a].set(jnp.stack([q, t, sum_v, sum_v2, beta]))
-    q_row = jnp.where(state.action_mask, table[h, s, :, _Q], -jnp.inf)
-    return state.replace(table=table, v=state.v.at[h, s].set(jnp.minimum(H, jnp.max(q_row))))
+    q = alpha * state.q[h, s, a] + (1.0 - alpha) * (tr.reward.astype(t.dtype) + v_next + b)
+    q_table = state.q.at[h, s, a].set(q)
+    q_row = jnp.where(state.action_mask, q_table[h, s], -jnp.inf)
+    return state.replace(
+        q=q_table,
+        stats=state.stats.at[h, s, a].set(jnp.stack([t, sum_v, sum_v2, beta])),
+        v=state.v.at[h, s].set(jnp.minimum(H, jnp.max(q_row))),
+    )
 
 
 Q_LEARNING_EPISODIC_COLOSSEUM = dataclasses.replace(
