@@ -189,6 +189,11 @@ def policy(state: QLearningContinuousState) -> jax.Array:
     return dp.greedy(state.Q_hat, state.action_mask)
 
 
+def greedy_actions(state: QLearningContinuousState) -> jax.Array:
+    """:func:`policy` as action indices, ``[S]`` (what the runner compares and evaluates)."""
+    return dp.greedy_actions(state.Q_hat, state.action_mask)
+
+
 Q_LEARNING_CONTINUOUS = Agent(
     name="q_learning_continuous",
     episodic=False,
@@ -197,6 +202,7 @@ Q_LEARNING_CONTINUOUS = Agent(
     act=act,
     update=update,
     policy=policy,
+    greedy_actions=greedy_actions,
     check_hparams=check_hparams,
 )
 

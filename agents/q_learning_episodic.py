@@ -65,14 +65,17 @@ class QLearningEpisodicHParams(struct.PyTreeNode):
     bernstein: bool | jax.Array = True
 
 
-# Columns of the per-(h, s, a) table: one gather and one scatter per update instead of five (about 1.7x faster).
-_Q, _N, _SUM_V, _SUM_V2, _BETA = range(5)
+# Columns of the per-(h, s, a) statistics table: one gather and one scatter per update instead of four. ``Q`` has an
+# array of its own: acting, the next state's value and the greedy policy read only ``Q``, and a dense ``[H, S, A]``
+# table is a fifth of the memory they would otherwise stride through (the policy is extracted for every member at
+# every log).
+_N, _SUM_V, _SUM_V2, _BETA = range(4)
 
 
 def table_values(
-    rows: jax.Array, action_mask: jax.Array, horizon: jax.Array, variant: Variant = "paper"
+    q: jax.Array, stats: jax.Array, action_mask: jax.Array, horizon: jax.Array, variant: Variant = "paper"
 ) -> jax.Array:
-    """``V_h(s) = min(H, max_a Q_h(s, a))`` from rows ``[..., A, 5]`` of the table.
+    """``V_h(s) = min(H, max_a Q_h(s, a))`` from rows ``q[..., A]`` and their statistics ``stats[..., A, 4]``.
 
     ``variant="colosseum"``: the reference's ``V``, which starts at 0 (``Q`` at ``H``) and is set to
     ``min(H, max_a Q_h(s, a))`` after every update at ``(h, s)``. ``Q_h(s, .)`` changes only in those updates, so
@@ -80,22 +83,23 @@ def table_values(
     at 1 and only updates raise them, so "updated" is ``max_a N_h(s, a) > 1``. (The paper's ``V`` starts at
     ``H = max_a Q`` of the initial table, so it needs no such test.) Rows from the horizon on are the caller's.
     """
-    v = jnp.minimum(horizon, row_max(jnp.where(action_mask, rows[..., _Q], -jnp.inf)))
+    v = jnp.minimum(horizon, row_max(jnp.where(action_mask, q, -jnp.inf)))
     if variant == "colosseum":
-        v = jnp.where(row_max(rows[..., _N]) > 1.0, v, 0.0)
+        v = jnp.where(row_max(stats[..., _N]) > 1.0, v, 0.0)
     return v
 
 
 class QLearningEpisodicState(struct.PyTreeNode):
-    """Per-``(h, s, a)`` table ``[H, S, A, 5]`` holding ``Q``, the count ``N`` (as a float, exact up to 2^24 in
-    float32), the Bernstein statistics (running sums of the next values and their squares, last ``beta``), in the
-    MDP's dtype, and the member's constants (horizon ``H``, ``iota``, ``S A``). ``V_h(s) = min(H, max_a Q_h(s, a))``
-    (0 from the horizon on) is read from the table rather than stored (:func:`table_values`): the same numbers, as
-    ``V_h(s)`` is refreshed exactly when ``Q_h(s, .)`` changes."""
+    """``q[H, S, A]``, the statistics table ``stats[H, S, A, 4]`` holding the count ``N`` (as a float, exact up to
+    2^24 in float32), the Bernstein statistics (running sums of the next values and their squares) and the last
+    ``beta``, in the MDP's dtype, and the member's constants (horizon ``H``, ``iota``, ``S A``).
+    ``V_h(s) = min(H, max_a Q_h(s, a))`` (0 from the horizon on) is read from ``q`` rather than stored
+    (:func:`table_values`): the same numbers, as ``V_h(s)`` is refreshed exactly when ``Q_h(s, .)`` changes."""
 
     variant: ClassVar[Variant] = "paper"  # how V is read off the table (table_values)
 
-    table: jax.Array
+    q: jax.Array
+    stats: jax.Array
     horizon: jax.Array
     iota: jax.Array
     n_pairs: jax.Array
@@ -104,29 +108,30 @@ class QLearningEpisodicState(struct.PyTreeNode):
 
     @property
     def Q(self) -> jax.Array:
-        return self.table[..., _Q]
+        return self.q
 
     @property
     def N(self) -> jax.Array:
-        return self.table[..., _N].astype(jnp.int32)
+        return self.stats[..., _N].astype(jnp.int32)
 
     @property
     def beta(self) -> jax.Array:
-        return self.table[..., _BETA]
+        return self.stats[..., _BETA]
 
     @property
     def V(self) -> jax.Array:
         """``V[H + 1, S]`` (row ``H`` and rows from the horizon on are 0)."""
-        H = self.table.shape[-4]
+        H = self.q.shape[-3]
         live = (jnp.arange(H) < self.horizon[..., None])[..., None]
         mask, horizon = self.action_mask[..., None, None, :], self.horizon[..., None, None]
-        V = jnp.where(live, table_values(self.table, mask, horizon, self.variant), 0.0)
+        V = jnp.where(live, table_values(self.q, self.stats, mask, horizon, self.variant), 0.0)
         return jnp.concatenate([V, jnp.zeros_like(V[..., :1, :])], axis=-2)
 
     def value(self, h: jax.Array, s: jax.Array) -> jax.Array:
         """``V_h(s)`` of one unbatched state (0 from the horizon on, so ``h = H`` reads 0)."""
-        row = self.table[jnp.minimum(h, self.table.shape[0] - 1), s]
-        return jnp.where(h < self.horizon, table_values(row, self.action_mask, self.horizon, self.variant), 0.0)
+        i = jnp.minimum(h, self.q.shape[0] - 1)
+        v = table_values(self.q[i, s], self.stats[i, s], self.action_mask, self.horizon, self.variant)
+        return jnp.where(h < self.horizon, v, 0.0)
 
 
 def check_hparams(hparams: QLearningEpisodicHParams) -> None:
@@ -146,10 +151,11 @@ def init(key: jax.Array, spec: MDPSpec, hparams: QLearningEpisodicHParams) -> QL
     horizon = spec.horizon.astype(dtype)
     live = (jnp.arange(H) < spec.horizon)[:, None, None]
     n_s, n_a = valid_counts(spec.state_mask, spec.action_mask, dtype)
-    table = jnp.zeros((H, S, A, 5), dtype).at[..., _Q].set(jnp.where(live, horizon, 0.0))
+    q = jnp.broadcast_to(jnp.where(live, horizon, 0.0).astype(dtype), (H, S, A))
     hparams = jax.tree.map(lambda x: jnp.asarray(x, dtype), hparams)
     return QLearningEpisodicState(
-        table=table,
+        q=q,
+        stats=jnp.zeros((H, S, A, 4), dtype),
         horizon=horizon,
         iota=jnp.log(n_s * n_a * spec.n_steps.astype(dtype) / hparams.p),
         n_pairs=n_s * n_a,
@@ -195,7 +201,7 @@ def update(state: QLearningEpisodicState, tr: Transition) -> QLearningEpisodicSt
     ``V_h(s) <- min(H, max_a Q_h(s, a))`` is implicit (:func:`table_values` reads ``V`` off the table).
     """
     h, s, a = tr.h, tr.obs, tr.action
-    row = state.table[h, s, a]
+    row = state.stats[h, s, a]
     t = row[_N] + 1.0
     H = state.horizon
     alpha = jnp.maximum(state.hparams.min_at, (H + 1.0) / (H + t))
@@ -203,21 +209,29 @@ def update(state: QLearningEpisodicState, tr: Transition) -> QLearningEpisodicSt
     sum_v, sum_v2 = row[_SUM_V] + v_next, row[_SUM_V2] + v_next**2
     b, beta = bonus(state, t, sum_v, sum_v2, row[_BETA], alpha)
     target = tr.reward.astype(t.dtype) + v_next + b
+    q_old = state.q[h, s, a]
     if state.variant == "colosseum":
-        q = alpha * row[_Q] + (1.0 - alpha) * target
+        q = alpha * q_old + (1.0 - alpha) * target
     else:
-        q = (1.0 - alpha) * row[_Q] + alpha * target
-    return state.replace(table=state.table.at[h, s, a].set(jnp.stack([q, t, sum_v, sum_v2, beta])))
+        q = (1.0 - alpha) * q_old + alpha * target
+    return state.replace(
+        q=state.q.at[h, s, a].set(q), stats=state.stats.at[h, s, a].set(jnp.stack([t, sum_v, sum_v2, beta]))
+    )
 
 
 def act(key: jax.Array, state: QLearningEpisodicState, obs: jax.Array, h: jax.Array) -> jax.Array:
     """Greedy in ``Q_h(obs, .)``, exact ties at random (one uniform draw)."""
-    return greedy_action_single_draw(key, state.table[h, obs, :, _Q], state.action_mask)
+    return greedy_action_single_draw(key, state.q[h, obs], state.action_mask)
 
 
 def policy(state: QLearningEpisodicState) -> jax.Array:
     """Greedy one-hot policy of ``Q``, ``[H, S, A]`` (lowest-index ties)."""
     return dp.greedy(state.Q, state.action_mask)
+
+
+def greedy_actions(state: QLearningEpisodicState) -> jax.Array:
+    """:func:`policy` as action indices, ``[H, S]`` (what the runner compares and evaluates)."""
+    return dp.greedy_actions(state.Q, state.action_mask)
 
 
 Q_LEARNING_EPISODIC = Agent(
@@ -228,6 +242,7 @@ Q_LEARNING_EPISODIC = Agent(
     act=act,
     update=update,
     policy=policy,
+    greedy_actions=greedy_actions,
     check_hparams=check_hparams,
 )
 
@@ -251,7 +266,7 @@ def init_colosseum(
     """The reference's tables: counts start at 1 (``Q = H`` as in :func:`init`; ``V = 0``, :func:`table_values`)."""
     state = init(key, spec, hparams)
     fields = {f.name: getattr(state, f.name) for f in dataclasses.fields(state)}
-    fields["table"] = state.table.at[..., _N].set(1.0)
+    fields["stats"] = state.stats.at[..., _N].set(1.0)
     return QLearningEpisodicColosseumState(**fields)
 
 

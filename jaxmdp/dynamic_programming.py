@@ -45,6 +45,7 @@ __all__ = [
     "expected_next_values",
     "q_values",
     "greedy",
+    "greedy_actions",
     "uniform_policy",
     "policy_matrix",
     "policy_rewards",
@@ -57,6 +58,7 @@ __all__ = [
     "solve_discounted",
     "finite_horizon_value_iteration",
     "finite_horizon_policy_evaluation",
+    "finite_horizon_deterministic_evaluation",
     "recurrent_classes",
     "chain_gain",
     "chain_bias",
@@ -111,18 +113,15 @@ def q_values(model: Model, V: jax.Array, gamma: float | jax.Array = 1.0, rewards
     return _rewards(model, rewards) + gamma * expected_next_values(model, V)
 
 
-def greedy(Q: jax.Array, action_mask: jax.Array | None = None, atol: float = 0.0) -> jax.Array:
-    """One-hot greedy policy of ``Q[..., A]``.
-
-    Actions within ``atol`` of the maximum count as tied and the lowest index wins. ``action_mask`` excludes padded
-    actions.
-    """
+def greedy_actions(Q: jax.Array, action_mask: jax.Array | None = None, atol: float = 0.0) -> jax.Array:
+    """The greedy action of every row of ``Q[..., A]`` as an ``int32`` index: the lowest index within ``atol`` of the
+    row's maximum, padded actions (``action_mask``) excluded. :func:`greedy` is its one-hot form."""
     if action_mask is not None:
         Q = jnp.where(action_mask, Q, -jnp.inf)
     A = Q.shape[-1]
     if A > _UNROLLED_GREEDY_MAX_ACTIONS:
         best = jnp.max(Q, axis=-1, keepdims=True)
-        return jax.nn.one_hot(jnp.argmax(Q >= best - atol, axis=-1), A, dtype=Q.dtype)
+        return jnp.argmax(Q >= best - atol, axis=-1).astype(jnp.int32)
     # Few actions: elementwise passes over the action axis. XLA runs the variadic argmax reduction several times
     # slower on CPU, and a lockstep run evaluates a greedy policy for every member at every log.
     best = Q[..., 0]
@@ -131,7 +130,16 @@ def greedy(Q: jax.Array, action_mask: jax.Array | None = None, atol: float = 0.0
     index = jnp.zeros(Q.shape[:-1], jnp.int32)
     for a in reversed(range(A)):
         index = jnp.where(Q[..., a] >= best - atol, a, index)
-    return jax.nn.one_hot(index, A, dtype=Q.dtype)
+    return index
+
+
+def greedy(Q: jax.Array, action_mask: jax.Array | None = None, atol: float = 0.0) -> jax.Array:
+    """One-hot greedy policy of ``Q[..., A]``.
+
+    Actions within ``atol`` of the maximum count as tied and the lowest index wins. ``action_mask`` excludes padded
+    actions.
+    """
+    return jax.nn.one_hot(greedy_actions(Q, action_mask, atol), Q.shape[-1], dtype=Q.dtype)
 
 
 def uniform_policy(model: Model, shape: tuple[int, ...] = ()) -> jax.Array:
@@ -403,6 +411,29 @@ def finite_horizon_policy_evaluation(
     V_H = jnp.zeros(R.shape[:1], R.dtype)
     _, (Q, V) = jax.lax.scan(step, V_H, (jnp.arange(H), pis), reverse=True)
     return Q, jnp.concatenate([V, V_H[None]], axis=0)
+
+
+def finite_horizon_deterministic_evaluation(mdp: MDP, actions: jax.Array) -> jax.Array:
+    """``V[H + 1, S]`` of the deterministic time-indexed policy ``actions[H, S]`` (action indices) on an MDP's
+    successor lists: ``V_h(s) = R(s, a_h(s)) + sum_k p_k V_{h+1}(s'_k)`` over the successors of ``(s, a_h(s))``,
+    ``V_h = 0`` for ``h >= horizon``.
+
+    The same numbers as :func:`finite_horizon_policy_evaluation` of the one-hot policy (``V_h = sum_a pi_h(a|s)
+    Q_h(s, a)`` adds exact zeros to the chosen action's ``Q``), at ``O(H S K)`` instead of ``O(H S A K)``: only the
+    chosen action's successor list is read.
+    """
+    H, horizon = _horizon_args(mdp, None, None)
+    states = jnp.arange(mdp.n_states)
+
+    def step(V_next, x):
+        h, a_h = x
+        expected = jnp.sum(mdp.succ_p[states, a_h] * V_next[mdp.succ[states, a_h]], axis=-1)
+        V = jnp.where(h < horizon, mdp.R[states, a_h] + 1.0 * expected, 0.0)
+        return V, V
+
+    V_H = jnp.zeros((mdp.n_states,), mdp.R.dtype)
+    _, V = jax.lax.scan(step, V_H, (jnp.arange(H), actions[:H]), reverse=True)
+    return jnp.concatenate([V, V_H[None]], axis=0)
 
 
 # ---------------------------------------------------------------------------------------------------------------

@@ -244,3 +244,38 @@ def test_chain_gain_survives_stationary_masses_beyond_float32_range():
     mu /= mu.sum()
     assert bool(jnp.all(jnp.isfinite(g)))
     np.testing.assert_allclose(g, mu @ r, rtol=1e-6)
+
+
+def test_deterministic_evaluation_matches_numpy_and_the_one_hot_policy():
+    # An episodic MDP on successor lists and a random time-indexed deterministic policy: numpy backward induction
+    # on the dense kernel (independent), and the one-hot policy's evaluation bit for bit (it only adds exact zeros).
+    rng = np.random.default_rng(3)
+    m = random_mdp(rng, S=6, A=3, H=5)
+    actions = rng.integers(0, m.n_actions, size=(m.H, m.n_states))
+    T, R = np.asarray(m.T, np.float64), np.asarray(m.R, np.float64)
+    V, Vs = np.zeros(m.n_states), []
+    for h in reversed(range(m.H)):
+        V = R[np.arange(m.n_states), actions[h]] + T[np.arange(m.n_states), actions[h]] @ V
+        Vs.append(V)
+    V_det = dp.finite_horizon_deterministic_evaluation(m, jnp.asarray(actions, jnp.int32))
+    np.testing.assert_allclose(V_det[:-1], np.array(Vs[::-1]), rtol=1e-6)
+    np.testing.assert_array_equal(V_det[-1], 0.0)
+    one_hot = jax.nn.one_hot(actions, m.n_actions, dtype=m.R.dtype)
+    _, V_pi = dp.finite_horizon_policy_evaluation(m, one_hot)
+    np.testing.assert_array_equal(np.asarray(V_det), np.asarray(V_pi))
+    # A traced horizon below H zeroes the late steps in both forms.
+    short = m.replace(horizon=jnp.asarray(3, m.horizon.dtype))
+    V_short = dp.finite_horizon_deterministic_evaluation(short, jnp.asarray(actions, jnp.int32))
+    np.testing.assert_array_equal(np.asarray(V_short), np.asarray(dp.finite_horizon_policy_evaluation(short, one_hot)[1]))
+    np.testing.assert_array_equal(V_short[3:], 0.0)
+
+
+def test_greedy_actions_is_the_index_of_greedy():
+    Q = jnp.array([[1.0, 3.0, 3.0], [2.0, 2.0, 2.0], [0.0, 0.0, 5.0]])
+    mask = jnp.array([True, True, False])
+    np.testing.assert_array_equal(dp.greedy_actions(Q), [1, 0, 2])
+    np.testing.assert_array_equal(dp.greedy_actions(Q, mask), [1, 0, 0])
+    wide = jax.random.normal(jax.random.key(0), (4, 20)).at[0, 7].set(9.0).at[0, 11].set(9.0)  # argmax path
+    np.testing.assert_array_equal(dp.greedy_actions(wide)[0], 7)
+    for q in (Q, wide):
+        np.testing.assert_array_equal(jax.nn.one_hot(dp.greedy_actions(q), q.shape[-1]), dp.greedy(q))

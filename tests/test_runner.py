@@ -8,6 +8,7 @@ Compilation dominates the cost of these tests, so they share a few shapes: River
 from __future__ import annotations
 
 import csv
+import dataclasses
 
 import jax
 import jax.numpy as jnp
@@ -467,3 +468,28 @@ def test_only_changed_members_are_evaluated():
         want = policy_values(jax.tree.map(lambda x: x[0], mdps), policy[b])
         np.testing.assert_allclose(out[b], want, rtol=1e-6, atol=1e-7)
     np.testing.assert_array_equal(out[1], cache[1])
+
+
+@pytest.mark.parametrize("name", ["q_learning_episodic", "q_learning_continuous"])
+def test_greedy_action_indices_give_the_same_records_as_the_one_hot_policy(name):
+    # The runner compares and evaluates an agent's greedy_actions where it has them; without them (the one-hot
+    # policy, as every agent before) every record is bit-identical, on a stacked grid of two MDPs of different sizes
+    # and horizons (padded states and actions, a traced horizon below H).
+    agent = agents.get(name)
+    assert agent.greedy_actions is not None
+    episodic = agent.episodic
+    rng = np.random.default_rng(11)
+    mdps = [random_mdp(rng, S=5, A=3, H=4 if episodic else None), random_mdp(rng, S=3, A=2, H=6 if episodic else None)]
+    g = runner.product(mdps, [agent.default_hparams], seeds=[0, 1, 2])
+    indices = runner.run(agent, g, 500, log_period=7, n_records=5)
+    one_hot = dataclasses.replace(agent, greedy_actions=None)
+    probabilities = runner.run(one_hot, g, 500, log_period=7, n_records=5)
+    np.testing.assert_array_equal(indices.values, probabilities.values)
+    assert np.all(indices.values[-1, :, 0] > 0)  # some regret: the policies were evaluated, not all optimal
+
+
+def test_greedy_actions_of_the_wrong_shape_are_refused():
+    base = agents.get("q_learning_continuous")
+    wrong = dataclasses.replace(base, greedy_actions=lambda state: jnp.zeros((2,), jnp.int32))
+    with pytest.raises(ValueError, match="greedy_actions"):
+        runner.run(wrong, runner.product([river_swim(False)], [base.default_hparams], seeds=[0]), 100)

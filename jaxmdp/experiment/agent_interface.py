@@ -14,6 +14,10 @@ hyperparameter sets and drives them in lockstep:
   also calls it once right after ``init`` (the reference's ``before_start_interacting``);
 * ``policy(state) -> pi``: the agent's current best policy estimate, ``[S, A]`` (continuous) or ``[H, S, A]``
   (episodic), used only to compute expected regret.
+* ``greedy_actions(state) -> actions`` (optional): for an agent whose ``policy`` is always deterministic, the same
+  policy as action indices, ``int32`` ``[S]`` or ``[H, S]`` (``policy`` is its one-hot form). The runner then
+  compares and evaluates the indices instead of the ``[.., S, A]`` probabilities: ``A`` times less memory per log,
+  and an episodic evaluation that reads only the chosen actions' successor lists (the same numbers).
 * ``diagnostics(state) -> {name: int scalar}`` (optional): counters of silent degradation kept in the state, e.g.
   plans that stopped at their iteration cap; the runner writes each as a column of its per-record CSV and warns at
   the end of a run where one is non-zero.
@@ -127,6 +131,8 @@ class Agent:
     check_hparams: Callable[[Any], None] = lambda hparams: None
     #: What ``obs`` is: ``"state"`` (a state index), ``"emission"`` (a BlockMDP observation) or ``"any"``.
     observation: Literal["state", "emission", "any"] = "state"
+    #: Optional ``state -> int32 [S] or [H, S]``: ``policy`` as action indices, when it is always deterministic.
+    greedy_actions: Callable[[Any], jax.Array] | None = None
     #: Optional ``state -> {name: int scalar}``: counters the runner records and warns about (module docstring).
     diagnostics: Callable[[Any], dict[str, jax.Array]] | None = None
 

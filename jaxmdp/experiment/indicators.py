@@ -157,7 +157,17 @@ def policy_values(mdp: MDP, policy: jax.Array, iterative_sweeps: int = 0) -> jax
     first tries to certify the gain to a relative ``1e-6`` within that many sweeps over the successor lists
     (``O(S A K)`` each) and returns the midpoint of its bounds; otherwise, or when the chain mixes too slowly for
     that, the dense ``O(S^3)`` :func:`~jaxmdp.dynamic_programming.gain_vector`. The branch is a ``lax.cond``, so
-    use it per member (``lax.map``), not under ``vmap``."""
+    use it per member (``lax.map``), not under ``vmap``.
+
+    ``policy`` may also be a deterministic policy given by its action indices (an integer ``[H, S]`` or ``[S]``
+    array, an agent's ``greedy_actions``): episodic, only the chosen actions' successor lists are read
+    (:func:`~jaxmdp.dynamic_programming.finite_horizon_deterministic_evaluation`, the same numbers as its one-hot
+    policy); continuous, it is evaluated as its one-hot policy."""
+    if jnp.issubdtype(policy.dtype, jnp.integer):
+        if mdp.episodic:
+            actions = policy if policy.ndim == 2 else jnp.broadcast_to(policy, (mdp.H, *policy.shape))
+            return dp.finite_horizon_deterministic_evaluation(mdp, actions)[0]
+        policy = jax.nn.one_hot(policy, mdp.n_actions, dtype=mdp.R.dtype)
     if mdp.episodic:
         return dp.finite_horizon_policy_evaluation(mdp, policy)[1][0]
     if iterative_sweeps <= 0:
