@@ -654,9 +654,12 @@ def successor_gain_bounds(
 
     Warm start: ``d_n = r_pi + (P_pi - I) H_n`` with ``H_n = h + tau sum_{k<n} d_k``, so a bias estimate ``h`` of a
     similar policy (the returned ``bias`` of an earlier call) starts ``d_0`` near ``g``. The returned ``bias`` is
-    ``H_N - tau N d_N`` (``(P_pi - I)`` of it is ``d_N - N (d_{N+1} - d_N)``, no farther from ``g`` than ``d_N`` mode
-    by mode up to a factor ``(1 + x) e^{-x} <= 1``; it stays bounded where ``H_N`` grows by ``tau g`` a sweep),
-    accumulated as ``A_{n+1} = A_n - (n + 1) (d_{n+1} - d_n)`` and centred on the real states. The rounding of
+    ``h + tau sum_k (d_k - m_k)``, centred on the real states, with ``m_k`` the midpoint of the bounds at the start
+    of sweep ``k``'s block (summed with compensation): ``H_N`` grows by ``tau g`` a sweep, ``m_k`` removes that, and
+    the bounds of a recurrent class are constant on it, so there ``(P_pi - I) m_k = 0`` and ``r + (P_pi - I)`` of the
+    estimate is ``d_N`` itself: the next call continues the power iteration where this one stopped (a slowly mixing
+    class certifies over several calls). On transient states the estimate is off by ``tau sum_k (P_pi - I) m_k``,
+    small once their bounds are refined. The rounding of
     ``d_0`` would grow with the differences of ``h`` along edges (``m u sum |p (h(s') - h(s))|`` for ``m`` terms,
     Higham 2002 §3.1: as wide as the tolerance when ``h`` varies by ~1 along an edge), so ``d_0`` is summed with
     error-free transformations (:func:`_drift_plus`) to within ``u |d_0|`` plus second-order terms; that bound widens
@@ -710,21 +713,23 @@ def successor_gain_bounds(
         *_, ok, n = c
         return ~ok & (n < max_sweeps)
 
-    def sweep(k, x):
-        d, acc, n = x
-        step = tau * drift(d)
-        return d + step, acc - (n + k + 1).astype(dtype) * step, n
+    def sweep(_, x):
+        d, acc, comp, m = x
+        acc, e = _two_sum(acc, d - m)
+        return d + tau * drift(d), acc, comp + e, m
 
     def body(c):
-        d, acc, lo, hi, _, n = c
-        d, acc, _ = jax.lax.fori_loop(0, inner_sweeps, sweep, (d, acc, n))
+        d, acc, comp, lo, hi, _, n = c
+        mid = jnp.where(jnp.isfinite(lo) & jnp.isfinite(hi), 0.5 * (lo + hi), 0.0)
+        d, acc, comp, _ = jax.lax.fori_loop(0, inner_sweeps, sweep, (d, acc, comp, mid))
         lo, hi, ok = refresh(lo, hi, d)
-        return d, acc, lo, hi, ok, n + inner_sweeps
+        return d, acc, comp, lo, hi, ok, n + inner_sweeps
 
     lo, hi, ok = refresh(jnp.full((S,), -inf), jnp.full((S,), inf), d0)
-    init = (d0, jnp.zeros((S,), dtype), lo, hi, ok, jnp.asarray(0, jnp.int32))
-    _, acc, lo, hi, ok, n = jax.lax.while_loop(cond, body, init)
-    H = jnp.where(real, h + tau * acc, 0.0)
+    zero = jnp.zeros((S,), dtype)
+    init = (d0, zero, zero, lo, hi, ok, jnp.asarray(0, jnp.int32))
+    _, acc, comp, lo, hi, ok, n = jax.lax.while_loop(cond, body, init)
+    H = jnp.where(real, h + tau * (acc + comp), 0.0)
     H = H - jnp.sum(H) / jnp.maximum(jnp.sum(real), 1).astype(dtype)
     return GainBounds(lower=lo, upper=hi, certified=ok, sweeps=n, bias=jnp.where(real, H, 0.0))
 
