@@ -252,7 +252,8 @@ def test_warm_started_gain_bounds_certify_the_dense_gain_from_any_start():
                 np.testing.assert_allclose((b.lower + b.upper) / 2, dense, rtol=5e-7, atol=5e-7)
             values, bias = warm(mdp, pi, h)
             np.testing.assert_allclose(values, dense, rtol=5e-7, atol=5e-7)
-            assert abs(float(jnp.mean(bias))) < 1e-3 * (1 + float(jnp.max(jnp.abs(bias))))  # centred
+            scale = 1 + float(jnp.max(jnp.abs(h))) + float(jnp.max(jnp.abs(bias)))
+            assert abs(float(jnp.mean(bias))) < 1e-5 * scale  # centred (to the rounding of the start's magnitude)
         # Restarting from its own bias estimate saves sweeps (certifies within the first 32 in 8 of these 9 cases).
         again = bounds(mdp, pi, cold.bias)
         assert int(again.sweeps) <= max(int(cold.sweeps) - 32, 32)
