@@ -38,6 +38,8 @@ from jaxmdp.mdp import MDP
 
 Model = MDP | jax.Array
 
+# chain_gain's elimination runs in at most this many stages, each on a smaller leading block (see there).
+_GTH_STAGES = 8
 # Up to this many actions greedy() unrolls its passes over the action axis (see there).
 _UNROLLED_GREEDY_MAX_ACTIONS = 16
 
@@ -60,6 +62,7 @@ __all__ = [
     "finite_horizon_policy_evaluation",
     "finite_horizon_deterministic_evaluation",
     "recurrent_classes",
+    "successor_reachability",
     "chain_gain",
     "chain_bias",
     "cesaro_limit",
@@ -441,23 +444,55 @@ def finite_horizon_deterministic_evaluation(mdp: MDP, actions: jax.Array) -> jax
 # ---------------------------------------------------------------------------------------------------------------
 
 
-def recurrent_classes(P: jax.Array) -> tuple[jax.Array, jax.Array]:
-    """Recurrent states of a stochastic matrix and its closed classes.
-
-    Reachability comes from repeated squaring of the boolean adjacency (``O(S^3 log S)``, exact). A state is recurrent
-    when every state it reaches reaches it back. Returns ``(recurrent[S], same_class[S, S])`` with
-    ``same_class[s, t]`` true iff ``s`` and ``t`` are recurrent and in the same class.
-    """
-    S = P.shape[0]
-    reach = ((P > 0) | jnp.eye(S, dtype=bool)).astype(P.dtype)
-    n_squarings = max(1, (S - 1).bit_length())
-    reach = jax.lax.fori_loop(0, n_squarings, lambda _, M: jnp.minimum(M @ M, 1.0), reach) > 0
+def _classes_from_reach(reach: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """``(recurrent, same_class)`` of a reflexive-transitive reachability matrix: a state is recurrent when every
+    state it reaches reaches it back."""
     recurrent = jnp.all(~reach | reach.T, axis=1)
     same_class = reach & reach.T & recurrent[:, None] & recurrent[None, :]
     return recurrent, same_class
 
 
-def chain_gain(P: jax.Array, r: jax.Array) -> jax.Array:
+def recurrent_classes(P: jax.Array, reach: jax.Array | None = None) -> tuple[jax.Array, jax.Array]:
+    """Recurrent states of a stochastic matrix and its closed classes.
+
+    Reachability comes from repeated squaring of the boolean adjacency (``O(S^3 log S)``, exact), unless ``reach``
+    (``[S, S]`` bool, reflexive and transitive, e.g. from :func:`successor_reachability`) is given. A state is
+    recurrent when every state it reaches reaches it back. Returns ``(recurrent[S], same_class[S, S])`` with
+    ``same_class[s, t]`` true iff ``s`` and ``t`` are recurrent and in the same class.
+    """
+    if reach is None:
+        S = P.shape[0]
+        reach = ((P > 0) | jnp.eye(S, dtype=bool)).astype(P.dtype)
+        n_squarings = max(1, (S - 1).bit_length())
+        reach = jax.lax.fori_loop(0, n_squarings, lambda _, M: jnp.minimum(M @ M, 1.0), reach) > 0
+    return _classes_from_reach(reach)
+
+
+def successor_reachability(succ: jax.Array, edge: jax.Array) -> jax.Array:
+    """``reach[s, t]``: whether ``t`` is reachable from ``s`` in zero or more steps along the successor slots
+    ``s -> succ[s, ...]`` whose ``edge[s, ...]`` is true (e.g. ``pi(a|s) p(s, a, k) > 0``); ``[S, S]`` bool.
+
+    Rows are bit sets (32 states a ``uint32`` word) and ``reach[s] |= reach[t]`` over the edges ``s -> t`` is swept
+    until nothing changes: ``O(S^2 K / 32)`` word operations a sweep, and as many sweeps as the longest shortest path
+    plus one (no dense ``S x S`` products; :func:`recurrent_classes` squares the dense adjacency instead).
+    """
+    S = succ.shape[0]
+    states = jnp.arange(S)
+    nbr = jnp.where(edge, succ, states.reshape((S,) + (1,) * (succ.ndim - 1))).reshape(S, -1)
+    n_words = (S + 31) // 32
+    word, bit = states // 32, (states % 32).astype(jnp.uint32)
+    R = jnp.zeros((S, n_words), jnp.uint32).at[states, word].set(jnp.left_shift(jnp.uint32(1), bit))
+
+    def body(c):
+        R, _ = c
+        R2 = R | jax.lax.reduce(R[nbr], jnp.uint32(0), jax.lax.bitwise_or, (1,))
+        return R2, jnp.any(R2 != R)
+
+    R = jax.lax.while_loop(lambda c: c[1], body, (R, jnp.asarray(True)))[0]
+    return (jnp.right_shift(R[:, word], bit[None, :]) & jnp.uint32(1)) > 0
+
+
+def chain_gain(P: jax.Array, r: jax.Array, reach: jax.Array | None = None) -> jax.Array:
     """Long-run average reward ``g = P* r`` of a Markov chain from every state (``P*`` the Cesàro limit).
 
     Uses Grassmann-Taksar-Heyman elimination, which only adds non-negative numbers and so stays accurate however
@@ -466,27 +501,35 @@ def chain_gain(P: jax.Array, r: jax.Array) -> jax.Array:
     mass left towards lower positions is the root of its class. Back-substitution gives every class's stationary
     distribution (hence its gain; each class is renormalised on the fly to stay inside the floating-point range), and
     transient states average the gains they are absorbed into. ``O(S^3)`` plus the
-    reachability of :func:`recurrent_classes`; handles periodic and multichain matrices.
+    reachability of :func:`recurrent_classes` (or none, given ``reach``: ``P``'s reflexive-transitive reachability
+    as there); handles periodic and multichain matrices.
     """
     S = P.shape[0]
     dtype = P.dtype
-    recurrent, same_class = recurrent_classes(P)
+    recurrent, same_class = recurrent_classes(P, reach)
     perm = jnp.argsort(~recurrent, stable=True)
     M = P[perm][:, perm]
     rp, rec, Kp = r[perm], recurrent[perm], same_class[perm][:, perm].astype(dtype)
     pos = jnp.arange(S)
 
-    def eliminate(i, carry):
-        M, scale = carry
-        k = S - 1 - i
-        lower = pos < k
-        row = jnp.where(lower, M[k], 0.0)
+    def eliminate(k, carry):
+        # Step k changes only the leading k x k block and column k above it: ``carry`` holds a leading block of M.
+        B, scale = carry
+        lower = jnp.arange(B.shape[0]) < k
+        row = jnp.where(lower, B[k], 0.0)
         s = jnp.sum(row)
-        col = jnp.where(lower & (s > 0), M[:, k] / jnp.where(s > 0, s, 1.0), 0.0)
-        M = M.at[:, k].set(jnp.where(lower, col, M[:, k])) + jnp.outer(col, row)
-        return M, scale.at[k].set(s)
+        col = jnp.where(lower & (s > 0), B[:, k] / jnp.where(s > 0, s, 1.0), 0.0)
+        B = B.at[:, k].set(jnp.where(lower, col, B[:, k])) + jnp.outer(col, row)
+        return B, scale.at[k].set(s)
 
-    M, scale = jax.lax.fori_loop(0, S - 1, eliminate, (M, jnp.zeros((S,), dtype)))
+    # Positions k = S-1 .. 1 in stages, each on the leading block that its steps touch (sizes shrinking with k): a
+    # third of the memory traffic of full-matrix steps at 8 stages.
+    scale = jnp.zeros((S,), dtype)
+    n_stages = min(_GTH_STAGES, max(1, S // 64))
+    ends = [S - (j * (S - 1)) // n_stages for j in range(n_stages + 1)]
+    for hi, lo in zip(ends[:-1], ends[1:]):
+        B, scale = jax.lax.fori_loop(0, hi - lo, lambda i, c, hi=hi: eliminate(hi - 1 - i, c), (M[:hi, :hi], scale))
+        M = M.at[:hi, :hi].set(B)
     root = rec & (scale == 0)
 
     def stationary(k, pi):
@@ -542,44 +585,117 @@ def successor_policy_matrix(succ: jax.Array, succ_p: jax.Array, pi: jax.Array) -
 
 
 def gain_vector(model: Model, pi: jax.Array, rewards: jax.Array | None = None) -> jax.Array:
-    """Long-run average reward of ``pi`` from every state: ``g = P*_pi r_pi`` (an ``[S]`` array)."""
-    return chain_gain(policy_matrix(model, pi), policy_rewards(model, pi, rewards))
+    """Long-run average reward of ``pi`` from every state: ``g = P*_pi r_pi`` (an ``[S]`` array). An
+    :class:`~jaxmdp.MDP`'s reachability comes from its successor lists (:func:`successor_reachability`: the same edges
+    ``pi(a|s) P(s'|s,a) > 0`` as the dense ``P_pi``, without its ``O(S^3 log S)`` squarings)."""
+    P = policy_matrix(model, pi)
+    reach = None
+    if isinstance(model, MDP):
+        reach = successor_reachability(model.succ, pi[:, :, None].astype(P.dtype) * model.succ_p > 0)
+    return chain_gain(P, policy_rewards(model, pi, rewards), reach)
+
+
+def _two_sum(a: jax.Array, b: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """``a + b = s + e`` exactly (Knuth's TwoSum; round-to-nearest, no reassociation)."""
+    s = a + b
+    bb = s - a
+    return s, (a - (s - bb)) + (b - bb)
+
+
+def _two_prod(a: jax.Array, b: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """``a b = p + e`` exactly (Dekker's product by splitting each factor into halves; no FMA needed)."""
+
+    def split(x):
+        c = (2.0 ** ((jnp.finfo(x.dtype).nmant + 2) // 2) + 1.0) * x
+        hi = c - (c - x)
+        return hi, x - hi
+
+    p = a * b
+    (ah, al), (bh, bl) = split(a), split(b)
+    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
+
+
+def _drift_plus(r: jax.Array, w: jax.Array, x_next: jax.Array, x: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """``r + sum_j w[:, j] (x_next[:, j] - x)`` (rows of ``[S, J]`` slots) in compensated arithmetic, and a bound on
+    its error: ``(value[S], bound[S])``.
+
+    Differences and products are split exactly into a rounded part and its error (:func:`_two_sum`,
+    :func:`_two_prod`), the rounded parts are added by a TwoSum cascade whose errors are kept, and the errors are
+    summed in ordinary arithmetic: the result is within ``u |value|`` of the exact sum plus
+    ``(2 J + 4) u`` times the absolute sum of the error terms (each of order ``u`` times a term; Higham 2002 §4.3), where
+    the plain sum would be off by up to ``J u`` times the absolute sum of the terms.
+    """
+    u = 0.5 * jnp.finfo(r.dtype).eps
+
+    def slot(j, c):
+        s, comp, mag = c
+        diff, de = _two_sum(x_next[:, j], -x)
+        p, pe = _two_prod(w[:, j], diff)
+        q = w[:, j] * de  # its rounding, at most u |q|, is second order
+        s, se = _two_sum(s, p)
+        small = se + pe + q
+        return s, comp + small, mag + jnp.abs(se) + jnp.abs(pe) + 2.0 * jnp.abs(q)
+
+    zero = jnp.zeros_like(r)
+    s, comp, mag = jax.lax.fori_loop(0, w.shape[1], slot, (r, zero, zero))
+    value = s + comp
+    return value, u * jnp.abs(value) + (2 * w.shape[1] + 4) * u * (mag + jnp.abs(comp))
 
 
 class GainBounds(struct.PyTreeNode):
     """Certified bounds ``lower <= g <= upper`` on the gain vector of a policy (:func:`successor_gain_bounds`),
-    whether ``upper - lower`` met the tolerance everywhere, and the sweeps used."""
+    whether ``upper - lower`` met the tolerance everywhere, the sweeps used, and ``bias``: a vector ``H`` with
+    ``r_pi + (P_pi - I) H`` close to ``g`` (a warm start for the next call on a similar policy)."""
 
     lower: jax.Array
     upper: jax.Array
     certified: jax.Array
     sweeps: jax.Array
+    bias: jax.Array
 
 
 def successor_gain_bounds(
     mdp: MDP,
     pi: jax.Array,
     *,
+    bias: jax.Array | None = None,
     rtol: float = 1e-6,
     max_sweeps: int = 4096,
     inner_sweeps: int = 32,
+    refine_sweeps: int | None = None,
     tau: float = 0.5,
 ) -> GainBounds:
     """Bounds on the gain vector ``g = P*_pi r_pi`` from sweeps over the successor lists (``O(S A K)`` each), no
     dense ``S x S`` work.
 
     With ``P_tau = tau P_pi + (1 - tau) I`` (aperiodic, same Cesàro limit ``P*``) and ``d_{n+1} = P_tau d_n``,
-    ``d_0 = r_pi``: ``P* d_n = g`` for every ``n``, and ``P*(s, .)`` puts mass only on states reachable from ``s``,
-    so ``min_{t in Reach(s)} d_n(t) <= g(s) <= max_{t in Reach(s)} d_n(t)`` (Puterman 1994 §8.2 for ``P*``). The
+    ``d_0 = r_pi + (P_pi - I) h`` for any ``h`` (``bias``; zero by default): ``P*(P_pi - I) = 0`` gives
+    ``P* d_n = g`` for every ``n``, and ``P*(s, .)`` puts mass only on states reachable from ``s``, so
+    ``min_{t in Reach(s)} d_n(t) <= g(s) <= max_{t in Reach(s)} d_n(t)`` (Puterman 1994 §8.2 for ``P*``). The
     reachable minimum and maximum are fixed points of ``m(s) <- min(m(s), min_{s -> t} m(t))`` over the edges of
     positive probability. Since ``g = P_pi g``, a lower bound ``L`` improves to ``max(L, P_pi L)`` (and an upper bound
-    likewise), which tightens the bounds of transient states that reach several recurrent classes. Products with
+    likewise), which tightens the bounds of transient states that reach several recurrent classes; each refresh
+    applies it ``refine_sweeps`` times (default ``inner_sweeps``: the bounds of such states then converge at the rate
+    of their absorption, as ``d`` does, where one step a refresh took 1 000 sweeps on a 6-state chain). Products with
     ``P_pi - I`` are summed as differences ``sum p (x(s') - x(s))``: kernel rows that sum to ``1 +- ulp`` would
     otherwise scale ``d`` a little at every sweep (1e-6 relative after a hundred float32 sweeps). Every
     ``inner_sweeps`` power sweeps the bounds are refreshed; the loop stops when ``upper - lower <= rtol (1 + |upper|)``
     at every real state (``certified``) or after ``max_sweeps`` sweeps. Converges geometrically at the rate of the
     slowest class's mixing (and absorption, for transient states); a caller falls back to :func:`gain_vector` when
     not certified.
+
+    Warm start: ``d_n = r_pi + (P_pi - I) H_n`` with ``H_n = h + tau sum_{k<n} d_k``, so a bias estimate ``h`` of a
+    similar policy (the returned ``bias`` of an earlier call) starts ``d_0`` near ``g``. The returned ``bias`` is
+    ``h + tau sum_k (d_k - m_k)``, centred on the real states, with ``m_k`` the midpoint of the bounds at the start
+    of sweep ``k``'s block (summed with compensation): ``H_N`` grows by ``tau g`` a sweep, ``m_k`` removes that, and
+    the bounds of a recurrent class are constant on it, so there ``(P_pi - I) m_k = 0`` and ``r + (P_pi - I)`` of the
+    estimate is ``d_N`` itself: the next call continues the power iteration where this one stopped (a slowly mixing
+    class certifies over several calls). On transient states the estimate is off by ``tau sum_k (P_pi - I) m_k``,
+    small once their bounds are refined. The rounding of
+    ``d_0`` would grow with the differences of ``h`` along edges (``m u sum |p (h(s') - h(s))|`` for ``m`` terms,
+    Higham 2002 §3.1: as wide as the tolerance when ``h`` varies by ~1 along an edge), so ``d_0`` is summed with
+    error-free transformations (:func:`_drift_plus`) to within ``u |d_0|`` plus second-order terms; that bound widens
+    both bounds, since ``P* e`` of an error ``e`` is at most ``max |e|``.
     """
     R, succ = mdp.R, mdp.succ
     dtype = R.dtype
@@ -587,10 +703,20 @@ def successor_gain_bounds(
     edge = w > 0
     inf = jnp.asarray(jnp.inf, dtype)
     real = mdp.state_mask
+    r = jnp.sum(pi * R, axis=-1)
+    S = r.shape[0]
 
     def drift(x):
         # (P_pi - I) x, summed as differences so that rows summing to 1 +- ulp add no error proportional to x itself
         return jnp.sum(w * (x[succ] - x[:, None, None]), axis=(1, 2))
+
+    if bias is None:
+        h = jnp.zeros((S,), dtype)
+        d0, slack = r, jnp.zeros((), dtype)
+    else:
+        h = jnp.where(real, bias.astype(dtype), 0.0)
+        d0, err = _drift_plus(r, w.reshape(S, -1), h[succ].reshape(S, -1), h)
+        slack = jnp.max(err)
 
     def reach_extreme(x, sign):
         # min (sign = 1) or max (sign = -1) of x over the states reachable from each state
@@ -603,10 +729,15 @@ def successor_gain_bounds(
         return sign * jax.lax.while_loop(lambda c: c[1], body, (sign * x, jnp.asarray(True)))[0]
 
     def refresh(lo, hi, d):
-        lo = jnp.maximum(lo, reach_extreme(d, 1.0))
-        hi = jnp.minimum(hi, reach_extreme(d, -1.0))
-        lo = jnp.maximum(lo, lo + drift(jnp.where(jnp.isfinite(lo), lo, 0.0)))
-        hi = jnp.minimum(hi, hi + drift(jnp.where(jnp.isfinite(hi), hi, 0.0)))
+        lo = jnp.maximum(lo, reach_extreme(d, 1.0) - slack)
+        hi = jnp.minimum(hi, reach_extreme(d, -1.0) + slack)
+
+        def refine(_, b):
+            lo, hi = b
+            lo = jnp.maximum(lo, lo + drift(jnp.where(jnp.isfinite(lo), lo, 0.0)))
+            return lo, jnp.minimum(hi, hi + drift(jnp.where(jnp.isfinite(hi), hi, 0.0)))
+
+        lo, hi = jax.lax.fori_loop(0, inner_sweeps if refine_sweeps is None else refine_sweeps, refine, (lo, hi))
         ok = jnp.all(~real | (hi - lo <= rtol * (1.0 + jnp.abs(hi))))
         return lo, hi, ok
 
@@ -614,17 +745,25 @@ def successor_gain_bounds(
         *_, ok, n = c
         return ~ok & (n < max_sweeps)
 
-    def body(c):
-        d, lo, hi, _, n = c
-        d = jax.lax.fori_loop(0, inner_sweeps, lambda _, x: x + tau * drift(x), d)
-        lo, hi, ok = refresh(lo, hi, d)
-        return d, lo, hi, ok, n + inner_sweeps
+    def sweep(_, x):
+        d, acc, comp, m = x
+        acc, e = _two_sum(acc, d - m)
+        return d + tau * drift(d), acc, comp + e, m
 
-    r = jnp.sum(pi * R, axis=-1)
-    S = r.shape[0]
-    lo, hi, ok = refresh(jnp.full((S,), -inf), jnp.full((S,), inf), r)
-    _, lo, hi, ok, n = jax.lax.while_loop(cond, body, (r, lo, hi, ok, jnp.asarray(0, jnp.int32)))
-    return GainBounds(lower=lo, upper=hi, certified=ok, sweeps=n)
+    def body(c):
+        d, acc, comp, lo, hi, _, n = c
+        mid = jnp.where(jnp.isfinite(lo) & jnp.isfinite(hi), 0.5 * (lo + hi), 0.0)
+        d, acc, comp, _ = jax.lax.fori_loop(0, inner_sweeps, sweep, (d, acc, comp, mid))
+        lo, hi, ok = refresh(lo, hi, d)
+        return d, acc, comp, lo, hi, ok, n + inner_sweeps
+
+    lo, hi, ok = refresh(jnp.full((S,), -inf), jnp.full((S,), inf), d0)
+    zero = jnp.zeros((S,), dtype)
+    init = (d0, zero, zero, lo, hi, ok, jnp.asarray(0, jnp.int32))
+    _, acc, comp, lo, hi, ok, n = jax.lax.while_loop(cond, body, init)
+    H = jnp.where(real, h + tau * (acc + comp), 0.0)
+    H = H - jnp.sum(H) / jnp.maximum(jnp.sum(real), 1).astype(dtype)
+    return GainBounds(lower=lo, upper=hi, certified=ok, sweeps=n, bias=jnp.where(real, H, 0.0))
 
 
 def policy_gain(

@@ -45,6 +45,7 @@ __all__ = [
     "indicator_constants",
     "policy_values",
     "ITERATIVE_GAIN_SWEEPS",
+    "warm_gain_values",
     "instant_from_values",
     "instantaneous",
     "CSV_COLUMNS",
@@ -178,6 +179,30 @@ def policy_values(mdp: MDP, policy: jax.Array, iterative_sweeps: int = 0) -> jax
         lambda: 0.5 * (bounds.lower + bounds.upper),
         lambda: dp.gain_vector(mdp, policy),
     )
+
+
+def warm_gain_values(
+    mdp: MDP, policy: jax.Array, bias: jax.Array, iterative_sweeps: int = ITERATIVE_GAIN_SWEEPS
+) -> tuple[jax.Array, jax.Array]:
+    """:func:`policy_values` of a continuous MDP started from a bias estimate: ``(gain[S], bias[S])``.
+
+    :func:`~jaxmdp.dynamic_programming.successor_gain_bounds` starts from ``d_0 = r_pi + (P_pi - I) bias`` (any
+    ``bias`` leaves the certificate exact; one of a similar policy, e.g. the one this function returned at the
+    previous log, starts it near the gain) and returns the midpoint of its bounds when they meet a relative ``1e-6``
+    within ``iterative_sweeps`` sweeps, else the dense :func:`~jaxmdp.dynamic_programming.gain_vector`. The returned
+    bias is the warm start for the next call (the iterative one's, also when the dense solve gave the gain). Per
+    member (``lax.map``), not under ``vmap``."""
+    if mdp.episodic:
+        raise ValueError("warm_gain_values needs a continuous MDP (mdp.episodic is true)")
+    if jnp.issubdtype(policy.dtype, jnp.integer):  # action indices (an agent's greedy_actions): their one-hot policy
+        policy = jax.nn.one_hot(policy, mdp.n_actions, dtype=mdp.R.dtype)
+    bounds = dp.successor_gain_bounds(mdp, policy, bias=bias, max_sweeps=iterative_sweeps)
+    gain = jax.lax.cond(
+        bounds.certified,
+        lambda: 0.5 * (bounds.lower + bounds.upper),
+        lambda: dp.gain_vector(mdp, policy),
+    )
+    return gain, bounds.bias
 
 
 def instant_from_values(
