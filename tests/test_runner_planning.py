@@ -59,7 +59,7 @@ def _assert_same_run(a, b):
 
 def _episodic_grid(agent):
     # Horizons 3, 4, 5, 6 (RiverSwim's horizon is its size): episodes end at different steps, several at once at
-    # common multiples (every 12 steps: 3, 4 and 6, i.e. six of the eight members), so 1 or 3 slots need rounds.
+    # common multiples (every 12 steps: 3, 4 and 6, i.e. six of the eight members; every 15: 3 and 5, four).
     mdps = [jaxmdp.make("RiverSwim", episodic=True, seed=0, size=n, randomize_actions=False) for n in (3, 4, 5, 6)]
     return runner.product(mdps, [agent.default_hparams], seeds=[0, 1])
 
@@ -78,9 +78,10 @@ def _continuous_grid(agent):
 def test_results_do_not_depend_on_the_slots(name, make_grid, n_steps):
     agent = agents.get(name)
     g = make_grid(agent)
+    # Two slots: one member waiting leaves a slot empty, two to four (episodic; continuous: two or three) need rounds,
+    # more than half the batch is planned whole.
     whole = runner.run(agent, g, n_steps, log_period=10, n_records=5, plan_slots=g.n_members)
-    for slots in (1, 3):
-        _assert_same_run(runner.run(agent, g, n_steps, log_period=10, n_records=5, plan_slots=slots), whole)
+    _assert_same_run(runner.run(agent, g, n_steps, log_period=10, n_records=5, plan_slots=2), whole)
 
 
 def test_bad_plan_slots():
