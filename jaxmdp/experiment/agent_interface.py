@@ -142,8 +142,8 @@ def where_due(due: jax.Array, new: Any, old: Any) -> Any:
 
     ``due`` is a boolean scalar (one member: an agent's ``plan`` applies it to itself, so that a plan requested by a
     member that does not need one is a no-op whoever calls it) or ``[B]`` over the leading member axis of every leaf
-    (the runner, which plans for the whole batch when any member needs to and keeps the result only for those that
-    do).
+    (the runner, which plans a batch of members and keeps the result only for those that asked: all members when
+    most asked, else rounds of those that did, :mod:`jaxmdp.experiment.planning`).
     """
     due = jnp.asarray(due)
     if due.ndim == 0:

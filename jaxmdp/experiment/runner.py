@@ -7,7 +7,8 @@ through ``n_steps`` agent/MDP interaction steps (paper §3.3 and App. A.1; docs/
   and the agent's ``act``/``update`` over the batch, inside a ``lax.while_loop`` over log points (with the log's
   ``lax.cond`` inside the per-step body, XLA copied the whole carry, policy cache included, at every step);
 * planning (``agent.plan``) runs under a ``lax.cond`` whose predicate is unbatched, "some member needs to plan", and
-  ``jnp.where`` keeps the result only for the members that asked, so planning is paid at boundaries only;
+  only the members that asked are planned, ``plan_slots`` at a time (:mod:`jaxmdp.experiment.planning`), so planning
+  is paid at boundaries only and for those members only;
 * indicator logging (:mod:`jaxmdp.experiment.indicators`, exact policy evaluation of ``agent.policy``) runs under a
   ``lax.cond`` on "this is a log step" (a chunk may end between two): after every ``log_period`` steps and after
   the last step. A log made after
@@ -63,6 +64,7 @@ from jaxmdp.experiment.indicators import (
     policy_values,
 )
 from jaxmdp.blockmdp.block_mdp import BlockMDP
+from jaxmdp.experiment.planning import default_plan_slots, plan_due
 from jaxmdp.experiment.members import Grid, dynamics, grid, product, seed_keys, stack_hparams
 from jaxmdp.experiment.records import MEMBER_COLUMNS, RunResult, append_rows, csv_rows, record_steps, truncate_csv
 from jaxmdp.mdp import MDP
@@ -230,30 +232,40 @@ def _init_program(agent: Agent, record_visits: bool = False) -> Callable:
 
 @functools.lru_cache(maxsize=_MAX_CACHED_PROGRAMS)
 def _chunk_program(
-    agent: Agent, variant: Variant, capacity: int, n_shards: int, carry_treedef: Any, record_visits: bool = False
+    agent: Agent,
+    variant: Variant,
+    capacity: int,
+    n_shards: int,
+    carry_treedef: Any,
+    record_visits: bool = False,
+    plan_slots: int | None = None,
 ) -> Callable:
     """``chunk(carry, mdps, mdp_index, consts, schedule, n) -> (carry, steps[capacity], values[capacity, B, 4],
     n_written)``: ``n`` more steps (traced), recording at most ``capacity`` snapshots.
 
     With ``n_shards > 1`` the members are split over that many local devices with ``shard_map``; each shard runs its
     own loop (its own "some member needs to plan" predicate), so shards never communicate. A grid whose stacked MDPs
-    have no Beta reward anywhere (static ``MDP.stochastic_rewards``) compiles no reward draw.
+    have no Beta reward anywhere (static ``MDP.stochastic_rewards``) compiles no reward draw. ``plan_slots``: members
+    planned at once (:func:`jaxmdp.experiment.planning.plan_due`; default
+    :func:`~jaxmdp.experiment.planning.default_plan_slots` of a shard's members); at least a shard's members, the
+    whole shard is planned whenever one member asks and the result kept for those that did.
     """
 
     def chunk(
         carry: Carry, mdps: MDP | BlockMDP, mdp_index: jax.Array, consts: IndicatorConstants, sched: Schedule, n
     ):
         B = mdp_index.shape[0]
+        slots = default_plan_slots(B) if plan_slots is None else plan_slots
         dyn = dynamics(mdps)  # the indicators evaluate policies on the states' dynamics
         dtype = dyn.dtype
 
         def plan_step(c: Carry) -> Carry:
             needs = jax.vmap(agent.needs_plan)(c.agent_state)
-
-            def do_plan(state):
-                keys = _keys(c.key_data, 2, c.t + 1)
-                return where_due(needs, jax.vmap(agent.plan)(keys, state), state)
-
+            keys = lambda: _keys(c.key_data, 2, c.t + 1)  # noqa: E731
+            if slots >= B:
+                do_plan = lambda state: where_due(needs, jax.vmap(agent.plan)(keys(), state), state)  # noqa: E731
+            else:
+                do_plan = lambda state: plan_due(agent.plan, slots, needs, keys(), state)  # noqa: E731
             return c.replace(agent_state=jax.lax.cond(jnp.any(needs), do_plan, lambda s: s, c.agent_state))
 
         def interact(c: Carry) -> Carry:
@@ -480,6 +492,7 @@ class _Settings:
     n_shards: int
     variant: Variant
     record_visits: bool = False
+    plan_slots: int | None = None
 
 
 @dataclasses.dataclass
@@ -519,6 +532,7 @@ def _validated_settings(
     chunk_steps: int | None,
     shards: int | None,
     record_visits: bool = False,
+    plan_slots: int | None = None,
 ) -> _Settings:
     """Check every argument on the host, before anything compiles, and derive the chunking (see :func:`run`)."""
     n_steps = check_int("n_steps", n_steps)
@@ -526,6 +540,8 @@ def _validated_settings(
     n_records = check_int("n_records", n_records)
     if chunk_steps is not None:
         chunk_steps = check_int("chunk_steps", chunk_steps)
+    if plan_slots is not None:
+        plan_slots = check_int("plan_slots", plan_slots)
     if not isinstance(record_visits, bool):
         raise ValueError(f"record_visits must be True or False; got {record_visits!r}")
     if n_steps >= 2**31 - 1:
@@ -546,6 +562,7 @@ def _validated_settings(
         n_shards=n_shards,
         variant=variant,
         record_visits=record_visits,
+        plan_slots=plan_slots,
     )
 
 
@@ -569,7 +586,8 @@ def _compile(agent: Agent, grid: Grid, settings: _Settings) -> _Program:
     leaves, treedef = jax.tree.flatten(carry_shape)
     carry_layout = (treedef, tuple(x.ndim for x in leaves))
     chunk_fn = _chunk_program(
-        agent, settings.variant, settings.capacity, settings.n_shards, carry_layout, settings.record_visits
+        agent, settings.variant, settings.capacity, settings.n_shards, carry_layout, settings.record_visits,
+        settings.plan_slots,
     )
     chunk_exe = chunk_fn.lower(carry_shape, mdps, mdp_index, consts, sched, jnp.int32(0)).compile()
     jax.block_until_ready(consts)
@@ -663,6 +681,7 @@ def run(
     stop_after_chunks: int | None = None,
     shards: int | None = None,
     record_visits: bool = False,
+    plan_slots: int | None = None,
 ) -> RunResult:
     """Run ``agent`` on every member of ``grid`` for ``n_steps`` steps in lockstep (see the module docstring).
 
@@ -688,6 +707,10 @@ def run(
       record_visits: also count, per member, the states it took its actions in (``RunResult.visits``, ``[B, S]``
         int, summing to ``n_steps`` per member; for a BlockMDP the latent states). Off by default: the loop then
         carries and computes nothing for it.
+      plan_slots: members planned at once when some members of a lockstep loop (a shard) need a plan
+        (:mod:`jaxmdp.experiment.planning`): rounds of this many until all are served, so planning costs in
+        proportion to the members that asked; default ``ceil(members / 16)`` per shard. A value at least a shard's
+        members plans the whole shard whenever one member asks (the earlier scheme). The results do not depend on it.
 
     Raises:
       ValueError: before anything compiles, for an episodic agent on continuous MDPs (or the reverse), an agent
@@ -696,7 +719,7 @@ def run(
         run.
     """
     settings = _validated_settings(
-        agent, grid, n_steps, log_period, n_records, variant, chunk_steps, shards, record_visits
+        agent, grid, n_steps, log_period, n_records, variant, chunk_steps, shards, record_visits, plan_slots
     )
     program = _compile(agent, grid, settings)
     run_id = fingerprint(agent.name, grid, settings.n_steps, settings.log_period, settings.record_period, variant)

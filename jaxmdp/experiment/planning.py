@@ -1,0 +1,63 @@
+"""Planning only the members that asked: the runner's compacted planning step (paper App. A.1, "lockstep").
+
+The agents that plan (PSRL at every episode start, UCRL2 and continuous PSRL at their epoch ends) ask for a plan at
+different steps, member by member: in a benchmark batch whose members have different horizons or epoch schedules,
+some member asks at almost every step. Planning the whole batch ``B`` whenever one member asks (and keeping the
+result only for those that did) then costs a full batch of plans per step. :func:`plan_due` instead gathers the
+members that asked into ``slots`` planning slots (:func:`jaxmdp.sampling.compaction.compact`), plans those under
+``vmap``, scatters the plans back and repeats until every member that asked has its plan; the cost is
+``ceil(m / slots)`` rounds of ``slots`` plans for ``m`` members asking, whatever ``B`` (one batch of ``B`` when more
+than half ask).
+
+Each member plans with its own key and its own state, exactly as in the whole-batch step, and the agents' plans
+(their samplers included, :mod:`jaxmdp.sampling.beta_sampling`) give a member the same bits whoever else is in the
+``vmap``-ed batch, so the runner's results do not depend on ``slots`` (tested in tests/test_runner_planning.py).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+
+from jaxmdp.experiment.agent_interface import where_due
+from jaxmdp.sampling.compaction import compact
+
+__all__ = ["plan_due", "default_plan_slots"]
+
+
+def default_plan_slots(n_members: int) -> int:
+    """Planning slots for a lockstep loop of ``n_members`` members: ``ceil(n_members / 16)`` (at least one)."""
+    return max(1, -(-n_members // 16))
+
+
+def plan_due(
+    plan: Callable[[jax.Array, Any], Any], slots: int, due: jax.Array, keys: jax.Array, states: Any
+) -> Any:
+    """``plan(keys[i], states[i])`` for every member ``i`` with ``due[i]``, ``states[i]`` for the others.
+
+    ``due`` is ``bool[B]``, ``keys`` ``[B]`` keys and ``states`` a pytree with the member axis first. Rounds of
+    ``slots`` members (static): each round plans the first ``slots`` members still waiting (an empty slot repeats the
+    round's first member, whose copy is dropped) and scatters their plans back; the rounds go on until none waits, so
+    the result does not depend on ``slots``. When more than half the members wait, all ``B`` are planned in one batch
+    instead (the result kept where due): a round has a fixed cost (the plan's loops and their dispatch: about 0.5 ms
+    a round for PSRL on a CPU core, measured), so when every member's episode ends at the same step (one MDP, many
+    seeds) many rounds of small plans cost more than one batch.
+    """
+    def round_(carry):
+        states, waiting = carry
+        index, valid = compact(waiting, slots)  # empty slots hold B + s: distinct and dropped by the scatter
+        take = jnp.where(valid, index, index[0])
+        planned = jax.vmap(plan)(keys[take], jax.tree.map(lambda x: x[take], states))
+        put = lambda x, y: x.at[index].set(y, mode="drop", unique_indices=True)  # noqa: E731
+        return jax.tree.map(put, states, planned), waiting.at[index].set(False, mode="drop", unique_indices=True)
+
+    def rounds(states):
+        return jax.lax.while_loop(lambda carry: jnp.any(carry[1]), round_, (states, due))[0]
+
+    def whole(states):
+        return where_due(due, jax.vmap(plan)(keys, states), states)
+
+    return jax.lax.cond(2 * jnp.sum(due) > due.shape[0], whole, rounds, states)

@@ -1,0 +1,121 @@
+"""Planning only the members that asked (jaxmdp.experiment.planning): bit for bit the results of planning the whole
+batch whenever one member asks (``plan_slots`` at least the batch, the earlier scheme), for every slot count, on one
+device and on two (shard_map)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import agents
+import jaxmdp
+from jaxmdp.experiment import runner
+from jaxmdp.experiment.agent_interface import where_due
+from jaxmdp.experiment.planning import default_plan_slots, plan_due
+
+TESTS = Path(__file__).resolve().parent
+
+
+def _toy_plan(key, state):
+    # Depends on the key and on every leaf of the member's state, so a wrong gather or scatter shows.
+    x, n = state["x"], state["n"]
+    return {"x": x * 2.0 + jax.random.uniform(key, x.shape) + n, "n": n + 1}
+
+
+@pytest.mark.parametrize("slots", [1, 2, 3, 7])
+def test_plan_due_equals_planning_the_whole_batch(slots):
+    B = 7
+    states = {"x": jnp.arange(B * 3, dtype=jnp.float32).reshape(B, 3), "n": jnp.arange(B, dtype=jnp.int32) * 10}
+    keys = jax.random.split(jax.random.key(3), B)
+    patterns = [np.zeros(B, bool), np.ones(B, bool), np.eye(B, dtype=bool)[B - 1], np.eye(B, dtype=bool)[0]]
+    patterns += [np.random.default_rng(i).random(B) < 0.5 for i in range(4)]
+    run = jax.jit(lambda due: plan_due(_toy_plan, slots, due, keys, states))
+    for due in patterns:
+        due = jnp.asarray(due)
+        want = where_due(due, jax.vmap(_toy_plan)(keys, states), states)
+        got = run(due)
+        for name in states:
+            np.testing.assert_array_equal(got[name], want[name], err_msg=f"{name}, due {due}")
+
+
+def test_default_plan_slots():
+    assert [default_plan_slots(b) for b in (1, 15, 16, 17, 90, 180)] == [1, 1, 1, 2, 6, 12]
+
+
+def _assert_same_run(a, b):
+    np.testing.assert_array_equal(a.values, b.values)
+    for x, y in zip(jax.tree.leaves(a.agent_state), jax.tree.leaves(b.agent_state)):
+        np.testing.assert_array_equal(x, y)
+
+
+def _episodic_grid(agent):
+    # Horizons 3, 4, 5, 6 (RiverSwim's horizon is its size): episodes end at different steps, several at once at
+    # common multiples (every 12 steps: 3, 4 and 6, i.e. six of the eight members; every 15: 3 and 5, four).
+    mdps = [jaxmdp.make("RiverSwim", episodic=True, seed=0, size=n, randomize_actions=False) for n in (3, 4, 5, 6)]
+    return runner.product(mdps, [agent.default_hparams], seeds=[0, 1])
+
+
+def _continuous_grid(agent):
+    mdps = [jaxmdp.make("RiverSwim", episodic=False, seed=0, size=n, randomize_actions=False, p_lazy=0.1,
+                        make_reward_stochastic=True) for n in (4, 6)]
+    return runner.product(mdps, [agent.default_hparams], seeds=[0, 1, 2])
+
+
+@pytest.mark.parametrize("name, make_grid, n_steps", [
+    ("psrl_episodic", _episodic_grid, 150),
+    ("ucrl2", _continuous_grid, 400),
+    ("psrl_continuous", _continuous_grid, 400),
+])
+def test_results_do_not_depend_on_the_slots(name, make_grid, n_steps):
+    agent = agents.get(name)
+    g = make_grid(agent)
+    # Two slots: one member waiting leaves a slot empty, two to four (episodic; continuous: two or three) need rounds,
+    # more than half the batch is planned whole.
+    whole = runner.run(agent, g, n_steps, log_period=10, n_records=5, plan_slots=g.n_members)
+    _assert_same_run(runner.run(agent, g, n_steps, log_period=10, n_records=5, plan_slots=2), whole)
+
+
+def test_bad_plan_slots():
+    agent = agents.get("psrl_episodic")
+    for bad in (0, -1, 2.5):
+        with pytest.raises(ValueError, match="plan_slots"):
+            runner.run(agent, _episodic_grid(agent), 10, plan_slots=bad)
+
+
+SHARDED = textwrap.dedent(
+    """
+    import json
+    import jax, numpy as np
+    import agents
+    from jaxmdp.experiment import runner
+    from test_runner_planning import _episodic_grid
+
+    assert jax.local_device_count() == 2
+    agent = agents.get("psrl_episodic")
+    g = _episodic_grid(agent)
+    whole = runner.run(agent, g, 150, log_period=10, n_records=5, shards=1, plan_slots=g.n_members)
+    two = runner.run(agent, g, 150, log_period=10, n_records=5, shards=2, plan_slots=1)
+    same = np.array_equal(whole.values, two.values) and all(
+        np.array_equal(x, y) for x, y in zip(jax.tree.leaves(whole.agent_state), jax.tree.leaves(two.agent_state)))
+    print(json.dumps({"same": bool(same)}))
+    """
+)
+
+
+def test_two_shards_with_one_slot_equal_the_whole_batch():
+    env = dict(os.environ)
+    env["XLA_FLAGS"] = (env.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=2").strip()
+    env["PYTHONPATH"] = os.pathsep.join([str(TESTS.parent), str(TESTS), env.get("PYTHONPATH", "")])
+    proc = subprocess.run([sys.executable, "-c", SHARDED], env=env, capture_output=True, text=True, timeout=600,
+                          cwd=TESTS.parent)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert json.loads(proc.stdout.strip().splitlines()[-1])["same"]
