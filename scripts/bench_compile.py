@@ -67,7 +67,7 @@ def _main_job(cache: Path, out: Path) -> dict:
     wall = time.perf_counter() - t0
     line = [x for x in (proc.stdout + proc.stderr).splitlines() if x.startswith("time:")][-1]
     # "time: T s, of which compiling C s (...) and running R s (cache ...: H hits, M misses)"
-    words = line.replace(",", " ").replace("(", " ").split()
+    words = line.replace(",", " ").replace("(", " ").replace(")", " ").split()
     return {
         "total_s": float(words[1]),
         "compile_s": float(words[words.index("compiling") + 1]),
