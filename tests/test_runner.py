@@ -463,16 +463,11 @@ def test_only_changed_members_are_evaluated():
     policy = jnp.asarray(rng.dirichlet(np.ones(2), size=(3, 4)), jnp.float32)
     index = jnp.asarray([0, 1, 0])
     cache = jnp.full((3, 4), 7.0, jnp.float32)
-    bias = jnp.asarray(rng.normal(size=(3, 4)), jnp.float32)
-    out, new_bias = jax.jit(runner._evaluate_changed)(mdps, index, policy, jnp.asarray([True, False, True]), cache,
-                                                      bias)
+    out = jax.jit(runner._evaluate_changed)(mdps, index, policy, jnp.asarray([True, False, True]), cache)
     for b in (0, 2):
         want = policy_values(jax.tree.map(lambda x: x[0], mdps), policy[b])
         np.testing.assert_allclose(out[b], want, rtol=1e-6, atol=1e-7)
-        if jax.default_backend() == "cpu":  # the warm start's bias estimate is updated (centred) where evaluated
-            assert abs(float(jnp.mean(new_bias[b]))) < 1e-5 and not np.array_equal(new_bias[b], bias[b])
     np.testing.assert_array_equal(out[1], cache[1])
-    np.testing.assert_array_equal(new_bias[1], bias[1])
 
 
 @pytest.mark.parametrize("name", ["q_learning_episodic", "q_learning_continuous"])

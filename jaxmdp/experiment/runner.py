@@ -57,7 +57,6 @@ from jaxmdp.experiment.checkpoints import fingerprint, load_checkpoint, save_che
 from jaxmdp.experiment.indicators import (
     AGENT_COLUMNS,
     ITERATIVE_GAIN_SWEEPS,
-    warm_gain_values,
     IndicatorConstants,
     indicator_constants,
     instant_from_values,
@@ -112,7 +111,6 @@ class Carry(struct.PyTreeNode):
     logged: Sums  # [B, 3] cumulative regret, expected reward and normalised regret, summed at logs
     policy_cache: jax.Array  # [B, ...] the policy evaluated at the previous log (NaN or -1 before the first)
     value_cache: jax.Array  # [B, S] its values (V_0 or the gain from every state)
-    bias_cache: jax.Array  # [B, S] continuous: a bias estimate of that policy (the gain's warm start), else [B, 0]
     visits: jax.Array  # [B, S] int32 count of the states acted in (record_visits), else [B, 0]
 
 
@@ -139,10 +137,9 @@ def _keys(key_data: jax.Array, which: int, t: jax.Array) -> jax.Array:
 
 
 def _evaluate_changed(
-    dyn: MDP, mdp_index: jax.Array, policy: jax.Array, changed: jax.Array, cache: jax.Array, bias: jax.Array
-) -> tuple[jax.Array, jax.Array]:
-    """:func:`policy_values` of the members whose policy ``changed``, ``cache`` for the others; with the members'
-    bias estimates ``bias`` (``[B, S]`` continuous, ``[B, 0]`` episodic), updated for the evaluated ones.
+    dyn: MDP, mdp_index: jax.Array, policy: jax.Array, changed: jax.Array, cache: jax.Array
+) -> jax.Array:
+    """:func:`policy_values` of the members whose policy ``changed``, ``cache`` for the others.
 
     On a CPU the members are taken one at a time (``lax.map``) and an unchanged member costs nothing: under ``vmap``
     every member paid for the evaluation (a dense ``O(S^3)`` one when continuous) as soon as one member's policy
@@ -151,9 +148,11 @@ def _evaluate_changed(
     evaluates 120, 203 and 475 member policies on FrozenLake, SimpleGrid and MiniGridEmpty instead of 296, 528 and
     748; Q-learning's policies change at nearly every log, 781 of 800 on DeepSea). A continuous member's gain is first
     certified on the successor lists (:func:`~jaxmdp.experiment.indicators.policy_values`), the dense solve running
-    only when that fails, and it starts from the bias estimate that the member's previous evaluation left
-    (:func:`~jaxmdp.experiment.indicators.warm_gain_values`: exact from any start, and a policy that changed a little
-    certifies in fewer sweeps). Elsewhere (GPU) the members stay in lockstep with the dense solve.
+    only when that fails. The bounds start cold (``d_0 = r_pi``): a warm start from the bias estimate of the member's
+    previous evaluation (:func:`~jaxmdp.experiment.indicators.warm_gain_values`, exact from any start) certified
+    fewer policies, not more (``scripts/bench_agents.py --quick``, Q-learning continuous, MiniGridEmpty, 64 seeds:
+    0.98 M agent-steps/s warm, 1.64 M cold; docs/benchmarks/continuous_indicators.md). Elsewhere (GPU) the members
+    stay in lockstep with the dense solve.
     """
     dtype = cache.dtype
 
@@ -161,16 +160,14 @@ def _evaluate_changed(
         # Episodic evaluations are O(H S A K) vectorised passes, like the policy extraction that every member pays
         # anyway; member by member, the loop's per-iteration overhead dominated (H iterations per member and log).
         values = jax.vmap(lambda i, p: policy_values(_member(dyn, i), p))(mdp_index, policy)
-        return jnp.where(changed[:, None], values.astype(dtype), cache), bias
+        return jnp.where(changed[:, None], values.astype(dtype), cache)
 
     def one(args):
-        i, p, ch, old, h = args
-        evaluate = lambda: jax.tree.map(  # noqa: E731
-            lambda x: x.astype(dtype), warm_gain_values(_member(dyn, i), p, h, ITERATIVE_GAIN_SWEEPS)
-        )
-        return jax.lax.cond(ch, evaluate, lambda: (old, h))
+        i, p, ch, old = args
+        evaluate = lambda: policy_values(_member(dyn, i), p, ITERATIVE_GAIN_SWEEPS).astype(dtype)  # noqa: E731
+        return jax.lax.cond(ch, evaluate, lambda: old)
 
-    return jax.lax.map(one, (mdp_index, policy, changed, cache, bias))
+    return jax.lax.map(one, (mdp_index, policy, changed, cache))
 
 
 def _policy_of(agent: Agent) -> Callable:
@@ -223,7 +220,6 @@ def _init_program(agent: Agent, record_visits: bool = False) -> Callable:
             policy_cache=jnp.full(policy.shape, -1 if jnp.issubdtype(policy.dtype, jnp.integer) else jnp.nan,
                                   policy.dtype),
             value_cache=jnp.zeros((B, dyn.n_states), dyn.dtype),
-            bias_cache=jnp.zeros((B, 0 if dyn.episodic else dyn.n_states), dyn.dtype),
             visits=jnp.zeros((B, dyn.n_states if record_visits else 0), jnp.int32),
         )
 
@@ -307,16 +303,16 @@ def _chunk_program(
             # max over uint8, not any over bool: XLA's CPU reduction of a predicate is about 9x slower (a float
             # [B, H, S, A] policy of Taxi at 512 members: 1.0 us against 0.11 us per agent-step).
             changed = jnp.max((policy != c.policy_cache).reshape(B, -1).astype(jnp.uint8), axis=1) > 0
-            values, bias = jax.lax.cond(
+            values = jax.lax.cond(
                 jnp.any(changed),
-                lambda caches: _evaluate_changed(dyn, mdp_index, policy, changed, *caches),
-                lambda caches: caches,
-                (c.value_cache, c.bias_cache),
+                lambda cache: _evaluate_changed(dyn, mdp_index, policy, changed, cache),
+                lambda cache: cache,
+                c.value_cache,
             )
             inst = jax.vmap(lambda i, k, v, s, s0: instant_from_values(_member(dyn, i), k, v, s, s0, variant))(
                 mdp_index, consts, values, c.env_state.state, c.last_start
             )
-            c = c.replace(policy_cache=policy, value_cache=values, bias_cache=bias)
+            c = c.replace(policy_cache=policy, value_cache=values)
             k = (c.t - c.last_log).astype(dtype)
             x = jnp.stack([inst.regret, inst.expected_reward, inst.normalized_regret], axis=-1) * k
             return c.replace(last_log=c.t, logged=c.logged.add(x.astype(dtype)))
