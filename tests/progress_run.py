@@ -66,3 +66,21 @@ def run_with_progress(cmd: list[str], *, env: dict, cwd, stall_s: float = 60.0, 
         err.seek(0)
         return Finished(None if hung or over else proc.returncode, out.read().decode(errors="replace"),
                         err.read().decode(errors="replace"), hung, over)
+
+
+def run_on_host_devices(script: str, n_devices: int = 2, **kwargs) -> dict:
+    """Run ``python -c script`` with ``n_devices`` fake host devices (``XLA_FLAGS``) and the project and tests on its
+    path, watched by :func:`run_with_progress` (``kwargs``); it must succeed and print a JSON object as its last line,
+    which is returned."""
+    import json
+    import sys
+
+    tests = Path(__file__).resolve().parent
+    env = dict(os.environ)
+    flag = f"--xla_force_host_platform_device_count={n_devices}"
+    env["XLA_FLAGS"] = (env.get("XLA_FLAGS", "") + " " + flag).strip()
+    env["PYTHONPATH"] = os.pathsep.join([str(tests.parent), str(tests), env.get("PYTHONPATH", "")])
+    run = run_with_progress([sys.executable, "-c", script], env=env, cwd=tests.parent, **kwargs)
+    assert not run.hung and not run.over_limit, f"hung={run.hung} over_limit={run.over_limit}: {run.stderr[-3000:]}"
+    assert run.returncode == 0, run.stderr[-3000:]
+    return json.loads(run.stdout.strip().splitlines()[-1])

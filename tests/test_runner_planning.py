@@ -4,12 +4,7 @@ device and on two (shard_map)."""
 
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
 import textwrap
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -21,8 +16,7 @@ import jaxmdp
 from jaxmdp.experiment import runner
 from jaxmdp.experiment.agent_interface import where_due
 from jaxmdp.experiment.planning import default_plan_slots, plan_due
-
-TESTS = Path(__file__).resolve().parent
+from progress_run import run_on_host_devices
 
 
 def _toy_plan(key, state):
@@ -112,10 +106,4 @@ SHARDED = textwrap.dedent(
 
 
 def test_two_shards_with_one_slot_equal_the_whole_batch():
-    env = dict(os.environ)
-    env["XLA_FLAGS"] = (env.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=2").strip()
-    env["PYTHONPATH"] = os.pathsep.join([str(TESTS.parent), str(TESTS), env.get("PYTHONPATH", "")])
-    proc = subprocess.run([sys.executable, "-c", SHARDED], env=env, capture_output=True, text=True, timeout=600,
-                          cwd=TESTS.parent)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    assert json.loads(proc.stdout.strip().splitlines()[-1])["same"]
+    assert run_on_host_devices(SHARDED, 2)["same"]

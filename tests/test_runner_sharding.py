@@ -6,14 +6,9 @@ The device count of the CPU backend is fixed when JAX starts, so the check runs 
 
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
 import textwrap
-from pathlib import Path
 
-TESTS = Path(__file__).resolve().parent
+from progress_run import run_on_host_devices
 
 SCRIPT = textwrap.dedent(
     """
@@ -45,12 +40,6 @@ SCRIPT = textwrap.dedent(
 
 
 def test_two_shards_equal_one():
-    env = dict(os.environ)
-    env["XLA_FLAGS"] = (env.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=2").strip()
-    env["PYTHONPATH"] = os.pathsep.join([str(TESTS.parent), str(TESTS), env.get("PYTHONPATH", "")])
-    proc = subprocess.run([sys.executable, "-c", SCRIPT], env=env, capture_output=True, text=True, timeout=600,
-                          cwd=TESTS.parent)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    out = run_on_host_devices(SCRIPT, 2)
     assert out["q_values_equal"], out
     assert out["plans"] == [1 + 399 // 5, 1 + 399 // 5, 1 + 399 // 7, 1 + 399 // 7]
