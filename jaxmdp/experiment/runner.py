@@ -346,14 +346,14 @@ def _chunk_program(
         return jax.lax.while_loop(lambda loop: loop[0].t < t_end, segment, init)
 
     if n_shards == 1:
-        return jax.jit(chunk)
+        return jax.jit(chunk, donate_argnums=0)
     P = jax.sharding.PartitionSpec
     mesh = jax.sharding.Mesh(np.asarray(jax.local_devices()[:n_shards]), ("members",))
     # Per-member leaves carry the member axis first; the scalars (step counters) are the same on every shard.
     carry_specs = jax.tree.unflatten(carry_treedef[0], [P() if nd == 0 else P("members") for nd in carry_treedef[1]])
     in_specs = (carry_specs, P(), P("members"), P("members"), P(), P())
     out_specs = (carry_specs, P(), P(None, "members"), P())
-    return jax.jit(jax.shard_map(chunk, mesh=mesh, in_specs=in_specs, out_specs=out_specs, check_vma=False))
+    return jax.jit(jax.shard_map(chunk, mesh=mesh, in_specs=in_specs, out_specs=out_specs, check_vma=False), donate_argnums=0)
 
 
 def diagnostic_names(agent: Agent, agent_states: Any) -> tuple[str, ...]:
