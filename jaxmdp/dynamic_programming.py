@@ -38,8 +38,6 @@ from jaxmdp.mdp import MDP
 
 Model = MDP | jax.Array
 
-# chain_gain's elimination runs in at most this many stages, each on a smaller leading block (see there).
-_GTH_STAGES = 8
 # Up to this many actions greedy() unrolls its passes over the action axis (see there).
 _UNROLLED_GREEDY_MAX_ACTIONS = 16
 
@@ -512,24 +510,17 @@ def chain_gain(P: jax.Array, r: jax.Array, reach: jax.Array | None = None) -> ja
     rp, rec, Kp = r[perm], recurrent[perm], same_class[perm][:, perm].astype(dtype)
     pos = jnp.arange(S)
 
-    def eliminate(k, carry):
-        # Step k changes only the leading k x k block and column k above it: ``carry`` holds a leading block of M.
-        B, scale = carry
-        lower = jnp.arange(B.shape[0]) < k
-        row = jnp.where(lower, B[k], 0.0)
+    def eliminate(i, carry):
+        M, scale = carry
+        k = S - 1 - i
+        lower = pos < k
+        row = jnp.where(lower, M[k], 0.0)
         s = jnp.sum(row)
-        col = jnp.where(lower & (s > 0), B[:, k] / jnp.where(s > 0, s, 1.0), 0.0)
-        B = B.at[:, k].set(jnp.where(lower, col, B[:, k])) + jnp.outer(col, row)
-        return B, scale.at[k].set(s)
+        col = jnp.where(lower & (s > 0), M[:, k] / jnp.where(s > 0, s, 1.0), 0.0)
+        M = M.at[:, k].set(jnp.where(lower, col, M[:, k])) + jnp.outer(col, row)
+        return M, scale.at[k].set(s)
 
-    # Positions k = S-1 .. 1 in stages, each on the leading block that its steps touch (sizes shrinking with k): a
-    # third of the memory traffic of full-matrix steps at 8 stages.
-    scale = jnp.zeros((S,), dtype)
-    n_stages = min(_GTH_STAGES, max(1, S // 64))
-    ends = [S - (j * (S - 1)) // n_stages for j in range(n_stages + 1)]
-    for hi, lo in zip(ends[:-1], ends[1:]):
-        B, scale = jax.lax.fori_loop(0, hi - lo, lambda i, c, hi=hi: eliminate(hi - 1 - i, c), (M[:hi, :hi], scale))
-        M = M.at[:hi, :hi].set(B)
+    M, scale = jax.lax.fori_loop(0, S - 1, eliminate, (M, jnp.zeros((S,), dtype)))
     root = rec & (scale == 0)
 
     def stationary(k, pi):
