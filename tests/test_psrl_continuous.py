@@ -385,7 +385,8 @@ def test_candidates_skipping_unused_draws_are_the_same_bits(monkeypatch, variant
     rng = np.random.default_rng(11)
     hp = PSRLContinuousHParams(max_psi=4)
     S, A = 30, 3
-    counts = [np.zeros((S, A, S)), rng.poisson(1, (S, A, S)) * (rng.random((S, A, 1)) < 0.2), rng.poisson(50, (S, A, S))]
+    some = rng.poisson(1, (S, A, S)) * (rng.random((S, A, 1)) < 0.2)
+    counts = [np.zeros((S, A, S)), some, rng.poisson(50, (S, A, S))]
     states = [_state_with_counts(c, hp) for c in counts]
     assert [int(jnp.sum(s.schedule.visits >= s.constants.eta)) for s in states][::2] == [0, S * A]
     batch = jax.tree.map(lambda *x: jnp.stack(x), *states)
@@ -393,7 +394,8 @@ def test_candidates_skipping_unused_draws_are_the_same_bits(monkeypatch, variant
     draw = lambda k, s: candidate_kernels(k, s, variant=variant)  # noqa: E731
 
     def run():
-        return [np.asarray(jax.jit(draw)(k, s)) for k, s in zip(keys, states)], np.asarray(jax.jit(jax.vmap(draw))(keys, batch))
+        alone = [np.asarray(jax.jit(draw)(k, s)) for k, s in zip(keys, states)]
+        return alone, np.asarray(jax.jit(jax.vmap(draw))(keys, batch))
 
     alone, batched = run()
     monkeypatch.setattr(pc, "only_if", lambda pred, compute, default, *ops: compute(*ops))
