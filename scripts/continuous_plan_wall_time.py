@@ -21,9 +21,13 @@ first visits), later epochs are rare. So the run time of a batch (one agent on o
 
 Extrapolated run seconds of a batch: ``c_step * members * T + plans / shards * c_round / slots`` (every round full)
 and, as an upper bound, ``... + plans / shards * c_round`` (every round plans one member). Buckets of a set not
-measured use the rates of the same agent's measured buckets, interpolated linearly in the largest state count.
+measured use the rates of the same agent's measured buckets, interpolated linearly in the largest state count (each
+of ``c_step`` and ``c_round`` apart, so that two calls with the same ``--out`` can measure the plans of every bucket
+and the steps of a few; a bucket's value already in ``measured.json`` is not measured again). ``c_step`` counts as 0
+while no bucket of the agent has one.
 
-    python scripts/continuous_plan_wall_time.py --out results/continuous_plans --sets "continuous ergodic"
+    python scripts/continuous_plan_wall_time.py --out results/continuous_plans --skip-steps
+    python scripts/continuous_plan_wall_time.py --out results/continuous_plans --skip-plans --buckets b0 b3
 """
 
 from __future__ import annotations
@@ -71,7 +75,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--play", type=int, default=5000, help="random steps before the timed plan (%(default)s)")
     p.add_argument("--more", type=int, default=200, help="random steps between the cold and the timed plan")
     p.add_argument("--repeats", type=int, default=3)
-    p.add_argument("--skip-steps", action="store_true", help="time the plans only (c_step taken as 0)")
+    p.add_argument("--skip-steps", action="store_true", help="do not run the no-planning batches (measure plans)")
+    p.add_argument("--skip-plans", action="store_true", help="do not time planning rounds (measure steps)")
     p.add_argument("--out", type=Path, required=True)
     return p
 
@@ -153,26 +158,27 @@ def main(argv: list[str] | None = None) -> dict:
                    max_states=max(S for S, _ in real.values()),
                    plans=sum(plans_bound(*real[m]) for m, _ in b.members))
         if b.set_name in args.sets and (args.buckets is None or bucket in args.buckets):
-            if b.id not in measured:
+            m = measured.setdefault(b.id, {})
+            if "c_round" not in m and not args.skip_plans:
                 slots = default_plan_slots(len(b.members) // shards)
-                m = round_cost(b.set_name, b.agent, labels, slots, args.play, args.more, args.repeats)
-                if not args.skip_steps:
-                    m.update(step_cost(b.set_name, b.agent, labels, args.steps, args.out / b.id))
-                measured[b.id] = m
-                state_path.write_text(json.dumps(measured, indent=1) + "\n")
-                print(b.id, json.dumps(m), file=sys.stderr, flush=True)
-            row.update(measured[b.id], measured_here=True)
+                m.update(round_cost(b.set_name, b.agent, labels, slots, args.play, args.more, args.repeats))
+            if "c_step" not in m and not args.skip_steps:
+                m.update(step_cost(b.set_name, b.agent, labels, args.steps, args.out / b.id))
+            state_path.write_text(json.dumps(measured, indent=1) + "\n")
+            print(b.id, json.dumps(m), file=sys.stderr, flush=True)
+        row.update(measured.get(b.id, {}), slots=default_plan_slots(len(b.members) // shards))
         rows.append(row)
-    for row in rows:  # unmeasured buckets: the same agent's measured rates, interpolated in the largest state count
-        if row.get("measured_here"):
-            continue
-        same = sorted((r for r in rows if r.get("measured_here") and r["agent"] == row["agent"]),
-                      key=lambda r: r["max_states"])
-        if same:
-            xs = [r["max_states"] for r in same]
-            row["c_round"] = float(np.interp(row["max_states"], xs, [r["c_round"] for r in same]))
-            row["slots"] = default_plan_slots(row["members"] // shards)
-            row["c_step"] = float(np.interp(row["max_states"], xs, [r.get("c_step", 0.0) for r in same]))
+    # Buckets not measured: the same agent's rates interpolated in the states (a round's cost per slot, c_round / slots,
+    # since buckets differ in their slots).
+    per_slot = lambda r: r["c_round"] / r["slots"]  # noqa: E731
+    for key, rate in (("c_round", per_slot), ("c_step", lambda r: r["c_step"])):
+        for row in rows:
+            same = sorted((r for r in rows if key in r and not r.get(f"{key}_interpolated")
+                           and r["agent"] == row["agent"]), key=lambda r: r["max_states"])
+            if key not in row and same:
+                value = float(np.interp(row["max_states"], [r["max_states"] for r in same], [rate(r) for r in same]))
+                row[key] = value * row["slots"] if key == "c_round" else value
+                row[f"{key}_interpolated"] = True
     for row in rows:
         if "c_round" not in row:
             continue
