@@ -66,6 +66,8 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+from collections.abc import Callable
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -97,6 +99,7 @@ __all__ = [
     "psi",
     "candidate_kernels",
     "extended_mdp",
+    "only_if",
     "colosseum_extended_rewards",
     "PSRL_CONTINUOUS",
     "PSRL_CONTINUOUS_COLOSSEUM",
@@ -306,16 +309,56 @@ def candidate_kernels(key: jax.Array, state: PSRLContinuousState, *, variant: Va
     use_posterior = (N >= c.eta)[..., None]
     log_mask = jnp.where(mask, 0.0, -jnp.inf)
 
+    # Each kind of candidate row is drawn only if some pair uses it (the other kind's values are discarded by the
+    # ``where`` below): for large MDPs ``eta = 10 S`` and no pair reaches it for most of a run, so the dense Dirichlet
+    # draw of every ``[S, A, S]`` entry was nearly all of a plan's time and none of its result (docs/benchmarks/
+    # continuous_planning.md). The values used are the same bits as when both are drawn.
+    any_posterior, any_optimistic = jnp.any(use_posterior), ~jnp.all(use_posterior)
+
     def draw(k):
         k_dir, k_z = jax.random.split(jax.random.fold_in(key, k))
-        posterior = dirichlet_sample(k_dir, alpha, offset=COLOSSEUM_DIRICHLET_OFFSET if colosseum else 0.0)
-        z = jax.random.categorical(k_z, log_mask, shape=() if colosseum else (S, A))
+        offset = COLOSSEUM_DIRICHLET_OFFSET if colosseum else 0.0
+        posterior = only_if(
+            any_posterior,
+            lambda k, a: dirichlet_sample(k, a, offset=offset),
+            jnp.zeros(alpha.shape, dtype),
+            k_dir,
+            alpha,
+        )
+        z_shape = () if colosseum else (S, A)
+        z = only_if(
+            any_optimistic,
+            lambda k, logits: jax.random.categorical(k, logits, shape=z_shape),
+            jnp.zeros(z_shape, jnp.int32),
+            k_z,
+            log_mask,
+        )
         optimistic = p_minus + missing * jax.nn.one_hot(z, S, dtype=dtype)
         return jnp.where(use_posterior, posterior, optimistic)
 
-    # A loop over the psi candidates actually used, so that sampling costs psi (the largest in a batch), not max_psi.
-    P = jax.lax.fori_loop(0, c.psi, lambda k, P: P.at[k].set(draw(k)), jnp.zeros((hp.max_psi, S, A, S), dtype))
+    # Candidates k < psi only, so that sampling costs psi (the largest in a batch), not max_psi. A static loop over
+    # the slots, each skipped past psi: a loop to the batched psi under vmap selected (copied) the whole
+    # [max_psi, S, A, S] buffer at every candidate.
+    P = jax.lax.map(lambda k: only_if(k < c.psi, draw, jnp.zeros((S, A, S), dtype), k), jnp.arange(hp.max_psi))
     return jnp.where((jnp.arange(hp.max_psi) < c.psi)[:, None, None, None], P, P[:1])
+
+
+def only_if(pred: jax.Array, compute: Callable[..., Any], default: Any, *operands: Any) -> Any:
+    """``compute(*operands)`` if ``pred`` else ``default`` (same structure), skipping the work when ``pred`` is False.
+
+    A ``while_loop`` that runs its body at most once rather than a ``lax.cond``: under ``vmap`` a ``cond`` with a
+    batched predicate becomes a ``select`` that computes both branches for every member, whereas a batched
+    ``while_loop`` runs its body only if some member's predicate holds (then for every member, each keeping its own
+    result or its ``default``). Alone (one member) it is an ordinary skip. The operands travel in the loop's carry
+    through an optimisation barrier: a body computed from loop invariants alone is hoisted out of the loop by XLA
+    (and then always runs)."""
+
+    def body(carry):
+        _, ops, _ = carry
+        ops = jax.lax.optimization_barrier(ops)
+        return jnp.zeros((), bool), ops, compute(*ops)
+
+    return jax.lax.while_loop(lambda carry: carry[0], body, (jnp.asarray(pred, bool), operands, default))[2]
 
 
 def extended_mdp(R: jax.Array, P: jax.Array, action_mask: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:

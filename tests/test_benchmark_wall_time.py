@@ -1,5 +1,7 @@
 """The wall-time extrapolation of scripts/benchmark_wall_time.py, on hand-worked numbers."""
 
+import math
+
 import pytest
 from script_loader import load_script
 
@@ -18,3 +20,11 @@ def test_extrapolation_interpolates_the_rate_in_states_and_scales_by_members_and
     assert rows[0]["run_s"] == pytest.approx(2e-6 * 40 * n) and rows[0]["compile_s"] == 20.0
     assert rows[1]["run_s"] == pytest.approx(3e-6 * 20 * n) and rows[1]["compile_s"] == 20.0
     assert rows[2]["run_s"] is None and rows[2]["compile_s"] is None
+
+
+def test_continuous_plan_count_bound_by_hand():
+    """``1 + min(T, V log2(2 T / V))``, ``V = min(S A, T)``: 648 pairs over 500 000 steps; few steps."""
+    cp = load_script("continuous_plan_wall_time")
+    assert cp.plans_bound(108, 6) == pytest.approx(1 + 648 * math.log2(1e6 / 648))  # 6 864.4
+    assert cp.plans_bound(2, 2, T=3) == pytest.approx(1 + 3 * math.log2(2.0))  # V = 3 pairs visited at most: 4
+    assert cp.plans_bound(1, 2, T=4) == pytest.approx(1 + 2 * math.log2(4.0))  # 5 <= 1 + T

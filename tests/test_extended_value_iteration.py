@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from scipy.optimize import linprog
 
+import agents.extended_value_iteration as evi
 from agents.extended_value_iteration import (
     confidence_box,
     extended_value_iteration,
@@ -180,3 +181,59 @@ def test_padded_states_and_actions_are_ignored():
                                  jnp.arange(S + 1) < S, jnp.arange(A + 1) < A, **kw)
     np.testing.assert_allclose([b.gain_lower, b.gain_upper], [a.gain_lower, a.gain_upper], atol=1e-6)
     np.testing.assert_allclose(b.Q[:S, :A] - b.u[:S, None], a.Q - a.u[:, None], atol=1e-5)
+
+
+# --- the sorted inner maximisation (S >= SORTED_FROM) against the dense product and an LP -------------------------
+
+
+def _random_boxes(rng, S, A, n_padded=0):
+    mask = np.arange(S) < S - n_padded
+    p_hat = rng.dirichlet(np.full(S, 0.2), size=(S, A)) * mask
+    p_hat /= p_hat.sum(-1, keepdims=True)
+    width = rng.uniform(0.0, 0.05, size=(S, A, S)) * (rng.random((S, A, S)) < 0.7)
+    lo, hi = confidence_box(jnp.asarray(p_hat, jnp.float32), jnp.asarray(width, jnp.float32), jnp.asarray(mask))
+    return lo, hi, mask
+
+
+def test_exclusive_running_sum_is_a_shifted_cumsum(rng=np.random.default_rng(7)):
+    for S in (1, 31, 32, 33, 250):
+        x = rng.uniform(size=(S, 5)).astype(np.float32)
+        want = np.concatenate([np.zeros((1, 5)), np.cumsum(x.astype(np.float64), axis=0)[:-1]])
+        np.testing.assert_allclose(evi._exclusive_running_sum(jnp.asarray(x)), want, rtol=1e-6, atol=1e-6)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_sorted_inner_maximisation_matches_dense_and_linprog(seed):
+    rng = np.random.default_rng(seed)
+    S, A = evi.SORTED_FROM + 13 * seed, 2
+    lo, hi, mask = _random_boxes(rng, S, A, n_padded=seed)
+    u = rng.normal(size=S).astype(np.float32)
+    u[3] = u[7] = u[11]  # ties: lower index first
+    u = jnp.asarray(u)
+    sorted_extra = np.asarray(evi._extra_mass(lo, hi, u))
+    np.testing.assert_allclose(sorted_extra, evi._dense_extra_mass(lo, hi, u), atol=2e-7)
+    value = np.asarray(optimistic_expectation(lo, hi, u))
+    lo64, hi64, u64 = (np.asarray(x, np.float64) for x in (lo, hi, u))
+    for s, a in [(0, 0), (S // 2, 1), (S - 1 - seed, 0)]:
+        res = linprog(-u64, A_eq=np.ones((1, S)), b_eq=[1.0], bounds=list(zip(lo64[s, a], hi64[s, a])), method="highs")
+        assert res.status == 0
+        np.testing.assert_allclose(value[s, a], -res.fun, atol=2e-6)
+
+
+def test_sorted_evi_plans_as_the_dense_one(monkeypatch, rng=np.random.default_rng(8)):
+    """Same gain bounds, iterations and greedy policy within rounding (the sorted sweep differs in the last bits)."""
+    S, A = evi.SORTED_FROM + 5, 3
+    lo, hi, mask = _random_boxes(rng, S, A, n_padded=2)
+    p_hat = np.asarray((lo + hi) / 2)  # any kernel inside the box; widths from the box
+    width = np.asarray((hi - lo) / 2)
+    r = jnp.asarray(rng.uniform(size=(S, A)), jnp.float32)
+    args = (jnp.asarray(p_hat), jnp.asarray(width), r, jnp.asarray(mask), jnp.ones(A, bool))
+    fast = extended_value_iteration(*args, tol=1e-4)
+    monkeypatch.setattr(evi, "SORTED_FROM", 10**9)
+    dense = extended_value_iteration(*args, tol=1e-4)
+    assert bool(fast.converged) and bool(dense.converged)
+    assert int(fast.iterations) == int(dense.iterations)
+    np.testing.assert_allclose(fast.gain_lower, dense.gain_lower, atol=1e-5)
+    np.testing.assert_allclose(fast.gain_upper, dense.gain_upper, atol=1e-5)
+    np.testing.assert_allclose(fast.Q, dense.Q, atol=1e-4)
+    np.testing.assert_array_equal(np.argmax(fast.Q, -1)[mask], np.argmax(dense.Q, -1)[mask])

@@ -358,3 +358,49 @@ def test_check_hparams():
             check_hparams(AGENT.default_hparams.replace(**{name: bad}))
     with pytest.raises(ValueError, match="max_psi"):
         check_hparams(AGENT.default_hparams.replace(max_psi=0))
+
+
+def test_only_if_skips_under_vmap_and_keeps_each_members_result():
+    from agents.psrl_continuous import only_if
+
+    calls = []
+
+    def work(x):
+        calls.append(1)  # traced once per compilation; the value checks below are what matter
+        return x * 2.0 + 1.0
+
+    f = jax.jit(jax.vmap(lambda p, x: only_if(p, work, jnp.zeros_like(x), x)))
+    x = jnp.arange(6.0).reshape(3, 2)
+    np.testing.assert_array_equal(f(jnp.array([True, False, True]), x), [[1.0, 3.0], [0.0, 0.0], [9.0, 11.0]])
+    np.testing.assert_array_equal(f(jnp.array([False, False, False]), x), np.zeros((3, 2)))
+    np.testing.assert_array_equal(jax.jit(lambda x: only_if(True, work, x, x))(x), 2 * x + 1)
+
+
+@pytest.mark.parametrize("variant", ["paper", "colosseum"])
+def test_candidates_skipping_unused_draws_are_the_same_bits(monkeypatch, variant):
+    """Members with no pair at ``eta`` (no posterior row), some, and all pairs (no optimistic row), alone and
+    batched: the kernels equal those of drawing both kinds for every candidate slot."""
+    import agents.psrl_continuous as pc
+
+    rng = np.random.default_rng(11)
+    hp = PSRLContinuousHParams(max_psi=4)
+    S, A = 30, 3
+    some = rng.poisson(1, (S, A, S)) * (rng.random((S, A, 1)) < 0.2)
+    counts = [np.zeros((S, A, S)), some, rng.poisson(50, (S, A, S))]
+    states = [_state_with_counts(c, hp) for c in counts]
+    assert [int(jnp.sum(s.schedule.visits >= s.constants.eta)) for s in states][::2] == [0, S * A]
+    batch = jax.tree.map(lambda *x: jnp.stack(x), *states)
+    keys = jax.random.split(jax.random.key(4), 3)
+    draw = lambda k, s: candidate_kernels(k, s, variant=variant)  # noqa: E731
+
+    def run():
+        alone = [np.asarray(jax.jit(draw)(k, s)) for k, s in zip(keys, states)]
+        return alone, np.asarray(jax.jit(jax.vmap(draw))(keys, batch))
+
+    alone, batched = run()
+    monkeypatch.setattr(pc, "only_if", lambda pred, compute, default, *ops: compute(*ops))
+    alone_all, batched_all = run()
+    for a, b in zip(alone, alone_all):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(batched, batched_all)
+    np.testing.assert_array_equal(batched, np.stack(alone))

@@ -1,0 +1,204 @@
+"""Wall time of the continuous settings' epoch agents (PSRL continuous, UCRL2) at 500 000 steps: steps and plans
+measured apart and extrapolated (paper §3.3; issue "Performance"; docs/benchmarks/continuous_planning.md).
+
+A few hundred steps of these agents are no sample of a long run: early on nearly every step ends an epoch (a pair's
+first visits), later epochs are rare. So the run time of a batch (one agent on one size bucket of the full plan,
+:func:`hardness.benchmark.run.plan`) is split into
+
+* **steps**: ``--steps`` steps of the bucket's real batch (all its members and seeds, indicators every 100 steps) with
+  planning switched off (the agent's ``needs_plan`` always False), through ``run_benchmark``: ``c_step`` = run seconds
+  per member-step (both shards, as the benchmark runs them);
+* **plans**: one round of the runner's compacted planning, ``slots = default_plan_slots(members per shard)`` members
+  planned under ``vmap`` (:mod:`jaxmdp.experiment.planning`), on the bucket's largest MDP padded to the bucket's
+  shapes, after ``--play`` uniformly random steps, a cold plan and ``--more`` further steps (so the timed plan is
+  warm-started from the previous epoch's values, as in a run): ``c_round`` seconds, best of ``--repeats``;
+* **plan count**: per member at most ``1 + S A log2(2 T / (S A))`` plans over ``T`` steps (``S``, ``A`` the member's
+  real states and actions). Why: both agents re-plan when the pair just played has as many visits in the epoch as
+  before it (:mod:`agents.epochs`); a pair that ends ``j`` epochs has at least doubled its count each time from 1,
+  so ``j <= 1 + log2 N(s, a)``, and ``sum_(s,a) (1 + log2 N(s, a)) <= S A (1 + log2(T / (S A)))`` by concavity
+  (``sum N = T``); the ``1`` is the initial plan. (Jaksch et al. 2010, Prop. 18, bound the same count by the looser
+  ``S A log2(8 T / (S A))``.) An upper bound: unreachable pairs and uneven visits give fewer plans.
+
+Extrapolated run seconds of a batch: ``c_step * members * T + plans / shards * c_round / slots`` (every round full)
+and, as an upper bound, ``... + plans / shards * c_round`` (every round plans one member). Buckets of a set not
+measured use the rates of the same agent's measured buckets, interpolated linearly in the largest state count (each
+of ``c_step`` and ``c_round`` apart, so that two calls with the same ``--out`` can measure the plans of every bucket
+and the steps of a few; a bucket's value already in ``measured.json`` is not measured again). ``c_step`` counts as 0
+while no bucket of the agent has one.
+
+    python scripts/continuous_plan_wall_time.py --out results/continuous_plans --skip-steps
+    python scripts/continuous_plan_wall_time.py --out results/continuous_plans --skip-plans --buckets b0 b3
+"""
+
+from __future__ import annotations
+
+import os
+
+if __name__ == "__main__" and "xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
+    os.environ["XLA_FLAGS"] = (
+        os.environ.get("XLA_FLAGS", "") + f" --xla_force_host_platform_device_count={os.cpu_count() or 1}"
+    ).strip()
+
+import argparse  # noqa: E402
+import csv  # noqa: E402
+import dataclasses  # noqa: E402
+import json  # noqa: E402
+import math  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+
+import agents as agent_registry  # noqa: E402
+import jaxmdp  # noqa: E402
+from hardness.benchmark import hparams as benchmark_hparams  # noqa: E402
+from hardness.benchmark import run, sets  # noqa: E402
+from jaxmdp.experiment.planning import default_plan_slots  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from profile_continuous_plans import played  # noqa: E402
+
+T_FULL = 500_000
+SEEDS = 20
+AGENTS = ("psrl_continuous", "ucrl2")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--sets", nargs="+", default=["continuous ergodic"], help="continuous sets to measure")
+    p.add_argument("--agents", nargs="+", default=list(AGENTS))
+    p.add_argument("--buckets", nargs="+", default=None, help="bucket ids to measure, e.g. b0 b3 (default: all)")
+    p.add_argument("--steps", type=int, default=300, help="steps of the no-planning batch (%(default)s)")
+    p.add_argument("--play", type=int, default=5000, help="random steps before the timed plan (%(default)s)")
+    p.add_argument("--more", type=int, default=200, help="random steps between the cold and the timed plan")
+    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--skip-steps", action="store_true", help="do not run the no-planning batches (measure plans)")
+    p.add_argument("--skip-plans", action="store_true", help="do not time planning rounds (measure steps)")
+    p.add_argument("--out", type=Path, required=True)
+    return p
+
+
+def plans_bound(S: int, A: int, T: int = T_FULL) -> float:
+    """``1 + min(T, V log2(2 T / V))`` with ``V = min(S A, T)`` pairs that can be visited (module docstring; the
+    minimum with ``T``: at most one re-plan per step)."""
+    V = min(S * A, T)
+    return float(1 + min(T, V * math.log2(2.0 * T / V)))
+
+
+def _no_planning(agent):
+    return dataclasses.replace(agent, needs_plan=lambda state: jnp.zeros((), bool))
+
+
+def step_cost(set_name: str, agent: str, labels: list[str], steps: int, out: Path) -> dict:
+    """Run seconds per member-step of the bucket's batch with planning switched off."""
+    config = run.RunConfig(sets=(set_name,), agents=(agent,), seeds=tuple(range(SEEDS)), n_steps=steps,
+                           log_period=100, hparams="reference", n_buckets=1, only=tuple(labels))
+    saved = agent_registry.AGENTS[agent]
+    agent_registry.AGENTS[agent] = _no_planning(saved)
+    try:
+        run.run_benchmark(config, out, progress=False, report=False)
+    finally:
+        agent_registry.AGENTS[agent] = saved
+    with open(out / "batches.csv") as f:
+        (row,) = list(csv.DictReader(f))
+    members, run_s = int(row["members"]), float(row["run_s"])
+    return dict(step_members=members, step_run_s=run_s, step_compile_s=float(row["compile_s"]),
+                c_step=run_s / (members * steps))
+
+
+def round_cost(set_name: str, agent_name: str, labels: list[str], slots: int, play: int, more: int,
+               repeats: int) -> dict:
+    """Seconds of one planning round of ``slots`` members on the bucket's largest MDP, padded to the bucket."""
+    insts = {i.label: i for i in sets.instances(set_name)}
+    mdps = [insts[label].build(0) for label in labels]
+    agent = agent_registry.get(agent_name)
+    hp = benchmark_hparams.fit_static_sizes(agent_name, [agent.default_hparams], mdps)[0]
+    largest = max(range(len(mdps)), key=lambda i: int(np.sum(np.asarray(mdps[i].state_mask))))
+    mdp = jax.tree.map(lambda x: x[largest], jaxmdp.stack(mdps))
+    state = jax.jit(lambda k: played(agent, mdp, hp, play, k))(jax.random.key(0))
+    keys = jax.random.split(jax.random.key(1), slots)
+    plan = jax.jit(jax.vmap(agent.plan))
+    one = lambda x: jax.tree.map(lambda y: y[None], x)  # noqa: E731
+    first = jax.tree.map(lambda y: y[0], plan(keys[:1], one(state)))  # the cold plan
+    # The next epoch's plan: warm-started from the first one's values after --more further steps.
+    state = jax.jit(lambda k, st: played(agent, mdp, hp, more, k, st))(jax.random.key(2), first)
+    again = jax.tree.map(lambda y: jnp.broadcast_to(y[None], (slots,) + y.shape), state)
+    jax.block_until_ready(plan(keys, again))
+    best = math.inf
+    for _ in range(repeats):
+        t = time.perf_counter()
+        jax.block_until_ready(plan(keys, again))
+        best = min(best, time.perf_counter() - t)
+    return dict(plan_mdp=labels[largest], slots=slots, c_round=best)
+
+
+def main(argv: list[str] | None = None) -> dict:
+    args = build_parser().parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    full = run.RunConfig(sets=tuple(s for s in sets.SETTINGS if not sets.is_episodic(s)), hparams="reference",
+                         seeds=tuple(range(SEEDS)), n_steps=T_FULL, log_period=100, n_buckets=4)
+    _, batches = run.plan(full)
+    shards = max(d for d in range(1, jax.local_device_count() + 1) if all(len(b.members) % d == 0 for b in batches))
+    state_path = args.out / "measured.json"
+    measured = json.loads(state_path.read_text()) if state_path.exists() else {}
+    rows = []
+    for b in batches:
+        if b.agent not in args.agents:
+            continue
+        insts = {i.label: i for i in sets.instances(b.set_name)}
+        labels = sorted({m for m, _ in b.members})
+        shapes = {lab: insts[lab].build(0) for lab in labels}
+        real = {lab: (int(np.sum(np.asarray(m.state_mask))), int(np.sum(np.asarray(m.action_mask))))
+                for lab, m in shapes.items()}
+        bucket = b.id.split(".")[-1]
+        row = dict(batch=b.id, set=b.set_name, agent=b.agent, bucket=bucket, members=len(b.members), shards=shards,
+                   max_states=max(S for S, _ in real.values()),
+                   plans=sum(plans_bound(*real[m]) for m, _ in b.members))
+        if b.set_name in args.sets and (args.buckets is None or bucket in args.buckets):
+            m = measured.setdefault(b.id, {})
+            if "c_round" not in m and not args.skip_plans:
+                slots = default_plan_slots(len(b.members) // shards)
+                m.update(round_cost(b.set_name, b.agent, labels, slots, args.play, args.more, args.repeats))
+            if "c_step" not in m and not args.skip_steps:
+                m.update(step_cost(b.set_name, b.agent, labels, args.steps, args.out / b.id))
+            state_path.write_text(json.dumps(measured, indent=1) + "\n")
+            print(b.id, json.dumps(m), file=sys.stderr, flush=True)
+        row.update(measured.get(b.id, {}), slots=default_plan_slots(len(b.members) // shards))
+        rows.append(row)
+    # Buckets not measured: the same agent's rates interpolated in the states (a round's cost per slot, c_round / slots,
+    # since buckets differ in their slots).
+    per_slot = lambda r: r["c_round"] / r["slots"]  # noqa: E731
+    for key, rate in (("c_round", per_slot), ("c_step", lambda r: r["c_step"])):
+        for row in rows:
+            same = sorted((r for r in rows if key in r and not r.get(f"{key}_interpolated")
+                           and r["agent"] == row["agent"]), key=lambda r: r["max_states"])
+            if key not in row and same:
+                value = float(np.interp(row["max_states"], [r["max_states"] for r in same], [rate(r) for r in same]))
+                row[key] = value * row["slots"] if key == "c_round" else value
+                row[f"{key}_interpolated"] = True
+    for row in rows:
+        if "c_round" not in row:
+            continue
+        steps_s = row.get("c_step", 0.0) * row["members"] * T_FULL
+        per_shard = row["plans"] / row["shards"]
+        row.update(steps_s=steps_s, plans_s_packed=per_shard * row["c_round"] / row["slots"],
+                   plans_s_one_per_round=per_shard * row["c_round"])
+        row.update(run_s_low=steps_s + row["plans_s_packed"], run_s_high=steps_s + row["plans_s_one_per_round"])
+        print(f"{row['batch']}: {row['members']} members, S <= {row['max_states']}, plans <= {row['plans']:.3g}, "
+              f"round of {row['slots']} {row['c_round'] * 1e3:.1f} ms, step {row.get('c_step', 0.0):.2e} s: "
+              f"{row['run_s_low'] / 3600:.1f} - {row['run_s_high'] / 3600:.1f} h", file=sys.stderr)
+    done = [r for r in rows if "run_s_low" in r]
+    result = dict(T=T_FULL, seeds=SEEDS, rows=rows, run_s_low=sum(r["run_s_low"] for r in done),
+                  run_s_high=sum(r["run_s_high"] for r in done))
+    (args.out / "continuous_plan_wall_time.json").write_text(json.dumps(result, indent=1) + "\n")
+    print(f"continuous epoch agents, {len(done)} of {len(rows)} batches: {result['run_s_low'] / 3600:.1f} - "
+          f"{result['run_s_high'] / 3600:.1f} h", file=sys.stderr)
+    return result
+
+
+if __name__ == "__main__":
+    main()
+    sys.exit(0)
