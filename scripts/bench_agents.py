@@ -24,8 +24,9 @@ without, the four runs interleaved ``--repeats`` times after a compiling run, be
 and the wall ns per agent-step of environment, agent and indicators (``results/bench_agents_ratio.md``, ``.csv``).
 
 Usage: ``python scripts/bench_agents.py [--quick] [--steps N] [--seeds 1,64,1024] [--deep-seeds 1,16,64]
-[--agents a,b] [--repeats R] [--ratio]``, e.g. the issue's check:
-``python scripts/bench_agents.py --quick --ratio --seeds 1024 --repeats 3 --agents q_learning_episodic,q_learning_continuous``.
+[--agents a,b] [--repeats R] [--ratio]``; the issue's 1.5x check:
+
+    python scripts/bench_agents.py --quick --ratio --seeds 1024 --repeats 3 --agents q_learning_episodic,q_learning_continuous
 """
 
 from __future__ import annotations
