@@ -303,8 +303,11 @@ def _chunk_program(
             # altogether when no member's policy changed.
             policy = jax.vmap(_policy_of(agent))(c.agent_state)
             # max over uint8, not any over bool: XLA's CPU reduction of a predicate is about 9x slower (a float
-            # [B, H, S, A] policy of Taxi at 512 members: 1.0 us against 0.11 us per agent-step).
-            changed = jnp.max((policy != c.policy_cache).reshape(B, -1).astype(jnp.uint8), axis=1) > 0
+            # [B, H, S, A] policy of Taxi at 512 members: 1.0 us against 0.11 us per agent-step). Reduced over the
+            # trailing axes as they are: flattened first (reshape(B, -1)), the comparison fused with the greedy
+            # extraction ran 14 times slower (episodic Q-learning, MiniGridEmpty, 512 members: 15.4 ms a log
+            # against 1.1 ms, CPU time).
+            changed = jnp.max((policy != c.policy_cache).astype(jnp.uint8), axis=tuple(range(1, policy.ndim))) > 0
             values = jax.lax.cond(
                 jnp.any(changed),
                 lambda cache: _evaluate_changed(dyn, mdp_index, policy, changed, cache),
