@@ -297,8 +297,8 @@ def _chunk_program(
                 reward=c.reward.add(reward.astype(dtype)),
             )
 
-        def log(c: Carry) -> Carry:
-            # Policy evaluation is the expensive half of an indicator; a member whose policy is unchanged since the
+        def log(c: Carry) -> tuple:
+            # The fields a log writes (logged_fields' order). Policy evaluation is the expensive half of an indicator; a member whose policy is unchanged since the
             # previous log reuses its values (exactly: they cover every state), and the evaluation is skipped
             # altogether when no member's policy changed.
             policy = jax.vmap(_policy_of(agent))(c.agent_state)
@@ -317,10 +317,12 @@ def _chunk_program(
             inst = jax.vmap(lambda i, k, v, s, s0: instant_from_values(_member(dyn, i), k, v, s, s0, variant))(
                 mdp_index, consts, values, c.env_state.state, c.last_start
             )
-            c = c.replace(policy_cache=policy, value_cache=values)
             k = (c.t - c.last_log).astype(dtype)
             x = jnp.stack([inst.regret, inst.expected_reward, inst.normalized_regret], axis=-1) * k
-            return c.replace(last_log=c.t, logged=c.logged.add(x.astype(dtype)))
+            return policy, values, c.logged.add(x.astype(dtype)), c.t
+
+        def logged_fields(c: Carry) -> tuple:
+            return c.policy_cache, c.value_cache, c.logged, c.last_log
 
         t_end = carry.t + n
 
@@ -331,7 +333,10 @@ def _chunk_program(
             next_log = jnp.minimum((c.t // sched.log_period + 1) * sched.log_period, sched.n_steps)
             c = jax.lax.fori_loop(0, jnp.minimum(next_log, t_end) - c.t, lambda _, c: interact(plan_step(c)), c)
             is_log = (c.t % sched.log_period == 0) | (c.t == sched.n_steps)
-            c = jax.lax.cond(is_log, log, lambda c: c, c)
+            # Only what a log writes leaves the cond: with the whole carry as its result, XLA copied the agent
+            # tables at every log.
+            policy_cache, value_cache, logged, last_log = jax.lax.cond(is_log, log, logged_fields, c)
+            c = c.replace(policy_cache=policy_cache, value_cache=value_cache, logged=logged, last_log=last_log)
             is_record = (c.t % sched.record_period == 0) | (c.t == sched.n_steps)
 
             def record(args):
