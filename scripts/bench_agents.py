@@ -17,8 +17,16 @@ Deep agents (``agent.observation == "emission"``) run on the ``state_info`` Bloc
 (``bsuite.baselines.jax.dqn``, one seed, its per-step Python loop) on the same MDP and observations with the same
 network, batch, replay and periods (``pip install -e ".[bench]"``; skipped with a note when bsuite is missing).
 
+``--ratio`` measures instead each tabular agent's cost per step against the random agent's of its setting (the
+issue's "at most 1.5x"), back to back in one process so that a shared machine's load weighs on both: for every
+benchmark MDP at the largest seed count, the random agent and the agent, each with indicators every 100 steps and
+without, the four runs interleaved ``--repeats`` times after a compiling run, best of each. It reports the cost ratio
+and the wall ns per agent-step of environment, agent and indicators (``results/bench_agents_ratio.md``, ``.csv``).
+
 Usage: ``python scripts/bench_agents.py [--quick] [--steps N] [--seeds 1,64,1024] [--deep-seeds 1,16,64]
-[--agents a,b] [--repeats R]``.
+[--agents a,b] [--repeats R] [--ratio]``; the issue's 1.5x check:
+
+    python scripts/bench_agents.py --quick --ratio --seeds 1024 --repeats 3 --agents q_learning_episodic,q_learning_continuous
 """
 
 from __future__ import annotations
@@ -176,6 +184,72 @@ def bsuite_dqn_steps_per_s(mdp, table, hparams, steps: int, seed: int = 0) -> di
     return {"steps_per_s": steps / (time.perf_counter() - t0)}
 
 
+def measure_ratio(agent, random_agent, mdp, seeds: int, steps: int, repeats: int) -> dict:
+    """The agent's and the random agent's wall seconds per agent-step, with indicators every 100 steps and without,
+    measured back to back in one process: the four runs interleaved ``repeats`` times after a compiling run each,
+    best of each (a shared machine's load then weighs on all four alike)."""
+    runs = {
+        "random_env": (random_agent, NO_INDICATORS), "random": (random_agent, 100),
+        "agent_bare": (agent, NO_INDICATORS), "agent": (agent, 100),
+    }
+    grids = {k: runner.product([mdp], [a.default_hparams], seeds=range(seeds)) for k, (a, _) in runs.items()}
+    go = lambda k: runner.run(runs[k][0], grids[k], steps, log_period=runs[k][1], n_records=10).run_s  # noqa: E731
+    for k in runs:
+        go(k)  # compiles
+    best = {k: float("inf") for k in runs}
+    for _ in range(repeats):
+        for k in runs:
+            best[k] = min(best[k], go(k))
+    ns = {k: 1e9 * v / (steps * seeds) for k, v in best.items()}
+    return dict(
+        random_steps_per_s=1e9 / ns["random"], agent_steps_per_s=1e9 / ns["agent"], ratio=ns["agent"] / ns["random"],
+        env_ns=ns["random_env"], agent_ns=ns["agent_bare"] - ns["random_env"],
+        indicators_ns=ns["agent"] - ns["agent_bare"], random_indicators_ns=ns["random"] - ns["random_env"],
+    )
+
+
+def main_ratio(args, names: list[str], families: list[str]) -> None:
+    """``--ratio``: each tabular agent against the random agent of its setting on every benchmark MDP."""
+    seeds = [int(s) for s in args.seeds.split(",")][-1]
+    load0 = os.getloadavg()
+    rows = []
+    for name in names:
+        agent = agents.get(name)
+        if agent.observation != "state" or name.startswith("random"):
+            continue
+        random_agent = agents.get("random_episodic" if agent.episodic else "random_continuous")
+        for family in families:
+            mdp = jaxmdp.make(family, episodic=agent.episodic, seed=0, **BENCH_MDPS[(family, agent.episodic)])
+            m = measure_ratio(agent, random_agent, mdp, seeds, args.steps, max(args.repeats, 1))
+            rows.append(dict(agent=name, mdp=family, S=mdp.n_states, seeds=seeds, **m))
+            print(f"{name:24s} {family:14s} seeds={seeds}: random {fmt_rate(m['random_steps_per_s'])}, agent "
+                  f"{fmt_rate(m['agent_steps_per_s'])} agent-steps/s, cost ratio {m['ratio']:.2f}x; ns env "
+                  f"{m['env_ns']:.0f}, agent {m['agent_ns']:.0f}, indicators {m['indicators_ns']:.0f} (random's "
+                  f"{m['random_indicators_ns']:.0f})", flush=True)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / "bench_agents_ratio.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]) if rows else ["agent"])
+        w.writeheader()
+        w.writerows(rows)
+    lines = [
+        "# Cost per step against the random agent (same process)",
+        "",
+        f"{args.steps} steps per seed, {seeds} seeds, {jax.local_device_count()} host devices; the random agent and "
+        f"the agent, each with indicators every 100 steps and without, interleaved {max(args.repeats, 1)} times, "
+        f"best of each. Load average before/after: {load0[0]:.1f} / {os.getloadavg()[0]:.1f}.",
+        "",
+        "| agent | MDP | random | agent | cost ratio | ns env / agent / indicators (random's indicators) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        lines.append(f"| {r['agent']} | {r['mdp']} | {fmt_rate(r['random_steps_per_s'])} | "
+                     f"{fmt_rate(r['agent_steps_per_s'])} | {r['ratio']:.2f}x | {r['env_ns']:.0f} / "
+                     f"{r['agent_ns']:.0f} / {r['indicators_ns']:.0f} ({r['random_indicators_ns']:.0f}) |")
+    (out / "bench_agents_ratio.md").write_text("\n".join(lines) + "\n")
+    print(f"wrote {out / 'bench_agents_ratio.md'} and {out / 'bench_agents_ratio.csv'}")
+
+
 def fmt_rate(x: float) -> str:
     return f"{x / 1e6:.2f} M" if x >= 1e6 else f"{x / 1e3:.1f} k"
 
@@ -191,6 +265,9 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="4 000 steps, 1 repeat")
     ap.add_argument("--max-seconds", type=float, default=120.0,
                     help="skip a seed count whose predicted run time exceeds this")
+    ap.add_argument("--ratio", action="store_true",
+                    help="each tabular agent's cost per step against the random agent's, same process, at the largest "
+                         "seed count (module docstring)")
     ap.add_argument("--out", default="results")
     compilation.add_cache_flag(ap)
     args = ap.parse_args()
@@ -202,6 +279,10 @@ def main() -> None:
     deep_seed_counts = [int(s) for s in args.deep_seeds.split(",")]
     names = [n for n in args.agents.split(",") if n]
     families = [f for f in ("RiverSwim", "Taxi", "MiniGridEmpty") if f in jaxmdp.families()]
+    if args.ratio:
+        main_ratio(args, names, families)
+        print(compilation.time_report(time.perf_counter() - t_script, compile_stats.snapshot(), cache_folder))
+        return
     load0 = os.getloadavg()
     t0 = time.perf_counter()
 

@@ -10,6 +10,15 @@ Prints the tables and writes ``docs/benchmarks/bench_env.md`` (with the command)
     python scripts/bench_env.py                 # S~100 and S~1000 MDPs, 1/64/1024/8192 environments, gymnax
     python scripts/bench_env.py --quick         # smaller step counts
     python scripts/bench_env.py --gymnax-only   # only the gymnax comparison
+    python scripts/bench_env.py --families      # gymnax, then every family's step against the old step
+
+``--families`` (after the gymnax comparison, without the size sweep) times, in the same process, the step of every
+family's quick-test MDPs (``docs/benchmark.md §3``, both settings, and MiniGridDoorKey) against the old step, the
+dense formulation that ``jaxmdp.step`` replaced (its code is kept here as :func:`old_step`: a reset state drawn by a
+cumulative sum over the whole ``P0`` at every episodic step, the successor by a cumulative sum over the successor
+list, every draw compiled), at 1024 environments and 500 steps of random actions (the same draw for both), best of 5
+interleaved runs; it writes the table into the report (``docs/benchmarks/bench_env.md``) and
+``results/bench_env_families.csv``.
 """
 
 from __future__ import annotations
@@ -25,9 +34,14 @@ import jax
 import jax.numpy as jnp
 
 import jaxmdp
+from jaxmdp.env import EnvState
 from jaxmdp.experiment import compilation
+from jaxmdp.sampling.beta_sampling import sample_beta
 
 DEEPSEA_SIZE, DEEPSEA_ENVS, DEEPSEA_STEPS, DEEPSEA_REPEATS = 20, 1024, 500, 5
+FAMILY_ENVS, FAMILY_STEPS, FAMILY_REPEATS = 1024, 500, 5
+# MiniGridDoorKey has no quick-test MDP; the smallest of its benchmark sizes.
+DOORKEY = dict(size=5, make_reward_stochastic=True, p_lazy=0.05, p_rand=0.05)
 
 
 def benchmark_mdps() -> list[tuple[str, jaxmdp.MDP]]:
@@ -120,6 +134,82 @@ def time_runner(run, repeats: int) -> tuple[float, float]:
     return compile_s, best
 
 
+def old_step(key: jax.Array, state: EnvState, action: jax.Array, mdp: jaxmdp.MDP):
+    """The step before the ``O(K)`` one (commit ae021f5), kept as the baseline of ``--families``: the same key use and
+    distributions, with a reset state drawn by an ``O(S)`` cumulative sum over ``P0`` at every episodic step whether or
+    not the episode ends, the successor by a cumulative sum over the successor list, and the reward draw compiled
+    whenever any reward is a Beta."""
+    k_reward, k_uniform = jax.random.split(key)
+    u_next, u_reset = jax.random.uniform(k_uniform, (2,), dtype=mdp.dtype)
+    action = jnp.asarray(action, jnp.int32)
+    cdf = jnp.cumsum(mdp.succ_p[state.state, action])
+    k = jnp.minimum(jnp.sum(cdf <= u_next * cdf[-1]), cdf.shape[-1] - 1)
+    s_next = mdp.succ[state.state, action, k].astype(jnp.int32)
+    mean = mdp.reward_mean[state.state, action, s_next]
+    reward = mean
+    if mdp.stochastic_rewards:
+        conc = mdp.reward_conc[state.state, action, s_next]
+        stochastic = conc > 0
+        alpha = jnp.where(stochastic, mean * conc, 1.0)
+        beta = jnp.where(stochastic, (1.0 - mean) * conc, 1.0)
+        reward = jnp.where(stochastic, sample_beta(k_reward, alpha, beta, dtype=mdp.dtype), mean)
+    h_next = state.h + 1
+    terminated = (h_next >= mdp.horizon) if mdp.episodic else jnp.zeros((), bool)
+    if mdp.episodic:
+        p0 = jnp.cumsum(mdp.P0)
+        s_reset = jnp.minimum(jnp.sum(p0 <= u_reset * p0[-1]), mdp.n_states - 1).astype(jnp.int32)
+    else:
+        s_reset = state.state
+    h = jnp.where(terminated, 0, h_next).astype(jnp.int32)
+    new_state = EnvState(state=jnp.where(terminated, s_reset, s_next), h=h)
+    return new_state.state, new_state, reward, terminated, jnp.zeros((), bool), {}
+
+
+def family_mdps() -> list[tuple[str, jaxmdp.MDP]]:
+    """Every family's quick-test MDPs (both settings; ``hardness.benchmark.sets``) and MiniGridDoorKey's, seed 0."""
+    from hardness.benchmark import sets
+
+    out = []
+    for set_name in sets.QUICK_SETS:
+        for inst in sets.instances(set_name):
+            out.append((f"{inst.family} ({'episodic' if inst.episodic else 'continuous'})", inst.build(0)))
+    if "MiniGridDoorKey" in jaxmdp.families():
+        for episodic in (True, False):
+            out.append((f"MiniGridDoorKey ({'episodic' if episodic else 'continuous'})",
+                        jaxmdp.make("MiniGridDoorKey", episodic=episodic, seed=0, **DOORKEY)))
+    return out
+
+
+def families_comparison(n_envs: int, n_steps: int, repeats: int) -> list[dict]:
+    """``jaxmdp.step`` against :func:`old_step` on every family's MDPs, same process, interleaved runs, best of each."""
+    rows = []
+    for name, mdp in family_mdps():
+        mdp = mdp.strip()
+        runners = {
+            which: lockstep_runner(lambda k: jaxmdp.reset(k, mdp), lambda k, s, a, f=f: f(k, s, a, mdp),
+                                   mdp.n_actions, n_envs, n_steps)
+            for which, f in (("new", jaxmdp.step), ("old", old_step))
+        }
+        compiled, compile_s, best = {}, {}, {}
+        for which, run in runners.items():
+            t0 = time.perf_counter()
+            compiled[which] = run.lower(jax.random.key(0)).compile()
+            compile_s[which] = time.perf_counter() - t0
+            compiled[which](jax.random.key(0)).block_until_ready()
+            best[which] = float("inf")
+        for i in range(repeats):
+            for which, run in compiled.items():
+                t0 = time.perf_counter()
+                run(jax.random.key(i + 1)).block_until_ready()
+                best[which] = min(best[which], time.perf_counter() - t0)
+        new, old = (n_envs * n_steps / best[w] for w in ("new", "old"))
+        rows.append(dict(mdp=name, n_states=mdp.n_states, K=mdp.succ.shape[-1], n_envs=n_envs, n_steps=n_steps,
+                         new_steps_per_s=new, old_steps_per_s=old, speedup=new / old, compile_s=compile_s["new"]))
+        print(f"{name:30s} S={mdp.n_states:4d}: step {new / 1e6:7.2f} M/s, old step {old / 1e6:7.2f} M/s, "
+              f"{new / old:.2f}x", flush=True)
+    return rows
+
+
 def gymnax_comparison(n_envs: int, n_steps: int, repeats: int) -> list[dict] | None:
     """jaxmdp's and gymnax's DeepSea (size 20) in the same process; None without gymnax."""
     try:
@@ -154,6 +244,9 @@ def main() -> None:
     parser.add_argument("--envs", type=int, nargs="+", default=[1, 64, 1024, 8192])
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--gymnax-only", action="store_true", help="only the same-process comparison with gymnax")
+    parser.add_argument("--families", action="store_true",
+                        help="the gymnax comparison and every family's step against the old step, same process, "
+                             "without the size sweep (module docstring)")
     parser.add_argument("--out", type=Path, default=Path("results"), help="folder of the CSV")
     parser.add_argument("--doc", type=Path, default=Path("docs/benchmarks/bench_env.md"), help="the Markdown report")
     compilation.add_cache_flag(parser)
@@ -164,7 +257,8 @@ def main() -> None:
     budget = 2_000_000 if args.quick else 20_000_000  # environment steps per measurement
 
     rows = []
-    for name, mdp in [] if args.gymnax_only else benchmark_mdps():
+    only = args.gymnax_only or args.families
+    for name, mdp in [] if only else benchmark_mdps():
         mdp = mdp.strip()
         for n in args.envs:
             n_steps = max(100, min(20_000, budget // n))
@@ -172,6 +266,12 @@ def main() -> None:
             rows.append(dict(mdp=name, n_states=mdp.n_states, n_envs=n, steps_per_s=sps, compile_s=compile_s))
             print(f"{name:22s} S={mdp.n_states:5d} envs={n:5d}: {sps / 1e6:8.3f} M steps/s (compile {compile_s:.1f} s)")
     versus = gymnax_comparison(DEEPSEA_ENVS, DEEPSEA_STEPS, DEEPSEA_REPEATS)
+    families = families_comparison(FAMILY_ENVS, FAMILY_STEPS, FAMILY_REPEATS) if args.families else []
+    if families:
+        with (args.out / "bench_env_families.csv").open("w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(families[0]))
+            w.writeheader()
+            w.writerows(families)
 
     if rows:
         with (args.out / "bench_env.csv").open("w", newline="") as f:
@@ -213,6 +313,22 @@ def main() -> None:
             f"| {r['env']} | {r['steps_per_s'] / 1e6:.3f} | {r['run_s']:.3f} | {r['compile_s']:.2f} |" for r in versus
         ]
         lines += ["", f"jaxmdp / gymnax: **{versus[0]['steps_per_s'] / versus[1]['steps_per_s']:.2f}x**"]
+    if families:
+        lines += [
+            "",
+            "## Every family against the old step (same process)",
+            "",
+            f"The quick-test MDPs of every family (seed 0) and MiniGridDoorKey, {FAMILY_ENVS} environments, "
+            f"{FAMILY_STEPS} steps of uniformly random actions (the same draw for both), best of {FAMILY_REPEATS} "
+            "interleaved runs: `jaxmdp.step` against the dense step it replaced (`old_step` in the script).",
+            "",
+            "| MDP | S | K | step, M steps/s | old step, M steps/s | speed-up | compile s |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        lines += [
+            f"| {r['mdp']} | {r['n_states']} | {r['K']} | {r['new_steps_per_s'] / 1e6:.2f} | "
+            f"{r['old_steps_per_s'] / 1e6:.2f} | {r['speedup']:.2f}x | {r['compile_s']:.2f} |" for r in families
+        ]
     args.doc.parent.mkdir(parents=True, exist_ok=True)
     args.doc.write_text("\n".join(lines) + "\n")
     print(f"wrote {args.doc}")

@@ -1,8 +1,8 @@
 """Count how the runner's continuous indicators were evaluated: certified on the successor lists (and in how many
 sweeps) or by the dense fallback, for one agent on the largest (or smallest) size bucket of a continuous benchmark
-setting, with the bias warm start (default) or without it (``--cold``); docs/benchmarks/continuous_indicators.md.
+setting; docs/benchmarks/continuous_indicators.md.
 
-The runner's :func:`~jaxmdp.experiment.indicators.warm_gain_values` is wrapped with a host callback that records each
+The runner's :func:`~jaxmdp.experiment.indicators.policy_values` is wrapped with a host callback that records each
 evaluation's ``(certified, sweeps)``; the batch runs through ``hardness.benchmark.run.run_benchmark`` as
 ``scripts/benchmark_wall_time.py`` runs it (its ``batches.csv`` has the run seconds).
 
@@ -31,6 +31,7 @@ import numpy as np  # noqa: E402
 from hardness.benchmark import run, sets  # noqa: E402
 from jaxmdp import dynamic_programming as dp  # noqa: E402
 from jaxmdp.experiment import runner  # noqa: E402
+from jaxmdp.experiment.indicators import policy_values  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -40,10 +41,9 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument("--bucket", choices=["largest", "smallest"], default="largest")
     p.add_argument("--seeds", type=int, default=2)
     p.add_argument("--steps", type=int, default=1000)
-    p.add_argument("--cold", action="store_true", help="start every evaluation from a zero bias (no warm start)")
     p.add_argument("--refine", type=int, default=None,
-                   help="refinement sweeps per refresh (default: successor_gain_bounds' default; 1 is the rule "
-                        "before the warm start)")
+                   help="at most this many refinement sweeps per refresh (default: successor_gain_bounds' "
+                        "default)")
     p.add_argument("--out", type=Path, required=True)
     args = p.parse_args(argv)
     records: list[tuple[bool, int]] = []
@@ -51,14 +51,15 @@ def main(argv: list[str] | None = None) -> dict:
     def record(certified, sweeps):
         records.extend(zip(np.atleast_1d(np.asarray(certified)).tolist(), np.atleast_1d(np.asarray(sweeps)).tolist()))
 
-    def counted(mdp, policy, bias, iterative_sweeps):
-        b = dp.successor_gain_bounds(mdp, policy, bias=None if args.cold else bias, max_sweeps=iterative_sweeps,
-                                     refine_sweeps=args.refine)
+    def counted(mdp, policy, iterative_sweeps=0):
+        if mdp.episodic or iterative_sweeps <= 0:
+            return policy_values(mdp, policy, iterative_sweeps)
+        b = dp.successor_gain_bounds(mdp, policy, max_sweeps=iterative_sweeps, refine_sweeps=args.refine)
         jax.debug.callback(record, b.certified, b.sweeps)
-        gain = jax.lax.cond(b.certified, lambda: 0.5 * (b.lower + b.upper), lambda: dp.gain_vector(mdp, policy))
-        return gain, b.bias
+        one_hot = policy if not jnp.issubdtype(policy.dtype, jnp.integer) else jax.nn.one_hot(policy, mdp.n_actions)
+        return jax.lax.cond(b.certified, lambda: 0.5 * (b.lower + b.upper), lambda: dp.gain_vector(mdp, one_hot))
 
-    runner.warm_gain_values = counted
+    runner.policy_values = counted
     full = run.RunConfig(sets=(args.set,), agents=(args.agent,), seeds=tuple(range(20)), n_steps=500_000,
                          log_period=100, hparams="reference", n_buckets=4)
     _, batches = run.plan(full)
@@ -72,7 +73,7 @@ def main(argv: list[str] | None = None) -> dict:
         (row,) = list(csv.DictReader(f))
     cert = [s for c, s in records if c]
     result = dict(set=args.set, agent=args.agent, bucket=batch.id, labels=labels, seeds=args.seeds, steps=args.steps,
-                  cold=args.cold, refine=args.refine, run_s=float(row["run_s"]), compile_s=float(row["compile_s"]),
+                  refine=args.refine, run_s=float(row["run_s"]), compile_s=float(row["compile_s"]),
                   evaluations=len(records), certified=len(cert),
                   sweeps_hist={str(k): int(v) for k, v in zip(*np.unique(cert, return_counts=True))} if cert else {})
     (args.out / "certification.json").write_text(json.dumps(result, indent=1) + "\n")

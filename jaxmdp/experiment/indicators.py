@@ -45,7 +45,6 @@ __all__ = [
     "indicator_constants",
     "policy_values",
     "ITERATIVE_GAIN_SWEEPS",
-    "warm_gain_values",
     "instant_from_values",
     "instantaneous",
     "CSV_COLUMNS",
@@ -156,53 +155,30 @@ def policy_values(mdp: MDP, policy: jax.Array, iterative_sweeps: int = 0) -> jax
 
     Continuous: with ``iterative_sweeps > 0`` (static), :func:`~jaxmdp.dynamic_programming.successor_gain_bounds`
     first tries to certify the gain to a relative ``1e-6`` within that many sweeps over the successor lists
-    (``O(S A K)`` each) and returns the midpoint of its bounds; otherwise, or when the chain mixes too slowly for
-    that, the dense ``O(S^3)`` :func:`~jaxmdp.dynamic_programming.gain_vector`. The branch is a ``lax.cond``, so
-    use it per member (``lax.map``), not under ``vmap``.
+    (``O(S A K)`` each, ``O(S K)`` for action indices) and returns the midpoint of its bounds; otherwise, or when
+    the chain mixes too slowly for that, the dense ``O(S^3)`` :func:`~jaxmdp.dynamic_programming.gain_vector`. The
+    branch is a ``lax.cond``, so use it per member (``lax.map``), not under ``vmap``.
 
     ``policy`` may also be a deterministic policy given by its action indices (an integer ``[H, S]`` or ``[S]``
     array, an agent's ``greedy_actions``): episodic, only the chosen actions' successor lists are read
     (:func:`~jaxmdp.dynamic_programming.finite_horizon_deterministic_evaluation`, the same numbers as its one-hot
-    policy); continuous, it is evaluated as its one-hot policy."""
-    if jnp.issubdtype(policy.dtype, jnp.integer):
-        if mdp.episodic:
-            actions = policy if policy.ndim == 2 else jnp.broadcast_to(policy, (mdp.H, *policy.shape))
-            return dp.finite_horizon_deterministic_evaluation(mdp, actions)[0]
-        policy = jax.nn.one_hot(policy, mdp.n_actions, dtype=mdp.R.dtype)
+    policy); continuous, the certified bounds sweep the chosen actions' successor slots only (``K`` a state instead
+    of ``A K``) and the dense fallback takes its one-hot policy."""
+    integer = jnp.issubdtype(policy.dtype, jnp.integer)
+    if integer and mdp.episodic:
+        actions = policy if policy.ndim == 2 else jnp.broadcast_to(policy, (mdp.H, *policy.shape))
+        return dp.finite_horizon_deterministic_evaluation(mdp, actions)[0]
     if mdp.episodic:
         return dp.finite_horizon_policy_evaluation(mdp, policy)[1][0]
+
+    def dense() -> jax.Array:
+        return dp.gain_vector(mdp, jax.nn.one_hot(policy, mdp.n_actions, dtype=mdp.R.dtype) if integer else policy)
+
     if iterative_sweeps <= 0:
-        return dp.gain_vector(mdp, policy)
+        return dense()
+    # Action indices go to the bounds as they are: sweeps over the chosen actions' K slots only.
     bounds = dp.successor_gain_bounds(mdp, policy, max_sweeps=iterative_sweeps)
-    return jax.lax.cond(
-        bounds.certified,
-        lambda: 0.5 * (bounds.lower + bounds.upper),
-        lambda: dp.gain_vector(mdp, policy),
-    )
-
-
-def warm_gain_values(
-    mdp: MDP, policy: jax.Array, bias: jax.Array, iterative_sweeps: int = ITERATIVE_GAIN_SWEEPS
-) -> tuple[jax.Array, jax.Array]:
-    """:func:`policy_values` of a continuous MDP started from a bias estimate: ``(gain[S], bias[S])``.
-
-    :func:`~jaxmdp.dynamic_programming.successor_gain_bounds` starts from ``d_0 = r_pi + (P_pi - I) bias`` (any
-    ``bias`` leaves the certificate exact; one of a similar policy, e.g. the one this function returned at the
-    previous log, starts it near the gain) and returns the midpoint of its bounds when they meet a relative ``1e-6``
-    within ``iterative_sweeps`` sweeps, else the dense :func:`~jaxmdp.dynamic_programming.gain_vector`. The returned
-    bias is the warm start for the next call (the iterative one's, also when the dense solve gave the gain). Per
-    member (``lax.map``), not under ``vmap``."""
-    if mdp.episodic:
-        raise ValueError("warm_gain_values needs a continuous MDP (mdp.episodic is true)")
-    if jnp.issubdtype(policy.dtype, jnp.integer):  # action indices (an agent's greedy_actions): their one-hot policy
-        policy = jax.nn.one_hot(policy, mdp.n_actions, dtype=mdp.R.dtype)
-    bounds = dp.successor_gain_bounds(mdp, policy, bias=bias, max_sweeps=iterative_sweeps)
-    gain = jax.lax.cond(
-        bounds.certified,
-        lambda: 0.5 * (bounds.lower + bounds.upper),
-        lambda: dp.gain_vector(mdp, policy),
-    )
-    return gain, bounds.bias
+    return jax.lax.cond(bounds.certified, lambda: 0.5 * (bounds.lower + bounds.upper), dense)
 
 
 def instant_from_values(

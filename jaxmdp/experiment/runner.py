@@ -149,10 +149,12 @@ def _evaluate_changed(
     748; Q-learning's policies change at nearly every log, 781 of 800 on DeepSea). A continuous member's gain is first
     certified on the successor lists (:func:`~jaxmdp.experiment.indicators.policy_values`), the dense solve running
     only when that fails. The bounds start cold (``d_0 = r_pi``): a warm start from the bias estimate of the member's
-    previous evaluation (:func:`~jaxmdp.experiment.indicators.warm_gain_values`, exact from any start) certified
-    fewer policies, not more (``scripts/bench_agents.py --quick``, Q-learning continuous, MiniGridEmpty, 64 seeds:
-    0.98 M agent-steps/s warm, 1.64 M cold; docs/benchmarks/continuous_indicators.md). Elsewhere (GPU) the members
-    stay in lockstep with the dense solve.
+    previous evaluation certified fewer policies, not more (``scripts/bench_agents.py --quick``, Q-learning
+    continuous, MiniGridEmpty, 64 seeds: 0.98 M agent-steps/s warm, 1.64 M cold;
+    docs/benchmarks/continuous_indicators.md), and was removed. An agent's action indices (``greedy_actions``) are swept on the chosen actions' successor slots
+    only. Vectorising the bounds over the members instead (``vmap``) cost 35 times more on Taxi (960 against 27 us an
+    evaluation): the while loops then run as long as the slowest member, 128 sweeps whenever one member of the shard
+    does not certify. Elsewhere (GPU) the members stay in lockstep with the dense solve.
     """
     dtype = cache.dtype
 
@@ -295,14 +297,17 @@ def _chunk_program(
                 reward=c.reward.add(reward.astype(dtype)),
             )
 
-        def log(c: Carry) -> Carry:
-            # Policy evaluation is the expensive half of an indicator; a member whose policy is unchanged since the
+        def log(c: Carry) -> tuple:
+            # The fields a log writes (logged_fields' order). Policy evaluation is the expensive half of an indicator; a member whose policy is unchanged since the
             # previous log reuses its values (exactly: they cover every state), and the evaluation is skipped
             # altogether when no member's policy changed.
             policy = jax.vmap(_policy_of(agent))(c.agent_state)
             # max over uint8, not any over bool: XLA's CPU reduction of a predicate is about 9x slower (a float
-            # [B, H, S, A] policy of Taxi at 512 members: 1.0 us against 0.11 us per agent-step).
-            changed = jnp.max((policy != c.policy_cache).reshape(B, -1).astype(jnp.uint8), axis=1) > 0
+            # [B, H, S, A] policy of Taxi at 512 members: 1.0 us against 0.11 us per agent-step). Reduced over the
+            # trailing axes as they are: flattened first (reshape(B, -1)), the comparison fused with the greedy
+            # extraction ran 14 times slower (episodic Q-learning, MiniGridEmpty, 512 members: 15.4 ms a log
+            # against 1.1 ms, CPU time).
+            changed = jnp.max((policy != c.policy_cache).astype(jnp.uint8), axis=tuple(range(1, policy.ndim))) > 0
             values = jax.lax.cond(
                 jnp.any(changed),
                 lambda cache: _evaluate_changed(dyn, mdp_index, policy, changed, cache),
@@ -312,10 +317,12 @@ def _chunk_program(
             inst = jax.vmap(lambda i, k, v, s, s0: instant_from_values(_member(dyn, i), k, v, s, s0, variant))(
                 mdp_index, consts, values, c.env_state.state, c.last_start
             )
-            c = c.replace(policy_cache=policy, value_cache=values)
             k = (c.t - c.last_log).astype(dtype)
             x = jnp.stack([inst.regret, inst.expected_reward, inst.normalized_regret], axis=-1) * k
-            return c.replace(last_log=c.t, logged=c.logged.add(x.astype(dtype)))
+            return policy, values, c.logged.add(x.astype(dtype)), c.t
+
+        def logged_fields(c: Carry) -> tuple:
+            return c.policy_cache, c.value_cache, c.logged, c.last_log
 
         t_end = carry.t + n
 
@@ -326,7 +333,10 @@ def _chunk_program(
             next_log = jnp.minimum((c.t // sched.log_period + 1) * sched.log_period, sched.n_steps)
             c = jax.lax.fori_loop(0, jnp.minimum(next_log, t_end) - c.t, lambda _, c: interact(plan_step(c)), c)
             is_log = (c.t % sched.log_period == 0) | (c.t == sched.n_steps)
-            c = jax.lax.cond(is_log, log, lambda c: c, c)
+            # Only what a log writes leaves the cond: with the whole carry as its result, XLA copied the agent
+            # tables at every log.
+            policy_cache, value_cache, logged, last_log = jax.lax.cond(is_log, log, logged_fields, c)
+            c = c.replace(policy_cache=policy_cache, value_cache=value_cache, logged=logged, last_log=last_log)
             is_record = (c.t % sched.record_period == 0) | (c.t == sched.n_steps)
 
             def record(args):
