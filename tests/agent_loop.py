@@ -137,3 +137,14 @@ def probe_mdps(episodic: bool) -> list[jaxmdp.MDP]:
     bandit (optimal: arm 2). Stacked, the bandit is padded to 5 states and RiverSwim to 3 actions."""
     river = jaxmdp.make("RiverSwim", episodic=episodic, seed=0, size=5, randomize_actions=False)
     return [river, river, river, bandit((0.3, 0.5, 0.8), episodic)]
+
+
+def probe_batch(episodic: bool, copies: int) -> jaxmdp.MDP:
+    """``copies`` copies of :func:`probe_mdps` stacked (``4 copies`` members; member ``i`` is a bandit iff
+    ``i % 4 == 3``)."""
+    return jaxmdp.stack(probe_mdps(episodic) * copies).strip()
+
+
+def is_river(n_members: int) -> np.ndarray:
+    """Which members of a :func:`probe_batch` face RiverSwim."""
+    return np.arange(n_members) % 4 != 3

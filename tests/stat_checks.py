@@ -109,3 +109,50 @@ class Checks:
         """Pairs ``(x_i, y_i)`` i.i.d. across ``i`` with ``x_i`` independent of ``y_i`` and exact medians: the count
         of pairs on the same side of their medians is Binomial(n, 1/2)."""
         self.binomial(int(np.sum((x <= median_x) == (y <= median_y))), x.size, 0.5, f"{what}: sign agreement")
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Learning tests: n seeds in lockstep, at most m of them may miss the criterion
+# ---------------------------------------------------------------------------------------------------------------
+#
+# A learning test's criterion (e.g. "the final policy is optimal") fails a correct agent on some seeds with an unknown
+# per-seed probability q. It is measured once on N fresh seeds (``tests/probe_failure_rates.py``), bounded above by
+# the Clopper-Pearson bound ``q_u`` at miss probability ``MEASURE_MISS`` (``failure_rate_bound``), and the test then
+# runs n independent seeds and allows m failures, the least m with P(Binomial(n, q_u) > m) <= ALPHA
+# (``allowed_failures``). Given q <= q_u the test fails a correct agent with probability at most ALPHA.
+
+MEASURE_MISS = 1e-3
+
+
+def failure_rate_bound(failures: int, n: int, miss: float = MEASURE_MISS) -> float:
+    """Clopper-Pearson upper bound on a Bernoulli rate from ``failures`` of ``n``: the q at which
+    P(Binomial(n, q) <= failures) = miss (0 failures: ``1 - miss^(1/n)``)."""
+    if not 0 <= failures <= n or n < 1:
+        raise ValueError(f"failures must lie in [0, n] and n >= 1, got failures={failures}, n={n}")
+    if failures == n:
+        return 1.0
+    return float(stats.beta.isf(miss, failures + 1, n - failures))
+
+
+def allowed_failures(n: int, q: float, alpha: float = ALPHA) -> int:
+    """The least m with P(Binomial(n, q) > m) <= alpha."""
+    if not 0.0 <= q <= 1.0:
+        raise ValueError(f"q must lie in [0, 1], got {q}")
+    dist = stats.binom(n, q)
+    m = max(int(dist.isf(alpha)) - 1, 0)
+    while dist.sf(m) > alpha:
+        m += 1
+    return m
+
+
+def mostly(passed: np.ndarray, q: float, what: str, alpha: float = ALPHA) -> None:
+    """``passed``: one boolean per independent seed, each False with probability at most ``q`` for a correct
+    implementation. Fails when more than ``allowed_failures(n, q, alpha)`` are False: probability at most ``alpha``
+    (the count of failures is dominated by Binomial(n, q))."""
+    passed = np.asarray(passed, bool).ravel()
+    m = allowed_failures(passed.size, q, alpha)
+    if m >= passed.size:
+        raise ValueError(f"{what}: {passed.size} seeds at a failure rate {q:.2g} allow them all to fail; use more seeds")
+    failed = np.flatnonzero(~passed)
+    assert failed.size <= m, (f"{what}: {failed.size} of {passed.size} seeds failed (allowed {m} at a per-seed "
+                              f"rate <= {q:.2g}); failing members {failed[:20].tolist()}")

@@ -18,7 +18,7 @@ from agents import q_learning_episodic as qle
 from agents.tabular_common import discounted_greedy_policy, greedy_action, greedy_action_single_draw, row_max
 from jaxmdp.experiment import runner
 from jaxmdp.experiment.agent_interface import Transition, spec_of
-from stat_checks import Checks, key
+from stat_checks import Checks, failure_rate_bound, key, mostly, seed
 
 
 def tr(s, a, r, s2, h=0):
@@ -289,8 +289,10 @@ def test_hparam_domains(agent, field, value):
 
 
 # ---------------------------------------------------------------------------------------------------------------
-# Probes with known answers: each agent's policy estimate must be optimal over the last quarter of the budget
-# (zero expected regret at every log there), for every seed.
+# Probes with known answers: each agent's policy estimate must be optimal at the end of the budget and (nearly)
+# always over its last quarter. Run on N_LEARN seeds in lockstep drawn from stat_checks (fresh seeds under
+# tests/fresh_seed_check.py); a seed that misses the criterion is a failure, and at most
+# stat_checks.allowed_failures(N_LEARN, Q_LEARN) of them may fail (tests/stat_checks.py, "Learning tests").
 # ---------------------------------------------------------------------------------------------------------------
 
 
@@ -304,39 +306,89 @@ def chain(episodic, **kw):
     return jaxmdp.make("RiverSwim", episodic=episodic, seed=0, size=4, randomize_actions=False, **kw)
 
 
-def learn(agent, mdp, hparams, n_steps, seeds=4):
+def learn(agent, mdp, hparams, n_steps, seeds):
     """Run in exact mode (a log every step, so the early, suboptimal policies are all charged; a record every step)
-    and return the normalised regret per step over the last quarter, the total regret and the regret of the final
-    policy estimate (continuous: from the MDP's current state, as the indicators define it)."""
-    res = runner.run(agent, runner.product([mdp], [hparams], seeds=range(seeds)), n_steps, log_period=1,
+    and return, per seed, the normalised regret per step over the last quarter, the total regret and the regret of
+    the final policy estimate (continuous: from the MDP's current state, as the indicators define it)."""
+    res = runner.run(agent, runner.product([mdp], [hparams], seeds=seeds), n_steps, log_period=1,
                      n_records=n_steps)
     norm, regret = res.column("normalized_cumulative_regret"), res.column("cumulative_regret")
     quarter = n_steps // 4
     return (norm[-1] - norm[-1 - quarter]) / quarter, regret[-1], regret[-1] - regret[-2]
 
 
-def check_learned(late, total, final):
-    np.testing.assert_array_equal(final, 0.0)  # the final policy estimate is optimal for every seed
-    assert np.all(late < 0.01)  # and (nearly) always was over the last quarter of the budget
-    assert np.all(total > 0)  # it did have to learn: the initial estimate is suboptimal
+def learned(late, total, final):
+    """Per seed: the final policy estimate is optimal and (nearly) always was over the last quarter of the budget."""
+    return (final == 0.0) & (late < 0.01)
 
 
+def learn_seeds(default, n):
+    """``n`` consecutive seeds from ``stat_checks.seed(default)`` (fresh ones under ``$JAXMDP_TEST_SEED``)."""
+    start = seed(default) % (2**31 - 2**20)
+    return range(start, start + n)
+
+
+Q_AGENTS = {  # label -> (agent, probe MDP, hyperparameters, steps)
+    **{f"optimistic-{name}": ("q_learning_continuous", name, None, 20_000)
+       for name in ("bandit", "chain", "stochastic chain")},
+    # The tuned c_1 belongs to the Bernstein bonus; the Hoeffding bonus c_1 sqrt(H^3 iota / t) needs a smaller one.
+    **{f"episodic-{name}-{'bernstein' if b else 'hoeffding'}": (
+        "q_learning_episodic", name, dict(bernstein=b, c_1=0.9415278732894797 if b else 0.02), 8_000)
+       for name in ("bandit", "chain") for b in (True, False)},
+}
+
+
+def q_learning_passes(label, seeds):
+    """Per seed of ``seeds``: whether the agent of ``Q_AGENTS[label]`` learned (``learned``), and the total regrets."""
+    name, mdp_name, hp, n_steps = Q_AGENTS[label]
+    agent = agents.get(name)
+    episodic = agent.episodic
+    mdp = {"bandit": bandit(H=3 if episodic else None), "chain": chain(episodic),
+           "stochastic chain": chain(episodic, p_lazy=0.2, make_reward_stochastic=True)}[mdp_name]
+    late, total, final = learn(agent, mdp, agent.default_hparams.replace(**(hp or {})), n_steps, seeds)
+    return learned(late, total, final), total
+
+
+# Measured per-seed failures of `learned` on 2048 seeds (10**6 to 10**6 + 2047; `PYTHONPATH=$PWD python
+# tests/probe_failure_rates.py q_learning --seeds 2048 --chunk 256`, 25 Nov 2026). The failing seeds end with a
+# suboptimal final estimate after a near-optimal last quarter (e.g. optimistic-bandit seed 1000785: late regret
+# 3e-4 per step, final 0.3), except episodic-bandit-bernstein seed 1000546, on a suboptimal arm through the last quarter
+# (0.167 per step). q_u: the Clopper-Pearson bound at miss probability 1e-3 (stat_checks.failure_rate_bound), at most
+# 6.4e-3; the tests allow stat_checks.allowed_failures(16, q_u) = 4 failures of N_LEARN = 16 seeds: false-failure
+# probability <= 1e-7 each (given q <= q_u).
+N_LEARN = 16
+MEASURED = {"optimistic-bandit": 1, "optimistic-chain": 0, "optimistic-stochastic chain": 0,
+            "episodic-bandit-bernstein": 2, "episodic-bandit-hoeffding": 3, "episodic-chain-bernstein": 0,
+            "episodic-chain-hoeffding": 0}
+Q_LEARN = {label: failure_rate_bound(failures, 2048) for label, failures in MEASURED.items()}
+
+
+@pytest.mark.statistical(p=1e-7)
 @pytest.mark.parametrize("mdp_name", ["bandit", "chain", "stochastic chain"])
 def test_optimistic_q_learning_finds_the_optimal_policy(mdp_name):
-    agent = agents.get("q_learning_continuous")
-    mdp = {"bandit": bandit(), "chain": chain(False),
-           "stochastic chain": chain(False, p_lazy=0.2, make_reward_stochastic=True)}[mdp_name]
-    check_learned(*learn(agent, mdp, agent.default_hparams, 20_000))
+    label = f"optimistic-{mdp_name}"
+    passed, total = q_learning_passes(label, learn_seeds(1, N_LEARN))
+    mostly(passed, Q_LEARN[label], label)
+    assert np.all(total > 0)  # it did have to learn: the initial estimate is suboptimal (every seed)
 
 
+@pytest.mark.statistical(p=1e-7)
 @pytest.mark.parametrize("mdp_name, bernstein", [("bandit", True), ("bandit", False), ("chain", True),
                                                  ("chain", False)])
 def test_episodic_q_learning_finds_the_optimal_policy(mdp_name, bernstein):
-    agent = agents.get("q_learning_episodic")
-    # The tuned c_1 belongs to the Bernstein bonus; the Hoeffding bonus c_1 sqrt(H^3 iota / t) needs a smaller one.
-    hp = agent.default_hparams.replace(bernstein=bernstein, c_1=0.9415278732894797 if bernstein else 0.02)
-    mdp = bandit(H=3) if mdp_name == "bandit" else chain(True)
-    check_learned(*learn(agent, mdp, hp, 8_000))
+    label = f"episodic-{mdp_name}-{'bernstein' if bernstein else 'hoeffding'}"
+    passed, total = q_learning_passes(label, learn_seeds(2, N_LEARN))
+    mostly(passed, Q_LEARN[label], label)
+    assert np.all(total > 0)
+
+
+@pytest.mark.parametrize("name, H", [("random_continuous", None), ("random_episodic", 3)])
+def test_an_agent_that_does_not_learn_fails_the_criterion_on_every_seed(name, H):
+    # The uniform policy estimate of the random agent is never optimal on the bandit: its final regret is positive
+    # for every seed (exact), so the probes' tolerance of a few failing seeds cannot let a non-learner pass.
+    agent = agents.get(name)
+    late, total, final = learn(agent, bandit(H=H), agent.default_hparams, 400, learn_seeds(3, N_LEARN))
+    assert not np.any(learned(late, total, final))
 
 
 @pytest.mark.parametrize("A", [2, 3, 20])  # 20: above the unrolling threshold of dp.greedy

@@ -16,7 +16,7 @@ import agents
 from agents.deep import boot_dqn
 from jaxmdp import dynamic_programming as dp
 from tests import q_probes
-from tests.stat_checks import Checks, key
+from tests.stat_checks import Checks, failure_rate_bound, key, mostly, seed
 from tests.test_dqn import make_spec, np_q, transition
 
 SMALL = boot_dqn.BootDQNHParams(network_width=3, network_depth=1, batch_size=4, replay_capacity=512, n_ensemble=3)
@@ -231,33 +231,57 @@ def test_registration_and_bsuite_defaults():
 
 N_STEPS = 4000
 LEARN = dict(network_width=16, batch_size=16, n_ensemble=4, learning_rate=1e-3)
+N_SEEDS = 8  # per epsilon: 16 members in lockstep
 
 
-def run_probe(name: str, probe: str):
-    return q_probes.run_epsilon_grid(name, probe, N_STEPS, (0.05, 0.2), **LEARN)
+def run_probe(name: str, probe: str, base: int = 0, n_seeds: int = N_SEEDS):
+    return q_probes.run_epsilon_grid(name, probe, N_STEPS, (0.05, 0.2), base=base, n_seeds=n_seeds, **LEARN)
 
 
 learned = functools.cache(run_probe)
 
 
+V_ATOL, Q_ATOL = 0.05, 0.15
+
+
+def probe_margins(name: str, probe: str, out) -> np.ndarray:
+    """Per member ``[E, B]``, over its 4 heads after 4000 steps, the largest error in units of its tolerance: every
+    head's state values max_a Q_k within ``V_ATOL`` of V* and every Q_k within ``Q_ATOL`` of Q* (rarely tried actions
+    learn slowest); infinite where, on the arms probe, a head's greedy action in s0 is not the better arm."""
+    episodic = agents.get(name).episodic
+    state = out.state
+    q = np.asarray(jax.vmap(jax.vmap(lambda s: jax.vmap(lambda k: boot_dqn.q_table(s, k))(jnp.arange(4))))(state))
+    q = q_probes.reachable_q(q, episodic)  # [E, B, heads, S, A]
+    want = q_probes.true_q(probe, episodic)
+    margin = np.maximum(np.max(np.abs(q.max(-1) - want.max(-1)), axis=(-2, -1)) / V_ATOL,
+                        np.max(np.abs(q - want), axis=(-3, -2, -1)) / Q_ATOL)
+    if probe == "arms":
+        margin = np.where(np.all(q[..., 0, :].argmax(-1) == 1, axis=-1), margin, np.inf)
+    return margin
+
+
+def probe_passes(name: str, probe: str, out) -> np.ndarray:
+    return probe_margins(name, probe, out) <= 1.0
+
+
+# Measured: 0 of 256 members missed probe_passes for each agent and probe (128 seeds x 2 epsilons from 10**6;
+# `PYTHONPATH=$PWD python tests/probe_failure_rates.py boot_dqn --seeds 128 --chunk 128`, 25 Nov 2026; the largest
+# margin, error / tolerance, was 0.88): Clopper-Pearson bound at miss probability 1e-3, q_u = 0.027
+# (stat_checks.failure_rate_bound); the tests allow stat_checks.allowed_failures(16, q_u) = 6 failures of 16 members.
+Q_LEARN = failure_rate_bound(0, 256)
+
+
+@pytest.mark.statistical(p=1e-7)
 @pytest.mark.parametrize("name", ["boot_dqn_episodic", "boot_dqn_continuous"])
 @pytest.mark.parametrize("probe", q_probes.PROBES)
 def test_every_head_learns_the_probe_values(name, probe):
-    # [2 epsilons x 4 seeds x 4 heads] after 4000 steps: every head's state values max_a Q_k within 0.05 of V* and
-    # every Q_k within 0.15 of Q* (rarely tried actions learn slowest); the greedy action is the better arm.
-    episodic = agents.get(name).episodic
-    state = learned(name, probe).state
-    q = np.asarray(jax.vmap(jax.vmap(lambda s: jax.vmap(lambda k: boot_dqn.q_table(s, k))(jnp.arange(4))))(state))
-    q = q_probes.reachable_q(q, episodic)
-    want = q_probes.true_q(probe, episodic)
-    np.testing.assert_allclose(q.max(-1), np.broadcast_to(want.max(-1), q.shape[:-1]), atol=0.05)
-    np.testing.assert_allclose(q, np.broadcast_to(want, q.shape), atol=0.15)
-    if probe == "arms":
-        np.testing.assert_array_equal(q[..., 0, :].argmax(-1), 1)
+    # The [2 epsilons x 8 seeds] grid from stat_checks.seed(0): at most stat_checks.allowed_failures(16, Q_LEARN) = 6
+    # members may miss probe_passes; false-failure probability <= 1e-7 (given the measured q <= q_u).
+    mostly(probe_passes(name, probe, learned(name, probe, seed(0))), Q_LEARN, f"{name} on {probe}")
 
 
 def test_same_key_same_result():
-    out = learned("boot_dqn_continuous", "arms")
+    out = learned("boot_dqn_continuous", "arms", 0)
     again = run_probe("boot_dqn_continuous", "arms")
     data = lambda x: jax.random.key_data(x) if jnp.issubdtype(x.dtype, jax.dtypes.prng_key) else x  # noqa: E731
     for a, b in zip(jax.tree.leaves(out), jax.tree.leaves(again)):

@@ -20,7 +20,7 @@ from agents.search_spaces import CHOICE_SPACES, sample_candidate_groups, sample_
 from jaxmdp.experiment.agent_interface import MDPSpec, Transition, spec_of
 from tests import q_probes
 from tests.agent_loop import seeds
-from tests.stat_checks import Checks, key
+from tests.stat_checks import Checks, failure_rate_bound, key, mostly, seed
 
 # One small configuration for the unit tests, so that their jitted functions compile once.
 SMALL = dqn.DQNHParams(network_width=3, network_depth=1, batch_size=4, replay_capacity=8, min_replay=1)
@@ -339,38 +339,67 @@ def test_search_space_candidates_are_grouped_by_static_sizes():
 N_STEPS = 3000
 LEARN = dict(network_width=16, batch_size=16, min_replay=16, learning_rate=3e-3)
 EPSILONS = (0.05, 0.2)
+N_SEEDS = 8  # per epsilon: 16 members in lockstep
 
 
-def run_probe(name: str, probe: str):
-    return q_probes.run_epsilon_grid(name, probe, N_STEPS, EPSILONS, **LEARN)
+def run_probe(name: str, probe: str, base: int = 0, n_seeds: int = N_SEEDS):
+    return q_probes.run_epsilon_grid(name, probe, N_STEPS, EPSILONS, base=base, n_seeds=n_seeds, **LEARN)
 
 
 learned = functools.cache(run_probe)
 
 
+ATOL = 0.06
+
+
+def probe_margins(name: str, probe: str, out) -> np.ndarray:
+    """Per member ``[E, B]``: the largest error of a reachable Q-value against Q* after 3000 steps, in units of
+    ``ATOL``; infinite where, on the arms probe, the greedy action in s0 is not the better arm."""
+    episodic = agents.get(name).episodic
+    q = q_probes.reachable_q(np.asarray(jax.vmap(jax.vmap(dqn.q_table))(out.state)), episodic)
+    margin = np.max(np.abs(q - q_probes.true_q(probe, episodic)), axis=(-2, -1)) / ATOL
+    if probe == "arms":
+        pi = np.asarray(jax.vmap(jax.vmap(dqn.policy))(out.state))
+        s0 = pi[:, :, 0, 0] if episodic else pi[:, :, 0]
+        margin = np.where(np.all(s0 == np.array([0.0, 1.0]), axis=-1), margin, np.inf)
+    return margin
+
+
+def probe_passes(name: str, probe: str, out) -> np.ndarray:
+    """Per member ``[E, B]``: every reachable Q-value within ``ATOL`` of Q* (and the better arm greedy in s0)."""
+    return probe_margins(name, probe, out) <= 1.0
+
+
+# Measured per-member failures of probe_passes on 256 members each (128 seeds x 2 epsilons, base 10**6;
+# `PYTHONPATH=$PWD python tests/probe_failure_rates.py dqn --seeds 128 --chunk 128`, 25 Nov 2026). The errors are
+# heavy-tailed: half the members are within 3e-5 of Q*, the 99% quantile of the largest error is 0.001 to 0.1, the
+# worst of 1536 members 0.2 (constant probe, episodic): a few members learn slowly, so a wider tolerance would not
+# remove the failures. q_u: the Clopper-Pearson bound at miss probability 1e-3 (stat_checks.failure_rate_bound),
+# 0.027 to 0.057; the tests allow stat_checks.allowed_failures(16, q_u) = 6 to 8 failures of their 16 members.
+MEASURED = {("dqn_episodic", "constant"): 4, ("dqn_episodic", "arms"): 1, ("dqn_episodic", "discounting"): 3,
+            ("dqn_continuous", "constant"): 0, ("dqn_continuous", "arms"): 1, ("dqn_continuous", "discounting"): 2}
+Q_LEARN = {pair: failure_rate_bound(failures, 256) for pair, failures in MEASURED.items()}
+
+
+@pytest.mark.statistical(p=1e-7)
 @pytest.mark.parametrize("name", ["dqn_episodic", "dqn_continuous"])
 @pytest.mark.parametrize("probe", q_probes.PROBES)
 def test_q_values_converge_to_the_probe_values(name, probe):
-    # Every member of the [2 epsilons x 4 seeds] grid within 0.06 of Q* after 3000 steps (seen: within 0.03).
-    episodic = agents.get(name).episodic
-    out = learned(name, probe)
-    q = q_probes.reachable_q(np.asarray(jax.vmap(jax.vmap(dqn.q_table))(out.state)), episodic)
-    np.testing.assert_allclose(q, np.broadcast_to(q_probes.true_q(probe, episodic), q.shape), atol=0.06)
-    pi = np.asarray(jax.vmap(jax.vmap(dqn.policy))(out.state))
-    if probe == "arms":  # the greedy action in s0 is the better arm, for every member
-        s0 = pi[:, :, 0, 0] if episodic else pi[:, :, 0]
-        np.testing.assert_array_equal(s0, np.broadcast_to([0.0, 1.0], s0.shape))
+    # The [2 epsilons x 8 seeds] grid from stat_checks.seed(0): at most stat_checks.allowed_failures(16, q_u) members
+    # may miss probe_passes; false-failure probability <= 1e-7 (given the measured q <= q_u).
+    mostly(probe_passes(name, probe, learned(name, probe, seed(0))), Q_LEARN[name, probe], f"{name} on {probe}")
 
 
 def test_grid_members_use_their_own_epsilon():
     # Arms probe, episodic: at s0 (the even steps) a member explores with probability epsilon and then plays the worse
     # arm 0 with probability 1/2; otherwise it plays its greedy arm, arm 1 once learned (the convergence test checks
     # it at the end; over the second half it held in all 96 members of 12 grids tried, whose counts below averaged
-    # 74.9 and 295.8). Over the second half's 750 visits of s0 per member, a group's count of arm 0 over its 4 seeds
-    # is then Binomial(3000, epsilon / 2): 75 expected at epsilon 0.05, 300 at 0.2. Each count must lie in its
-    # central band of mass 1 - 2.5e-7 (exact binomial tails, 35..123 and 219..388; disjoint, so a member using the
-    # other epsilon fails); the four tails add to less than 1e-6.
-    actions = np.asarray(learned("dqn_episodic", "arms").actions)  # [E, B, T]
+    # 74.9 and 295.8 over 4 seeds). Over the second half's 750 visits of s0 per member, a group's count of arm 0 over
+    # its N_SEEDS = 8 seeds is then Binomial(6000, epsilon / 2): 150 expected at epsilon 0.05, 600 at 0.2. Each count
+    # must lie in its central band of mass 1 - 2.5e-7 (exact binomial tails, 92..216 and 484..723; disjoint, so a
+    # member using the other epsilon fails); the four tails add to less than 1e-6. Fixed seeds: the band assumes
+    # that every member learned, which the convergence test bounds only statistically.
+    actions = np.asarray(learned("dqn_episodic", "arms", 0).actions)  # [E, B, T]
     counts = np.sum(actions[:, :, N_STEPS // 2 :: 2] == 0, axis=(1, 2))
     n = actions.shape[1] * (N_STEPS // 4)
     for count, epsilon in zip(counts, EPSILONS, strict=True):
@@ -379,7 +408,7 @@ def test_grid_members_use_their_own_epsilon():
 
 
 def test_same_key_same_result_and_seeds_differ():
-    out = learned("dqn_continuous", "discounting")
+    out = learned("dqn_continuous", "discounting", 0)
     again = run_probe("dqn_continuous", "discounting")
     for a, b in zip(jax.tree.leaves(out), jax.tree.leaves(again)):
         np.testing.assert_array_equal(a, b)

@@ -9,7 +9,7 @@ import pytest
 from scipy import stats
 
 import jaxmdp
-from agent_loop import make_runner, probe_mdps, seeds
+from agent_loop import is_river, make_runner, probe_batch, seeds
 from agents import AGENTS
 from agents.posteriors import normal_gamma_sample
 from agents.psrl_continuous import (
@@ -22,7 +22,7 @@ from agents.psrl_continuous import (
 )
 from jaxmdp import dynamic_programming as dp
 from jaxmdp.experiment.agent_interface import Transition, spec_of
-from stat_checks import Checks, key
+from stat_checks import Checks, failure_rate_bound, key, mostly
 
 AGENT = PSRL_CONTINUOUS
 HP = PSRLContinuousHParams(max_psi=3)  # psi = 2 on the probes: one unused candidate slot
@@ -301,35 +301,70 @@ def test_plan_is_a_no_op_for_a_member_that_did_not_ask():
     jax.tree.map(np.testing.assert_array_equal, out.replace(hparams=idle.hparams), idle)  # (hparams become arrays)
 
 
+COPIES = 4  # of the 4 probes: 16 members in lockstep
+RUN = make_runner(AGENT, N_STEPS, trace=True)
+GAINS = jax.jit(jax.vmap(lambda mdp, state: dp.policy_gain(mdp, AGENT.policy(state))))
+
+
+def probe_passes(keys, batch=None, res=None):
+    """Per member of ``keys`` (a multiple of 4; member ``i`` faces probe ``i % 4``), two criteria: ``exploits``, on
+    RiverSwim the last 500 steps collect the reward at the right end (mean above 0.95; every bandit member passes);
+    ``estimate``, the policy estimate's gain from the start is the optimal one (deterministic RiverSwim earns 1 per
+    step at its right end, the bandit's best arm 0.8).
+
+    The estimate is the greedy policy of the posterior-mean MDP (as the reference), which lags behind the acting
+    plan on the states the agent stopped visiting: about 11% of RiverSwim members exploit the right end perfectly
+    while their estimate goes left from the start (gain 0.005 or 0), e.g. member 0 of the keys split 256 ways from
+    jax.random.key(10**6)."""
+    batch = probe_batch(False, keys.shape[0] // 4) if batch is None else batch
+    res = RUN(keys, batch, HP) if res is None else res
+    np.testing.assert_array_equal(res.state.constants.psi, 2)  # real sizes, not the padded ones (every member)
+    river = is_river(keys.shape[0])
+    gains = np.asarray(GAINS(batch, res.state))
+    exploits = np.asarray(jnp.mean(res.rewards[:, -500:], axis=1)) > 0.95
+    return {"exploits": exploits | ~river, "estimate": np.abs(gains - np.where(river, 1.0, 0.8)) <= 1e-5}
+
+
 @pytest.fixture(scope="module")
 def probes():
-    batch = jaxmdp.stack(probe_mdps(episodic=False)).strip()
-    run = make_runner(AGENT, N_STEPS, trace=True)
-    return batch, run, run(seeds(4), batch, HP)
+    batch = probe_batch(False, COPIES)
+    return batch, RUN, RUN(seeds(4 * COPIES), batch, HP)
 
 
+# Measured on 1024 members (256 per probe, keys split from jax.random.key(10**6 + 64 i), i < 4; `PYTHONPATH=$PWD
+# python tests/probe_failure_rates.py psrl_continuous --seeds 256 --chunk 64`, 25 Nov 2026): 0 members missed
+# `exploits`, 86 missed `estimate` (all on RiverSwim, 11% of its 768 members; see probe_passes). Clopper-Pearson bounds
+# at miss probability 1e-3 (stat_checks.failure_rate_bound): q_u = 6.7e-3 and 0.114; the test allows
+# stat_checks.allowed_failures(16, q_u) = 4 and 11 failures of its 16 members: 2 checks, false-failure probability
+# <= 2e-7.
+Q_LEARN = {"exploits": failure_rate_bound(0, 1024), "estimate": failure_rate_bound(86, 1024)}
+
+
+@pytest.mark.statistical(p=2e-7)
 def test_policy_estimates_reach_the_optimal_gain(probes):
+    # 16 members from stat_checks.key(0) (the fixture's run, unless $JAXMDP_TEST_SEED draws fresh ones).
     batch, _, res = probes
-    pis = jax.jit(jax.vmap(AGENT.policy))(res.state)
-    gains = jax.jit(jax.vmap(dp.policy_gain))(batch, pis)
-    np.testing.assert_allclose(gains, [1.0, 1.0, 1.0, 0.8], atol=1e-5)
-    assert float(jnp.mean(res.rewards[:3, -500:])) > 0.95
-    np.testing.assert_array_equal(res.state.constants.psi, 2)  # real sizes, not the padded ones
+    keys = jax.random.split(key(0), 4 * COPIES)
+    fixed = bool(np.array_equal(jax.random.key_data(keys), jax.random.key_data(seeds(4 * COPIES))))
+    for criterion, passed in probe_passes(keys, batch, res if fixed else None).items():
+        mostly(passed, Q_LEARN[criterion], f"optimistic PSRL probes, {criterion}")
 
 
 def test_padded_states_and_actions_are_never_used(probes):
     batch, _, res = probes
     n_actions = np.asarray(batch.action_mask.sum(-1))
     assert np.all(np.asarray(res.actions) < n_actions[:, None])
-    assert int(res.state.counts[:3, :, 2:].sum()) == 0
-    assert int(res.state.counts[3, 1:].sum()) == 0 and int(res.state.counts[3, :, :, 1:].sum()) == 0
+    river = is_river(4 * COPIES)
+    assert int(res.state.counts[river, :, 2:].sum()) == 0
+    bandits = res.state.counts[~river]
+    assert int(bandits[:, 1:].sum()) == 0 and int(bandits[:, :, :, 1:].sum()) == 0
 
 
 def test_same_key_same_result_and_vmapped_equals_single(probes):
     batch, run, res = probes
-    jax.tree.map(np.testing.assert_array_equal, run(seeds(4), batch, HP), res)
+    jax.tree.map(np.testing.assert_array_equal, run(seeds(4 * COPIES), batch, HP), res)
     i = 2
-    single = make_runner(AGENT, N_STEPS, trace=True)(seeds(4)[i : i + 1], jax.tree.map(lambda x: x[i : i + 1], batch),
+    single = make_runner(AGENT, N_STEPS, trace=True)(seeds(4 * COPIES)[i : i + 1], jax.tree.map(lambda x: x[i : i + 1], batch),
                                                      HP)
     np.testing.assert_array_equal(single.actions[0], res.actions[i])
     np.testing.assert_array_equal(single.state.counts[0], res.state.counts[i])

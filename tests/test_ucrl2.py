@@ -9,52 +9,74 @@ import pytest
 from scipy import optimize
 
 import jaxmdp
-from agent_loop import make_runner, probe_mdps, seeds
+from agent_loop import is_river, make_runner, probe_batch, seeds
 from agents import AGENTS
 from agents.ucrl2 import UCRL2, UCRL2HParams, check_hparams, confidence_widths
 from jaxmdp import dynamic_programming as dp
 from jaxmdp.experiment.agent_interface import Transition, spec_of
+from stat_checks import failure_rate_bound, key, mostly
 
 N_STEPS = 3000
+COPIES = 4  # of the 4 probes: 16 members in lockstep
+RUN = make_runner(UCRL2, N_STEPS, trace=True)
+GAINS = jax.jit(jax.vmap(lambda mdp, state: dp.policy_gain(mdp, UCRL2.policy(state))))
+
+
+def probe_passes(keys, batch=None, res=None):
+    """Per member of ``keys`` (a multiple of 4; member ``i`` faces probe ``i % 4``): the policy estimate's gain is
+    the optimal one (deterministic RiverSwim earns 1 per step at its right end, the bandit's best arm 0.8), and on
+    RiverSwim the last 500 steps collect the reward at the right end (mean above 0.95)."""
+    batch = probe_batch(False, keys.shape[0] // 4) if batch is None else batch
+    res = RUN(keys, batch, UCRL2.default_hparams) if res is None else res
+    gains = np.asarray(GAINS(batch, res.state))
+    optimal = np.where(is_river(keys.shape[0]), 1.0, 0.8)
+    exploits = np.asarray(jnp.mean(res.rewards[:, -500:], axis=1)) > 0.95
+    return (np.abs(gains - optimal) <= 1e-5) & (exploits | ~is_river(keys.shape[0]))
 
 
 @pytest.fixture(scope="module")
 def probes():
-    mdps = probe_mdps(episodic=False)
-    batch = jaxmdp.stack(mdps).strip()
-    run = make_runner(UCRL2, N_STEPS, trace=True)
-    return mdps, batch, run, run(seeds(4), batch, UCRL2.default_hparams)
+    batch = probe_batch(False, COPIES)
+    return None, batch, RUN, RUN(seeds(4 * COPIES), batch, UCRL2.default_hparams)
 
 
 def test_registered():
     assert AGENTS["ucrl2"] is UCRL2 and not UCRL2.episodic
 
 
+# Measured: 0 of 1024 members (256 per probe, keys split from jax.random.key(10**6 + 64 i), i < 4) missed
+# probe_passes (`PYTHONPATH=$PWD python tests/probe_failure_rates.py ucrl2 --seeds 256 --chunk 64`, 25 Nov 2026):
+# Clopper-Pearson bound at miss probability 1e-3, q_u = 6.7e-3 per member (stat_checks.failure_rate_bound); the test
+# allows stat_checks.allowed_failures(16, q_u) = 4 failures of its 16 members: false-failure probability <= 1e-7.
+Q_LEARN = failure_rate_bound(0, 1024)
+
+
+@pytest.mark.statistical(p=1e-7)
 def test_policy_estimates_reach_the_optimal_gain(probes):
-    # Known optimal gains: deterministic RiverSwim earns 1 per step at its right end, the bandit's best arm 0.8.
+    # 16 members from stat_checks.key(0) (the fixture's run, unless $JAXMDP_TEST_SEED draws fresh ones): at most
+    # stat_checks.allowed_failures(16, Q_LEARN) = 4 may miss probe_passes; false-failure probability <= 1e-7.
     _, batch, _, res = probes
-    pis = jax.jit(jax.vmap(UCRL2.policy))(res.state)
-    gains = jax.jit(jax.vmap(dp.policy_gain))(batch, pis)
-    np.testing.assert_allclose(gains, [1.0, 1.0, 1.0, 0.8], atol=1e-5)
-    # Exploitation: the last 500 steps of RiverSwim are spent collecting the reward at the right end.
-    assert float(jnp.mean(res.rewards[:3, -500:])) > 0.95
+    keys = jax.random.split(key(0), 4 * COPIES)
+    fixed = bool(np.array_equal(jax.random.key_data(keys), jax.random.key_data(seeds(4 * COPIES))))
+    mostly(probe_passes(keys, batch, res if fixed else None), Q_LEARN, "UCRL2 probes")
 
 
 def test_padded_states_and_actions_are_never_used(probes):
     _, batch, _, res = probes
     n_actions = np.asarray(batch.action_mask.sum(-1))
     assert np.all(np.asarray(res.actions) < n_actions[:, None])
-    assert int(res.state.counts[:3, :, 2:].sum()) == 0  # RiverSwim: padded action 2
-    assert int(res.state.counts[3, 1:].sum()) == 0 and int(res.state.counts[3, 0].sum()) == N_STEPS  # bandit
-    assert int(res.state.counts[3, :, :, 1:].sum()) == 0  # bandit: padded states
+    assert int(res.state.counts[is_river(4 * COPIES), :, 2:].sum()) == 0  # RiverSwim: padded action 2
+    bandits = res.state.counts[~is_river(4 * COPIES)]
+    assert int(bandits[:, 1:].sum()) == 0 and np.all(np.asarray(bandits[:, 0].sum((1, 2))) == N_STEPS)
+    assert int(bandits[:, :, :, 1:].sum()) == 0  # bandit: padded states
 
 
 def test_same_key_same_result_and_vmapped_equals_single(probes):
     _, batch, run, res = probes
-    again = run(seeds(4), batch, UCRL2.default_hparams)
+    again = run(seeds(4 * COPIES), batch, UCRL2.default_hparams)
     jax.tree.map(np.testing.assert_array_equal, again, res)
     i = 1
-    single = make_runner(UCRL2, N_STEPS, trace=True)(seeds(4)[i : i + 1], jax.tree.map(lambda x: x[i : i + 1], batch),
+    single = make_runner(UCRL2, N_STEPS, trace=True)(seeds(4 * COPIES)[i : i + 1], jax.tree.map(lambda x: x[i : i + 1], batch),
                                                      UCRL2.default_hparams)
     np.testing.assert_array_equal(single.actions[0], res.actions[i])
     np.testing.assert_array_equal(single.state.counts[0], res.state.counts[i])
@@ -64,7 +86,7 @@ def test_same_key_same_result_and_vmapped_equals_single(probes):
 def test_planning_only_the_members_that_ask_gives_the_same_run(probes):
     # The test loop's plan_chunk gathers the members that need a plan into sub-batches (here one at a time).
     _, batch, _, res = probes
-    chunked = make_runner(UCRL2, N_STEPS, trace=True, plan_chunk=1)(seeds(4), batch, UCRL2.default_hparams)
+    chunked = make_runner(UCRL2, N_STEPS, trace=True, plan_chunk=1)(seeds(4 * COPIES), batch, UCRL2.default_hparams)
     np.testing.assert_array_equal(chunked.actions, res.actions)
     np.testing.assert_array_equal(chunked.n_plans, res.n_plans)
     np.testing.assert_allclose(chunked.state.Q, res.state.Q, rtol=1e-6, atol=1e-6)
