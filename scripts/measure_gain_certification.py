@@ -28,7 +28,7 @@ import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
-from hardness.benchmark import run, sets  # noqa: E402
+from hardness.benchmark import run  # noqa: E402
 from jaxmdp import dynamic_programming as dp  # noqa: E402
 from jaxmdp.experiment import runner  # noqa: E402
 from jaxmdp.experiment.indicators import policy_values  # noqa: E402
