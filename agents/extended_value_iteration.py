@@ -91,10 +91,18 @@ def _extra_mass(lo: jax.Array, hi: jax.Array, u: jax.Array) -> jax.Array:
     S = u.shape[-1]
     if S < SORTED_FROM:
         return _dense_extra_mass(lo, hi, u)
-    lo_t, room_t = lo.reshape(-1, S).T, (hi - lo).reshape(-1, S).T
+    _, room_t, budget = _transposed_boxes(lo, hi)
     order = jnp.argsort(-u, stable=True)
-    extra = _sorted_extra_mass(room_t, 1.0 - jnp.sum(lo_t, axis=0), order)
+    extra = _sorted_extra_mass(room_t, budget, order)
     return extra[jnp.argsort(order)].T.reshape(lo.shape)
+
+
+def _transposed_boxes(lo: jax.Array, hi: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """``(lo_t[S, R], room_t[S, R], budget[R])``: the boxes' ``R`` rows next state first, ``room = hi - lo``, and
+    the mass ``1 - sum lo`` each row has left to place (the sorted path's sweep-invariant inputs)."""
+    S = lo.shape[-1]
+    lo_t, room_t = lo.reshape(-1, S).T, (hi - lo).reshape(-1, S).T
+    return lo_t, room_t, 1.0 - jnp.sum(lo_t, axis=0)
 
 
 def optimistic_expectation(lo: jax.Array, hi: jax.Array, u: jax.Array) -> jax.Array:
@@ -138,12 +146,12 @@ def extended_value_iteration(
     lo, hi = confidence_box(p_hat, width, state_mask)
     u0 = jnp.zeros(rewards.shape[:1], rewards.dtype) if u0 is None else u0
     # optimistic_expectation with the sweep-invariant parts hoisted: the boxes transposed (next state first) once.
-    S = u0.shape[0]
-    lo_t, room_t = lo.reshape(-1, S).T, (hi - lo).reshape(-1, S).T
-    budget = 1.0 - jnp.sum(lo_t, axis=0)
+    sorted_path = u0.shape[0] >= SORTED_FROM
+    if sorted_path:
+        lo_t, room_t, budget = _transposed_boxes(lo, hi)
 
     def backup(u):
-        if S < SORTED_FROM:
+        if not sorted_path:
             return rewards + optimistic_expectation(lo, hi, u)
         order = jnp.argsort(-u, stable=True)
         value = u @ lo_t + u[order] @ _sorted_extra_mass(room_t, budget, order)
