@@ -151,10 +151,11 @@ def _evaluate_changed(
     only when that fails. The bounds start cold (``d_0 = r_pi``): a warm start from the bias estimate of the member's
     previous evaluation certified fewer policies, not more (``scripts/bench_agents.py --quick``, Q-learning
     continuous, MiniGridEmpty, 64 seeds: 0.98 M agent-steps/s warm, 1.64 M cold;
-    docs/benchmarks/continuous_indicators.md), and was removed. An agent's action indices (``greedy_actions``) are swept on the chosen actions' successor slots
-    only. Vectorising the bounds over the members instead (``vmap``) cost 35 times more on Taxi (960 against 27 us an
-    evaluation): the while loops then run as long as the slowest member, 128 sweeps whenever one member of the shard
-    does not certify. Elsewhere (GPU) the members stay in lockstep with the dense solve.
+    docs/benchmarks/continuous_indicators.md), and was removed. An agent's action indices (``greedy_actions``) are
+    swept on the chosen actions' successor slots only. Vectorising the bounds over the members instead (``vmap``)
+    cost 35 times more on Taxi (960 against 27 us an evaluation): the while loops then run as long as the slowest
+    member, 128 sweeps whenever one member of the shard does not certify. Elsewhere (GPU) the members stay in
+    lockstep with the dense solve.
     """
     dtype = cache.dtype
 
@@ -298,9 +299,9 @@ def _chunk_program(
             )
 
         def log(c: Carry) -> tuple:
-            # The fields a log writes (logged_fields' order). Policy evaluation is the expensive half of an indicator; a member whose policy is unchanged since the
-            # previous log reuses its values (exactly: they cover every state), and the evaluation is skipped
-            # altogether when no member's policy changed.
+            # The fields a log writes (logged_fields' order). Policy evaluation is the expensive half of an
+            # indicator; a member whose policy is unchanged since the previous log reuses its values (exactly: they
+            # cover every state), and the evaluation is skipped altogether when no member's policy changed.
             policy = jax.vmap(_policy_of(agent))(c.agent_state)
             # max over uint8, not any over bool: XLA's CPU reduction of a predicate is about 9x slower (a float
             # [B, H, S, A] policy of Taxi at 512 members: 1.0 us against 0.11 us per agent-step). Reduced over the
@@ -363,7 +364,8 @@ def _chunk_program(
     carry_specs = jax.tree.unflatten(carry_treedef[0], [P() if nd == 0 else P("members") for nd in carry_treedef[1]])
     in_specs = (carry_specs, P(), P("members"), P("members"), P(), P())
     out_specs = (carry_specs, P(), P(None, "members"), P())
-    return jax.jit(jax.shard_map(chunk, mesh=mesh, in_specs=in_specs, out_specs=out_specs, check_vma=False), donate_argnums=0)
+    sharded = jax.shard_map(chunk, mesh=mesh, in_specs=in_specs, out_specs=out_specs, check_vma=False)
+    return jax.jit(sharded, donate_argnums=0)
 
 
 def diagnostic_names(agent: Agent, agent_states: Any) -> tuple[str, ...]:
