@@ -398,16 +398,26 @@ def test_check_hparams():
 def test_only_if_skips_under_vmap_and_keeps_each_members_result():
     from agents.psrl_continuous import only_if
 
-    calls = []
+    runs = [0]  # executions of the body, counted by a callback that runs only when the body does
 
     def work(x):
-        calls.append(1)  # traced once per compilation; the value checks below are what matter
+        jax.debug.callback(lambda: runs.__setitem__(0, runs[0] + 1))
         return x * 2.0 + 1.0
+
+    def count(pred, x):
+        runs[0] = 0
+        out = f(pred, x).block_until_ready()
+        jax.effects_barrier()
+        return out, runs[0]
 
     f = jax.jit(jax.vmap(lambda p, x: only_if(p, work, jnp.zeros_like(x), x)))
     x = jnp.arange(6.0).reshape(3, 2)
-    np.testing.assert_array_equal(f(jnp.array([True, False, True]), x), [[1.0, 3.0], [0.0, 0.0], [9.0, 11.0]])
-    np.testing.assert_array_equal(f(jnp.array([False, False, False]), x), np.zeros((3, 2)))
+    out, n = count(jnp.array([True, False, True]), x)
+    np.testing.assert_array_equal(out, [[1.0, 3.0], [0.0, 0.0], [9.0, 11.0]])
+    assert n == 1  # one batched body for the whole batch
+    out, n = count(jnp.array([False, False, False]), x)
+    np.testing.assert_array_equal(out, np.zeros((3, 2)))
+    assert n == 0  # skipped: no member asked
     np.testing.assert_array_equal(jax.jit(lambda x: only_if(True, work, x, x))(x), 2 * x + 1)
 
 
