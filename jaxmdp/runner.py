@@ -4,6 +4,7 @@
 from jaxmdp.experiment.runner import (  # noqa: F401
     MEMBER_COLUMNS,
     Grid,
+    ProgramTooLarge,
     RunResult,
     grid,
     product,

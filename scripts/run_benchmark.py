@@ -51,7 +51,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "tabular agents with the reference package's update rules (docs/agents.md); with --hparams "
                         "reference the like-for-like counterpart of the paper's Table 2")
     p.add_argument("--buckets", type=int, default=None, help="size buckets per set (default 4; --quick 1)")
-    p.add_argument("--max-members", type=int, default=None, help="members per runner call (default: a bucket)")
+    p.add_argument("--max-members", type=int, default=None,
+                   help="members per runner call (default: a bucket, halved until it fits in memory)")
+    p.add_argument("--memory-limit", type=float, default=None, metavar="GIB",
+                   help="GiB a runner call may use (default: the memory available)")
     p.add_argument("--emission", default=None,
                    help="observe the MDPs through this emission map, for the deep agents: state_info (the reference's "
                         "StateInfo), one_hot (OneHotEncoding), image, tensor, linear_optimal, linear_random (default: "
@@ -72,7 +75,8 @@ def config_from_args(args: argparse.Namespace) -> run.RunConfig:
                  agents=tuple(args.agents) if args.agents else None,
                  seeds=tuple(range(args.seeds)) if args.seeds is not None else None, n_steps=args.steps,
                  n_buckets=args.buckets, max_members=args.max_members, emission=args.emission,
-                 only=tuple(args.mdps) if args.mdps else None)
+                 only=tuple(args.mdps) if args.mdps else None,
+                 memory_limit=None if args.memory_limit is None else int(args.memory_limit * 2**30))
     config = {**base, **{k: v for k, v in given.items() if v is not None}, "hparams": args.hparams,
               "agent_variant": args.agent_variant}
     if args.log_period is not None:

@@ -14,6 +14,7 @@ import pytest
 
 import jaxmdp
 from hardness.benchmark import published, report, run, sets
+from jaxmdp import runner
 
 TINY = dict(sets=("episodic quick test",), agents=("q_learning_episodic", "random_episodic"), seeds=(0, 1),
             n_steps=200, log_period=50, n_buckets=2, hparams="reference", only=("RiverSwim", "DeepSea"))
@@ -168,6 +169,37 @@ def test_bad_configs_raise_clear_errors(tmp_path):
         run.plan(run.RunConfig(sets=("episodic quick test",), agents=("q_learning_episodic",), emission="one_hot"))
     with pytest.raises(ValueError, match="keeps no MDP"):
         run.plan(run.RunConfig(sets=("episodic quick test",), only=("Nowhere",), hparams="reference"))
+    with pytest.raises(ValueError, match="memory_limit must be a positive number of bytes"):
+        run.plan(run.RunConfig(sets=("episodic quick test",), memory_limit=0))
+
+
+ONE_BUCKET = {**TINY, "agents": ("q_learning_episodic",), "n_buckets": 1}
+
+
+def test_a_batch_too_large_for_memory_is_split_with_the_same_results(tmp_path):
+    # One bucket: RiverSwim 5 (5 states) and DeepSea 10 (55) in one batch of 4 members. Its chunk program needs about
+    # 490 KiB, a member padded to DeepSea's shape about 125 KiB: a 195 KiB limit forces one split into halves of 2.
+    whole = run.run_benchmark(run.RunConfig(**ONE_BUCKET), tmp_path / "whole", progress=False, report=False)
+    assert whole.ran == ["episodic_quick_test.q_learning_episodic.b0"]
+    config = run.RunConfig(**ONE_BUCKET, memory_limit=200_000)
+    split = run.run_benchmark(config, tmp_path / "split", progress=False, report=False)
+    assert split.finished and split.ran == [f"{whole.ran[0]}.s0", f"{whole.ran[0]}.s1"]
+    plan = json.loads((tmp_path / "split" / "plan.json").read_text())
+    assert [len(b["members"]) for b in plan["batches"]] == [2, 2]
+    assert all(len(b["whole"]) == 4 for b in plan["batches"])
+    rows = {}
+    for name in ("whole", "split"):
+        with (tmp_path / name / "members.csv").open(newline="") as f:
+            rows[name] = [r[:-1] for r in csv.reader(f)]  # all but the batch id
+    # The RiverSwim half is padded to DeepSea's shape, as in the whole batch: the same numbers, to the last digit.
+    assert rows["split"] == rows["whole"] and len(rows["whole"]) == 5
+    again = run.run_benchmark(config, tmp_path / "split", progress=False, report=False)  # the split plan is reused
+    assert again.ran == [] and again.reused == split.ran
+    with pytest.raises(runner.ProgramTooLarge, match="a single member"):  # halves down to one member, then refuse
+        run.run_benchmark(run.RunConfig(**ONE_BUCKET, memory_limit=1), tmp_path / "tiny", progress=False)
+    with pytest.raises(runner.ProgramTooLarge, match="run fewer than its 2 members"):  # max_members: no split
+        run.run_benchmark(run.RunConfig(**{**ONE_BUCKET, "max_members": 2}, memory_limit=1), tmp_path / "fixed",
+                          progress=False)
 
 
 DEEP = dict(sets=("episodic quick test",), agents=("dqn_episodic", "random_episodic"), seeds=(0, 1), n_steps=200,

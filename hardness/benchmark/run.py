@@ -9,7 +9,10 @@ clock).
 Batches: the MDPs of a set are split into size buckets (:func:`jaxmdp.size_buckets` on each MDP's seed-0 instance, all
 seeds of an MDP in its bucket), and one batch is one agent on one bucket, at most ``max_members`` members (the
 buckets' members split in order otherwise): one lockstep runner call (:func:`jaxmdp.runner.run`) in which no member
-pays for a larger bucket's padding. Identical instances (seed-independent families) are stored once per batch.
+pays for a larger bucket's padding. Identical instances (seed-independent families) are stored once per batch. A
+batch whose compiled programs would not fit in memory (the runner checks before running,
+:mod:`jaxmdp.experiment.memory`) is split in halves until they fit (:func:`split_batch`; unless ``max_members`` is
+given), each half padded like the whole batch so that its members' results are the same.
 
 Deep agents (paper §3.1, App. G): with ``emission`` every MDP is wrapped as a noiseless BlockMDP
 (:func:`to_block_mdp`; the non-tabular benchmark's choice is ``StateInfo``), the default agents are the deep agents
@@ -106,7 +109,10 @@ class RunConfig:
       seeds, n_steps: seeds (each builds the MDP and seeds the agent) and steps of every run.
       log_period: steps between indicator logs, unless ``log_periods`` names the set.
       hparams: ``"tuned"``, ``"reference"`` or a tuned-file path (:func:`hardness.benchmark.hparams.hparams_for`).
-      n_buckets: size buckets per set; max_members: members per runner call (``None``: a whole bucket).
+      n_buckets: size buckets per set; max_members: members per runner call (``None``: a whole bucket, halved
+        until its programs fit in memory, :func:`split_batch`).
+      memory_limit: bytes a runner call's programs may use (``None``: what the machine has available); not part of
+        the results, so not of the plan's settings.
       n_records: records per member in the per-record CSVs and curves.
       emission: the emission through which the agents observe the MDPs (:func:`to_block_mdp`: a kind of
         :data:`jaxmdp.EMISSION_KINDS` or a reference class name such as ``"StateInfo"``); the deep agents need one,
@@ -130,6 +136,7 @@ class RunConfig:
     emission: str | None = None
     only: tuple[str, ...] | None = None
     agent_variant: str = "paper"
+    memory_limit: int | None = None
 
     def period(self, set_name: str) -> int:
         return int(self.log_periods.get(set_name, self.log_period))
@@ -145,6 +152,9 @@ class Batch:
     set_name: str
     agent: str
     members: tuple[tuple[str, int], ...]
+    #: The members of the batch this one is a part of, when a batch was split because it did not fit in memory
+    #: (:func:`split_batch`): the part is padded and sized like it, so each member runs as it would have there.
+    whole: tuple[tuple[str, int], ...] | None = None
 
 
 @dataclasses.dataclass
@@ -207,6 +217,8 @@ def _check(config: RunConfig) -> list[str]:
             raise ValueError(f"{field} must be a positive integer; got {value!r}")
     if config.max_members is not None and config.max_members < 1:
         raise ValueError(f"max_members must be a positive integer or None; got {config.max_members!r}")
+    if config.memory_limit is not None and (isinstance(config.memory_limit, bool) or config.memory_limit < 1):
+        raise ValueError(f"memory_limit must be a positive number of bytes or None; got {config.memory_limit!r}")
     return names
 
 
@@ -282,7 +294,8 @@ def plan(config: RunConfig, out: str | os.PathLike | None = None) -> tuple[dict[
     if path is not None and path.exists():
         saved = json.loads(path.read_text())
         if saved.get("settings") == settings:
-            batches = [Batch(b["id"], b["key"], b["set_name"], b["agent"], tuple(map(tuple, b["members"])))
+            batches = [Batch(b["id"], b["key"], b["set_name"], b["agent"], tuple(map(tuple, b["members"])),
+                             None if b.get("whole") is None else tuple(map(tuple, b["whole"])))
                        for b in saved["batches"]]
             return settings, batches
     batches = []
@@ -301,16 +314,44 @@ def plan(config: RunConfig, out: str | os.PathLike | None = None) -> tuple[dict[
                 parts = [members[k : k + step] for k in range(0, len(members), step)]
                 for p, part in enumerate(parts):
                     bid = f"{_slug(set_name)}.{agent}.{gid}" + (f".p{p}" if len(parts) > 1 else "")
-                    key = {k: settings[k] for k in ("n_steps", "n_records", "emission", "variant", "agent_variant")}
-                    key.update(set=set_name, agent=agent, members=part, log_period=settings["log_periods"][set_name],
-                               hparams=settings["hparams"][agent])
-                    digest = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:16]
-                    batches.append(Batch(bid, digest, set_name, agent, tuple(part)))
+                    batches.append(Batch(bid, _batch_key(settings, set_name, agent, part), set_name, agent,
+                                         tuple(part)))
     if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        data = {"settings": settings, "batches": [dataclasses.asdict(b) for b in batches]}
-        _write_atomic(path, json.dumps(data, indent=1) + "\n")
+        _save_plan(path, settings, batches)
     return settings, batches
+
+
+def _batch_key(settings: dict, set_name: str, agent: str, members: Sequence, whole: Sequence | None = None) -> str:
+    """Hash of everything a batch's results depend on (a part's key includes the batch it was split from)."""
+    key = {k: settings[k] for k in ("n_steps", "n_records", "emission", "variant", "agent_variant")}
+    key.update(set=set_name, agent=agent, members=[list(m) for m in members],
+               log_period=settings["log_periods"][set_name], hparams=settings["hparams"][agent])
+    if whole is not None:
+        key.update(whole=[list(m) for m in whole])
+    return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def _save_plan(path: Path, settings: dict, batches: Sequence[Batch]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    data = {"settings": settings, "batches": [dataclasses.asdict(b) for b in batches]}
+    _write_atomic(path, json.dumps(data, indent=1) + "\n")
+
+
+def split_batch(batch: Batch, settings: dict) -> list[Batch]:
+    """``batch`` in two halves (ids ``<id>.s0``, ``<id>.s1``): how :func:`run_benchmark` splits a batch whose
+    programs do not fit in memory. Each half remembers the batch it came from (:attr:`Batch.whole`, the original one
+    after repeated splits) and is padded and sized like it (MDP shapes, PSRL's candidate buffer), so every member
+    computes what it would have computed in the whole batch: the results do not depend on the machine's memory.
+    (With an emission the halves are padded to their own members: an observation's shape follows the padding.)"""
+    if len(batch.members) < 2:
+        raise ValueError(f"batch {batch.id} has a single member and cannot be split")
+    half = -(-len(batch.members) // 2)
+    whole = batch.members if batch.whole is None else batch.whole
+    return [
+        Batch(f"{batch.id}.s{j}", _batch_key(settings, batch.set_name, batch.agent, part, whole), batch.set_name,
+              batch.agent, tuple(part), whole)
+        for j, part in enumerate((batch.members[:half], batch.members[half:]))
+    ]
 
 
 def _split_by_observation(
@@ -352,16 +393,15 @@ def _content_hash(m: MDP) -> str:
     return h.hexdigest()
 
 
-def _grid(batch: Batch, config: RunConfig, hp: Any, agent_name: str) -> runner.Grid:
-    """The batch's members: each distinct instance once, labelled by its MDP label (and seed where it matters)."""
-    by_label = {i.label: i for i in sets.instances(batch.set_name)}
-    emission = None if config.emission is None else canonical_emission(config.emission)
+def _distinct(members: Sequence[tuple[str, int]], set_name: str, emission: str | None):
+    """``(distinct MDPs, their labels, member -> distinct index, emission seed of each distinct MDP)``."""
+    by_label = {i.label: i for i in sets.instances(set_name)}
     distinct: list[MDP] = []
     labels: list[str] = []
     index: dict[tuple[str, int], int] = {}
     mdp_index = []
     emission_seeds = []  # the seed whose emission key a distinct member's features come from
-    for label, seed in batch.members:
+    for label, seed in members:
         m = by_label[label].build(seed)
         h = (_content_hash(m), seed if emission in KEYED_EMISSIONS else 0)  # keyed features differ per seed
         if h not in index:
@@ -370,7 +410,23 @@ def _grid(batch: Batch, config: RunConfig, hp: Any, agent_name: str) -> runner.G
             labels.append(f"{label}@{seed}")
             emission_seeds.append(seed)
         mdp_index.append(index[h])
-    fitted = hp_sources.fit_static_sizes(agent_name, [hp], distinct)[0]
+    return distinct, labels, mdp_index, emission_seeds
+
+
+def _grid(batch: Batch, config: RunConfig, hp: Any, agent_name: str) -> runner.Grid:
+    """The batch's members: each distinct instance once, labelled by its MDP label (and seed where it matters); a
+    part of a split batch padded and sized like the whole (:func:`split_batch`)."""
+    emission = None if config.emission is None else canonical_emission(config.emission)
+    distinct, labels, mdp_index, emission_seeds = _distinct(batch.members, batch.set_name, emission)
+    like = distinct
+    if batch.whole is not None:
+        like = _distinct(batch.whole, batch.set_name, emission)[0]
+        if emission is None:
+            S, A, K = (max(getattr(m, f) for m in like) for f in ("n_states", "n_actions", "max_successors"))
+            H = max(m.H for m in like) if like[0].episodic else None
+            starts = max(m.max_starts for m in like)
+            distinct = [jaxmdp.pad(m, S, A, K, H, starts) for m in distinct]
+    fitted = hp_sources.fit_static_sizes(agent_name, [hp], like)[0]
     seeds = [s for _, s in batch.members]
     hparams = runner.stack_hparams([fitted] * len(seeds))
     mdps = distinct if emission is None else [to_block_mdp(m, emission, s) for m, s in zip(distinct, emission_seeds)]
@@ -408,7 +464,7 @@ def _run_batch(batch: Batch, config: RunConfig, run_dir: Path, stop_after_chunks
     # One runner call per batch: each call recomputes the members' indicator constants, which is not free.
     result = runner.run(agent, g, config.n_steps, log_period=period, n_records=config.n_records,
                         csv_path=run_dir / f"{batch.id}.csv", checkpoint_path=run_dir / f"{batch.id}.ckpt.npz",
-                        stop_after_chunks=stop_after_chunks)
+                        stop_after_chunks=stop_after_chunks, memory_limit=config.memory_limit)
     done = int(result.steps[-1]) if result.steps.size else 0
     if done < config.n_steps:
         return False
@@ -480,6 +536,7 @@ def run_benchmark(
     out = Path(out)
     (out / "runs").mkdir(parents=True, exist_ok=True)
     settings, batches = plan(config, out)
+    batches = list(batches)
     todo = [b for b in batches if _finished(out / "runs", b) is None]
     reused = [b.id for b in batches if b not in todo]
     ran: list[str] = []
@@ -490,13 +547,30 @@ def run_benchmark(
         total = sum(len(b.members) for b in todo) * config.n_steps
         with tqdm(total=total, unit="step", unit_scale=True, disable=not progress, file=sys.stderr,
                   desc="benchmark (member-steps)") as bar:
-            for k, batch in enumerate(todo):
+            k = 0
+            while todo:
+                batch = todo.pop(0)
                 bar.set_postfix_str(f"{batch.id}: {len(batch.members)} members")
-                ran.append(batch.id)
                 chunks = stop_at[1] if stop_at is not None and k == stop_at[0] else None
-                if not _run_batch(batch, config, out / "runs", chunks):
+                try:
+                    done = _run_batch(batch, config, out / "runs", chunks)
+                except runner.ProgramTooLarge as err:
+                    if config.max_members is not None or len(batch.members) < 2:
+                        raise
+                    halves = split_batch(batch, settings)
+                    if progress:
+                        print(f"\n{batch.id} does not fit in memory ({err}); split into {len(halves)} parts",
+                              file=sys.stderr)
+                    at = batches.index(batch)
+                    batches[at : at + 1] = halves
+                    _save_plan(out / "plan.json", settings, batches)
+                    todo[:0] = halves
+                    continue
+                ran.append(batch.id)
+                if not done:
                     finished = False
                     break
+                k += 1
                 bar.update(len(batch.members) * config.n_steps)
                 write_tables(out, settings, batches)
     n_rows = write_tables(out, settings, batches)

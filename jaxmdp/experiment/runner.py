@@ -54,6 +54,7 @@ from jaxmdp import env
 from jaxmdp._checks import VARIANTS, Variant, check_int, check_variant
 from jaxmdp.experiment.agent_interface import Agent, Transition, spec_of, where_due
 from jaxmdp.experiment.checkpoints import fingerprint, load_checkpoint, save_checkpoint
+from jaxmdp.experiment.memory import ProgramTooLarge, check_fits
 from jaxmdp.experiment.indicators import (
     AGENT_COLUMNS,
     ITERATIVE_GAIN_SWEEPS,
@@ -68,7 +69,10 @@ from jaxmdp.experiment.members import Grid, dynamics, grid, product, seed_keys, 
 from jaxmdp.experiment.records import MEMBER_COLUMNS, RunResult, append_rows, csv_rows, record_steps, truncate_csv
 from jaxmdp.mdp import MDP
 
-__all__ = ["Grid", "grid", "product", "seed_keys", "stack_hparams", "RunResult", "run", "record_steps", "MEMBER_COLUMNS"]
+__all__ = [
+    "Grid", "grid", "product", "seed_keys", "stack_hparams", "RunResult", "run", "record_steps", "MEMBER_COLUMNS",
+    "ProgramTooLarge",
+]
 
 
 # Sub-keys of a member's key: environment, actions, planning, initialisation.
@@ -501,6 +505,7 @@ class _Settings:
     variant: Variant
     record_visits: bool = False
     plan_slots: int | None = None
+    memory_limit: int | None = None
 
 
 @dataclasses.dataclass
@@ -541,6 +546,7 @@ def _validated_settings(
     shards: int | None,
     record_visits: bool = False,
     plan_slots: int | None = None,
+    memory_limit: int | None = None,
 ) -> _Settings:
     """Check every argument on the host, before anything compiles, and derive the chunking (see :func:`run`)."""
     n_steps = check_int("n_steps", n_steps)
@@ -550,6 +556,8 @@ def _validated_settings(
         chunk_steps = check_int("chunk_steps", chunk_steps)
     if plan_slots is not None:
         plan_slots = check_int("plan_slots", plan_slots)
+    if memory_limit is not None:
+        memory_limit = check_int("memory_limit", memory_limit)
     if not isinstance(record_visits, bool):
         raise ValueError(f"record_visits must be True or False; got {record_visits!r}")
     if n_steps >= 2**31 - 1:
@@ -571,11 +579,13 @@ def _validated_settings(
         variant=variant,
         record_visits=record_visits,
         plan_slots=plan_slots,
+        memory_limit=memory_limit,
     )
 
 
 def _compile(agent: Agent, grid: Grid, settings: _Settings) -> _Program:
-    """Compute the indicator constants and compile the initialisation and chunk programs (timed together)."""
+    """Compute the indicator constants and compile the initialisation and chunk programs (timed together); raise
+    :class:`~jaxmdp.experiment.memory.ProgramTooLarge` before anything runs if one of them would not fit in memory."""
     mdps = grid.mdps
     # device_put, not jnp.asarray, which compiles a small program per array shape.
     mdp_index = jax.device_put(grid.mdp_index)
@@ -599,6 +609,13 @@ def _compile(agent: Agent, grid: Grid, settings: _Settings) -> _Program:
     )
     chunk_exe = chunk_fn.lower(carry_shape, mdps, mdp_index, consts, sched, jnp.int32(0)).compile()
     jax.block_until_ready(consts)
+    check_fits(
+        [("initialisation", init_fn), ("chunk", chunk_exe)],
+        settings.n_shards,
+        limit=settings.memory_limit,
+        remedy=f"run fewer than its {grid.n_members} members per call (split the grid)" if grid.n_members > 1
+        else "a single member: it needs a machine with more memory",
+    )
     return _Program(
         init=init_fn, chunk=chunk_exe, carry_shape=carry_shape, mdps=mdps, mdp_index=mdp_index, hparams=hparams,
         key_data=key_data, consts=consts, sched=sched, compile_s=time.perf_counter() - t0,
@@ -690,6 +707,7 @@ def run(
     shards: int | None = None,
     record_visits: bool = False,
     plan_slots: int | None = None,
+    memory_limit: int | None = None,
 ) -> RunResult:
     """Run ``agent`` on every member of ``grid`` for ``n_steps`` steps in lockstep (see the module docstring).
 
@@ -719,15 +737,20 @@ def run(
         (:mod:`jaxmdp.experiment.planning`): rounds of this many until all are served, so planning costs in
         proportion to the members that asked; default ``ceil(members / 16)`` per shard. A value at least a shard's
         members plans the whole shard whenever one member asks (the earlier scheme). The results do not depend on it.
+      memory_limit: bytes the compiled programs may need (all shards together on a CPU, per device on an
+        accelerator); default what the devices have available (:mod:`jaxmdp.experiment.memory`).
 
     Raises:
       ValueError: before anything compiles, for an episodic agent on continuous MDPs (or the reverse), an agent
         whose policy or action does not fit the MDPs' ``S``/``A``/``H``, non-positive ``n_steps``, ``log_period`` or
         ``n_records``, hyperparameters outside their domain (``agent.check_hparams``) or a checkpoint of another
         run.
+      ProgramTooLarge: after compiling, before anything runs, when a program needs more memory than
+        ``memory_limit`` (a ``MemoryError``; split the members over several calls).
     """
     settings = _validated_settings(
-        agent, grid, n_steps, log_period, n_records, variant, chunk_steps, shards, record_visits, plan_slots
+        agent, grid, n_steps, log_period, n_records, variant, chunk_steps, shards, record_visits, plan_slots,
+        memory_limit,
     )
     program = _compile(agent, grid, settings)
     run_id = fingerprint(agent.name, grid, settings.n_steps, settings.log_period, settings.record_period, variant)
