@@ -131,17 +131,28 @@ def test_table2_bold_on_row_minimum_average_row_and_paper_columns(tmp_path):
     assert lines[0] == ("| MDP | q_learning_episodic | psrl_episodic | random_episodic | q_learning_episodic (paper) "
                         "| psrl_episodic (paper) | seeds |")
     cells = [line.strip("| ").split(" | ") for line in lines[2:]]
-    assert [c[0] for c in cells] == ["DeepSea (1)", "Taxi (2)", "*Average*"]
+    assert [c[0] for c in cells] == ["DeepSea (1)", "Taxi (2)", "*Average of these 2 of 20*"]
     std = np.std([0.2, 0.4], ddof=1)
     assert cells[0][1:4] == [f"0.300 ± {std:.3f}", "**0.100** ± 0.000", "0.000 ± 0.000"]
-    assert cells[1][1:3] == [f"**0.500** ± 0.000", f"0.700 ± {np.std([0.6, 0.8], ddof=1):.3f}"]
+    assert cells[1][1:3] == ["**0.500** ± 0.000", f"0.700 ± {np.std([0.6, 0.8], ddof=1):.3f}"]
     assert cells[0][4:6] == ["0.64 ± 0.00", "0.01 ± 0.00"] and cells[1][4:6] == ["0.56 ± 0.02", "0.05 ± 0.00"]
     assert cells[0][6] == "2/2"
     # Average: mean and population std over the MDPs of the per-MDP means (Table 2's rule).
     assert cells[2][1] == f"{np.mean([0.3, 0.5]):.3f} ± {np.std([0.3, 0.5]):.3f}"
-    assert cells[2][4:6] == ["0.81 ± 0.24", "0.30 ± 0.33"]
+    # The paper's average by the same rule over the same two MDPs (not Table 2's average over its 20).
+    assert cells[2][4:6] == [f"{np.mean([0.64, 0.56]):.2f} ± {np.std([0.64, 0.56]):.2f}",
+                             f"{np.mean([0.01, 0.05]):.2f} ± {np.std([0.01, 0.05]):.2f}"]
     tex = report.latex_table(report.summarize(tmp_path), "episodic ergodic")
     assert "$\\mathbf{0.100} \\pm 0.000$" in tex and "q\\_learning\\_episodic" in tex
+    assert "\\textit{Average of these 2 of 20}" in tex
+
+
+def test_average_row_of_a_whole_set_is_table2s(tmp_path):
+    labels = [i.label for i in sets.instances("episodic ergodic")]
+    _fake_run(tmp_path, [(lab, "q_learning_episodic", s, 0.5) for lab in labels for s in (0, 1)],
+              ["q_learning_episodic"])
+    last = report.markdown_table(report.summarize(tmp_path), "episodic ergodic").splitlines()[-1]
+    assert last.strip("| ").split(" | ")[:3] == ["*Average*", "0.500 ± 0.000", "0.81 ± 0.24"]
 
 
 def test_published_average_rows_are_the_mean_and_std_of_the_rows():

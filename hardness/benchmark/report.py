@@ -10,7 +10,8 @@ Written by :func:`write_report` (called at the end of :func:`hardness.benchmark.
     (final ``normalized_cumulative_regret / steps``, App. E), the lowest mean of the learning agents in bold (ties at
     the printed precision too; the random agent is a baseline, never bold), the paper's Table 2 number of the agent
     beside it where the paper has one, and the seeds completed; an *Average* row: mean ± standard deviation
-    (``ddof = 0``) over the MDPs of the per-MDP means, Table 2's rule;
+    (``ddof = 0``) over the MDPs of the per-MDP means, Table 2's rule (when a run covers only some of a set's MDPs,
+    the paper's average is recomputed by the same rule over the same MDPs, and the row says so);
   - the App. G-style table: one row per (MDP, agent): normalised cumulative reward, expected reward and regret, the
     paper's regret, steps per second of one member (``n_steps`` over its batch's lockstep run time) and completed
     seeds, ours and the paper's (whose runs were cut off after ten minutes);
@@ -155,13 +156,19 @@ def _table2_rows(s: Summary, set_name: str, latex: bool) -> tuple[list[str], lis
         done = [c[2] for c in cells.values() if c is not None]
         row.append(f"{min(done) if len(done) == len(agents) else 0}/{s.n_seeds}")
         rows.append(row)
-    avg = ["*Average*" if not latex else "\\textit{Average}"]
+    labels, n_set = s.labels(set_name), len(sets.instances(set_name))
+    name = "Average" if len(labels) == n_set else f"Average of these {len(labels)} of {n_set}"
+    avg = [f"*{name}*" if not latex else f"\\textit{{{name}}}"]
     for a in agents:
         x = np.asarray(means[a])
         avg.append(_fmt(float(x.mean()), float(x.std()), 3, False, latex) if x.size else "")
     for a in paper_agents:
-        p = published.TABLE2_AVERAGE[set_name][a]
-        avg.append(_fmt(p[0], p[1], 2, False, latex))
+        if len(labels) == n_set:  # the whole set: Table 2's own average row
+            p = published.TABLE2_AVERAGE[set_name][a]
+        else:  # a subset: the same rule (mean, std with ddof 0) over the paper's numbers of the MDPs shown
+            x = np.asarray([q[0] for q in (published.table2(set_name, a, lb) for lb in labels) if q])
+            p = (float(x.mean()), float(x.std())) if x.size else None
+        avg.append(_fmt(p[0], p[1], 2, False, latex) if p else "")
     avg.append("")
     rows.append(avg)
     return header, rows
