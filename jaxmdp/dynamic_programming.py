@@ -520,15 +520,16 @@ def _gth_eliminate(M: jax.Array, block: int = GTH_BLOCK, stages: int = _GTH_STAG
     divided, so every entry keeps a small relative error however slowly the chain mixes.
 
     Blocked: eliminating a block ``B`` of ``b`` positions leaves the stochastic complement ``M_FF + M_FB (I -
-    M_BB)^{-1} M_BF`` on the positions ``F`` below it (Meyer 1989, SIAM Rev. 31; block GTH: Stewart 1994,
-    "Introduction to the Numerical Solution of Markov Chains", §2.7). The scalar steps run on the ``b x b`` block
+    M_BB)^{-1} M_BF`` on the positions ``F`` below it (Meyer 1989, "Stochastic complementation, uncoupling Markov
+    chains, and the theory of nearly reducible systems", SIAM Rev. 31; GTH and block elimination: Stewart 1994,
+    "Introduction to the Numerical Solution of Markov Chains", ch. 2). The scalar steps run on the ``b x b`` block
     ``A = M_BB`` only, with ``sigma[i] = sum(M[B_i, F])`` (updated like a column of ``A``) completing each ``s_k``, and
     two ``b x b`` coefficient matrices that start at ``I``: ``X``, updated like the rows of ``A``, gives the rows
     ``row_k[F] = X[i] M[B, F]``; ``Y``, updated like the columns of ``A`` and divided by ``s_k`` with them, gives the
     columns ``col_k[F] = M[F, B] Y[:, i]``. ``X``, ``Y`` and ``sigma`` are sums of non-negative products too (``X =
     (I - L)^{-1} = I + L + L^2 + ...`` for the block's strictly triangular, non-negative normalised columns ``L``),
-    so the blocked elimination stays subtraction-free: it forms the same non-negative products as the scalar one,
-    summed in another order. The block's ``b`` rank-one updates of ``M_FF`` are then one product ``col[F] row[F]``
+    so the blocked elimination stays subtraction-free: it computes the same quantities as the scalar one, with the
+    non-negative products associated and summed in another order. The block's ``b`` rank-one updates of ``M_FF`` are then one product ``col[F] row[F]``
     (``[|F|, b] x [b, |F|]``), at matrix-multiply speed, where the scalar steps made ``S`` sequential memory-bound
     passes over the whole matrix. The blocks run in ``stages`` loops, each on the leading window that its blocks
     still touch (an equal share of the blocks each; 4 stages do about half the flops of one window of size ``S``).
@@ -539,7 +540,7 @@ def _gth_eliminate(M: jax.Array, block: int = GTH_BLOCK, stages: int = _GTH_STAG
     if block < 1 or stages < 1:
         raise ValueError(f"block and stages must be at least 1, got block={block}, stages={stages}")
     S = M.shape[0]
-    b = min(block, S)
+    b = max(1, min(block, S))
     n_blocks = -(-S // b)
     Sp = n_blocks * b
     M = jnp.pad(M, ((0, Sp - S), (0, Sp - S)))

@@ -4,8 +4,10 @@ continuous MDPs, against the same function at a git revision (default ``main``),
 For each MDP (``hardness.benchmark`` "continuous ergodic", seed 0) and each policy (a random deterministic one,
 the gain-optimal one from ``dp.optimal_gain``, and that one with a fraction of its states' actions redrawn at random,
 as a partly learnt Q-learning policy would be), both versions are compiled once and then called in alternation,
-``--repeats`` times each; the best time of each is reported, with the largest relative difference of the two gain
-vectors. Under load the best-of times and their ratio are what to read (docs/benchmarks/continuous_indicators.md).
+``--repeats`` times each; the best wall and the best process CPU time of each are reported, with the largest relative
+difference of the two gain vectors (over the largest gain). Under load the best-of times, the CPU times and their
+ratios are what to read (docs/benchmarks/continuous_indicators.md). ``--compile`` also reports each version's
+compile seconds (one ``jit(...).lower(...).compile()`` each, on the first MDP).
 
     PYTHONPATH=$PWD python scripts/bench_gain_vector.py --labels MiniGridEmpty/prms_2 MiniGridEmpty/prms_3 \\
         MiniGridRooms/prms_1 --repeats 5
@@ -51,13 +53,15 @@ def policies(mdp, rng: np.random.Generator, redrawn: float) -> dict[str, jax.Arr
     return {k: jax.nn.one_hot(jnp.asarray(v), A, dtype=mdp.R.dtype) for k, v in out.items()}
 
 
-def best_times(fns: dict, args: tuple, repeats: int) -> dict[str, float]:
-    times = {k: np.inf for k in fns}
+def best_times(fns: dict, args: tuple, repeats: int) -> dict[str, tuple[float, float]]:
+    """Best wall and best process CPU seconds of each function over ``repeats`` alternating calls."""
+    times = {k: (np.inf, np.inf) for k in fns}
     for _ in range(repeats):
         for k, f in fns.items():
-            t = time.perf_counter()
+            t, c = time.perf_counter(), time.process_time()
             jax.block_until_ready(f(*args))
-            times[k] = min(times[k], time.perf_counter() - t)
+            t, c = time.perf_counter() - t, time.process_time() - c
+            times[k] = (min(times[k][0], t), min(times[k][1], c))
     return times
 
 
@@ -69,23 +73,31 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--baseline", default="main", help="git revision timed against (%(default)s)")
     p.add_argument("--repeats", type=int, default=5, help="calls of each version per policy (%(default)s)")
     p.add_argument("--redrawn", type=float, default=0.2, help="fraction of redrawn actions (%(default)s)")
+    p.add_argument("--compile", action="store_true", help="also time each version's compilation")
     args = p.parse_args(argv)
     base = baseline_module(args.baseline)
     fns = {args.baseline: jax.jit(base.gain_vector), "this tree": jax.jit(dp.gain_vector)}
     instances = {inst.label: inst for inst in sets.instances(args.set)}
     rng = np.random.default_rng(0)
-    print(f"| MDP | S | policy | {args.baseline} s | this tree s | ratio | max rel. diff |")
-    print("|---|---|---|---|---|---|---|")
-    for label in args.labels:
+    print(f"| MDP | S | policy | {args.baseline} wall s | this tree wall s | ratio | {args.baseline} CPU s | "
+          "this tree CPU s | ratio | max rel. diff |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for q, label in enumerate(args.labels):
         mdp = instances[label].build(0)
+        if args.compile and q == 0:
+            pi = jax.nn.one_hot(jnp.zeros(mdp.n_states, int), mdp.n_actions, dtype=mdp.R.dtype)
+            for k, f in fns.items():
+                t = time.perf_counter()
+                f.lower(mdp, pi).compile()
+                print(f"compile {k} at S = {mdp.n_states}: {time.perf_counter() - t:.2f} s", flush=True)
         for name, pi in policies(mdp, rng, args.redrawn).items():
             out = {k: np.asarray(f(mdp, pi)) for k, f in fns.items()}  # compiles
             times = best_times(fns, (mdp, pi), args.repeats)
             a, b = out[args.baseline], out["this tree"]
             diff = float(np.max(np.abs(a - b)) / np.max(np.abs(a)))
-            t0, t1 = times[args.baseline], times["this tree"]
-            print(f"| {label} | {mdp.n_states} | {name} | {t0:.4f} | {t1:.4f} | {t0 / t1:.1f} | {diff:.1e} |",
-                  flush=True)
+            (t0, c0), (t1, c1) = times[args.baseline], times["this tree"]
+            print(f"| {label} | {mdp.n_states} | {name} | {t0:.4f} | {t1:.4f} | {t0 / t1:.1f} | {c0:.4f} | {c1:.4f} | "
+                  f"{c0 / c1:.1f} | {diff:.1e} |", flush=True)
 
 
 if __name__ == "__main__":
