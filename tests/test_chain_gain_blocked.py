@@ -141,3 +141,35 @@ def test_blocked_elimination_matches_float64_scalar_elimination(kind, S):
 def test_chain_gain_rejects_a_block_below_one():
     with pytest.raises(ValueError, match="block"):
         dp.chain_gain(jnp.eye(3), jnp.zeros(3), block=0)
+
+
+@pytest.mark.parametrize("S", [37, 130])
+def test_cases_have_the_structure_they_claim(S):
+    # So that the gain tests do cover them: multichain cases have several closed classes, a periodic one (a state
+    # with no self-loop whose return times share a factor > 1: P^t[s, s] = 0 for every odd t up to S), transient
+    # states and absorbing padding; slow cases mix slowly (spectral gap below 1e-3).
+    for seed in range(2):
+        P, _ = chain("multichain", S, seed)
+        reach = ref.reachability(P)
+        recurrent = np.all(~reach | reach.T, axis=1)
+        n_classes = len({tuple(np.flatnonzero(reach[s] & reach[:, s])) for s in np.flatnonzero(recurrent)})
+        assert n_classes >= 3 and (~recurrent).sum() >= 3
+        assert np.any((np.diag(P) == 1.0) & (P.sum(0) == 1.0))  # an isolated absorbing state
+        powers, Pt = [], np.eye(S)
+        for _ in range(S):
+            Pt = Pt @ P
+            powers.append(np.diag(Pt))
+        odd_returns = np.array(powers)[0::2]  # P^1, P^3, ...
+        assert np.any(recurrent & (np.diag(P) == 0) & np.all(odd_returns == 0, axis=0))
+        P, _ = chain("slow", S, seed)
+        assert 1 - np.sort(np.abs(np.linalg.eigvals(P)))[-2] < 1e-3
+
+
+def test_chain_gain_under_vmap_matches_the_reference():
+    # The runner vmaps the dense solve over members off CPU: batched blocks, windows and products.
+    chains = [chain(kind, 37, 0) for kind in KINDS]
+    P = jnp.asarray(np.stack([c[0] for c in chains]), jnp.float32)
+    r = jnp.asarray(np.stack([c[1] for c in chains]), jnp.float32)
+    g = jax.jit(jax.vmap(lambda P, r: dp.chain_gain(P, r, block=8)))(P, r)
+    for q, (Pq, rq) in enumerate(chains):
+        np.testing.assert_allclose(g[q], ref.chain_gain(Pq, rq), rtol=TOL)
