@@ -529,13 +529,13 @@ def _gth_eliminate(M: jax.Array, block: int = GTH_BLOCK, stages: int = _GTH_STAG
     columns ``col_k[F] = M[F, B] Y[:, i]``. ``X``, ``Y`` and ``sigma`` are sums of non-negative products too (``X =
     (I - L)^{-1} = I + L + L^2 + ...`` for the block's strictly triangular, non-negative normalised columns ``L``),
     so the blocked elimination stays subtraction-free: it computes the same quantities as the scalar one, with the
-    non-negative products associated and summed in another order. The block's ``b`` rank-one updates of ``M_FF`` are then one product ``col[F] row[F]``
-    (``[|F|, b] x [b, |F|]``), at matrix-multiply speed, where the scalar steps made ``S`` sequential memory-bound
-    passes over the whole matrix. The blocks run in ``stages`` loops, each on the leading window that its blocks
-    still touch (an equal share of the blocks each; 4 stages do about half the flops of one window of size ``S``).
-    ``M`` is padded at the end to whole blocks with zero rows and columns, which eliminate to nothing. Products use
-    ``Precision.HIGHEST`` (no reduced-precision float32 products on GPUs). ``O(S^3)`` flops, ``S`` sequential
-    steps on ``b x b`` arrays.
+    non-negative products associated and summed in another order. The block's ``b`` rank-one updates of ``M_FF`` are
+    then one product ``col[F] row[F]`` (``[|F|, b] x [b, |F|]``), at matrix-multiply speed, where the scalar steps
+    made ``S`` sequential memory-bound passes over the whole matrix. The blocks run in ``stages`` loops, each on the
+    leading window that its blocks still touch (an equal share of the blocks each; 4 stages do about half the flops
+    of one window of size ``S``). ``M`` is padded at the end to whole blocks with zero rows and columns, which
+    eliminate to nothing. Products use ``Precision.HIGHEST`` (no reduced-precision float32 products on GPUs).
+    ``O(S^3)`` flops, ``S`` sequential steps on ``b x b`` arrays.
     """
     if block < 1 or stages < 1:
         raise ValueError(f"block and stages must be at least 1, got block={block}, stages={stages}")
