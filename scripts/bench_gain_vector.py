@@ -7,7 +7,8 @@ as a partly learnt Q-learning policy would be), both versions are compiled once 
 ``--repeats`` times each; the best wall and the best process CPU time of each are reported, with the largest relative
 difference of the two gain vectors (over the largest gain). Under load the best-of times, the CPU times and their
 ratios are what to read (docs/benchmarks/continuous_indicators.md). ``--compile`` also reports each version's
-compile seconds (one ``jit(...).lower(...).compile()`` each, on the first MDP).
+compile seconds (one ``jit(...).lower(...).compile()`` each, on the first MDP). ``--eliminate 32,1 32,4`` times
+the blocked elimination alone at those ``block,stages`` settings instead.
 
     PYTHONPATH=$PWD python scripts/bench_gain_vector.py --labels MiniGridEmpty/prms_2 MiniGridEmpty/prms_3 \\
         MiniGridRooms/prms_1 --repeats 5
@@ -65,6 +66,25 @@ def best_times(fns: dict, args: tuple, repeats: int) -> dict[str, tuple[float, f
     return times
 
 
+def eliminate_settings(args: argparse.Namespace) -> None:
+    """Compile seconds and best wall / CPU seconds of the elimination alone, per ``block,stages`` setting."""
+    instances = {inst.label: inst for inst in sets.instances(args.set)}
+    print("| MDP | S | block | stages | compile s | best wall s | best CPU s |")
+    print("|---|---|---|---|---|---|---|")
+    for label in args.labels:
+        mdp = instances[label].build(0)
+        pi = policies(mdp, np.random.default_rng(0), args.redrawn)["random"]
+        P = dp.policy_matrix(mdp, pi)
+        for setting in args.eliminate:
+            block, stages = (int(x) for x in setting.split(","))
+            t = time.perf_counter()
+            f = jax.jit(lambda P, block=block, stages=stages: dp._gth_eliminate(P, block, stages)).lower(P).compile()
+            compile_s = time.perf_counter() - t
+            (wall, cpu), = best_times({setting: f}, (P,), args.repeats).values()
+            print(f"| {label} | {mdp.n_states} | {block} | {stages} | {compile_s:.2f} | {wall:.4f} | {cpu:.4f} |",
+                  flush=True)
+
+
 def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--labels", nargs="+", default=["MiniGridEmpty/prms_2", "MiniGridEmpty/prms_3",
@@ -74,7 +94,14 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--repeats", type=int, default=5, help="calls of each version per policy (%(default)s)")
     p.add_argument("--redrawn", type=float, default=0.2, help="fraction of redrawn actions (%(default)s)")
     p.add_argument("--compile", action="store_true", help="also time each version's compilation")
+    p.add_argument("--eliminate", nargs="*", default=[], metavar="BLOCK,STAGES",
+                   help="only time dp._gth_eliminate on each MDP's random policy matrix at these settings "
+                        "(compile and best CPU seconds), e.g. 32,1 32,4 32,8")
     args = p.parse_args(argv)
+    jax.config.update("jax_enable_compilation_cache", False)  # compile times are of real compilations
+    if args.eliminate:
+        eliminate_settings(args)
+        return
     base = baseline_module(args.baseline)
     fns = {args.baseline: jax.jit(base.gain_vector), "this tree": jax.jit(dp.gain_vector)}
     instances = {inst.label: inst for inst in sets.instances(args.set)}
