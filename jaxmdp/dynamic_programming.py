@@ -26,6 +26,7 @@ iteration with arithmetic of its own, for its tighter tolerance (see there).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import Any
 
@@ -502,37 +503,110 @@ def successor_reachability(succ: jax.Array, edge: jax.Array) -> jax.Array:
     return (jnp.right_shift(R[:, word], bit[None, :]) & jnp.uint32(1)) > 0
 
 
-def chain_gain(P: jax.Array, r: jax.Array, reach: jax.Array | None = None) -> jax.Array:
+#: States per block of :func:`chain_gain`'s elimination, and the stages whose shrinking leading windows its block
+#: loop runs on (see :func:`_gth_eliminate`; measured in docs/benchmarks/continuous_indicators.md).
+GTH_BLOCK = 32
+_GTH_STAGES = 4
+
+
+def _gth_eliminate(M: jax.Array, block: int = GTH_BLOCK, stages: int = _GTH_STAGES) -> tuple[jax.Array, jax.Array]:
+    """Grassmann-Taksar-Heyman elimination of positions ``S-1, ..., 1`` of a non-negative ``M``, ``block`` at a time.
+
+    Eliminating position ``k`` censors the chain to positions ``< k`` (Grassmann, Taksar & Heyman 1985): with the row
+    ``row_k = M[k, :k]`` and its sum ``s_k`` (the mass leaving ``k`` downwards, summed from the off-diagonal entries,
+    never taken as ``1 - M[k, k]``), ``M[:k, :k] += outer(col_k, row_k)`` where ``col_k = M[:k, k] / s_k``. Returns
+    ``M`` with ``col_k`` stored in column ``k`` above the diagonal and ``row_k`` left in row ``k``, and ``scale[k] =
+    s_k`` (0 when no mass leaves downwards; then ``col_k = 0``). Only non-negative numbers are added, multiplied and
+    divided, so every entry keeps a small relative error however slowly the chain mixes.
+
+    Blocked: eliminating a block ``B`` of ``b`` positions leaves the stochastic complement ``M_FF + M_FB (I -
+    M_BB)^{-1} M_BF`` on the positions ``F`` below it (Meyer 1989, "Stochastic complementation, uncoupling Markov
+    chains, and the theory of nearly reducible systems", SIAM Rev. 31; GTH and block elimination: Stewart 1994,
+    "Introduction to the Numerical Solution of Markov Chains", ch. 2). The scalar steps run on the ``b x b`` block
+    ``A = M_BB`` only, with ``sigma[i] = sum(M[B_i, F])`` (updated like a column of ``A``) completing each ``s_k``, and
+    two ``b x b`` coefficient matrices that start at ``I``: ``X``, updated like the rows of ``A``, gives the rows
+    ``row_k[F] = X[i] M[B, F]``; ``Y``, updated like the columns of ``A`` and divided by ``s_k`` with them, gives the
+    columns ``col_k[F] = M[F, B] Y[:, i]``. ``X``, ``Y`` and ``sigma`` are sums of non-negative products too (``X =
+    (I - L)^{-1} = I + L + L^2 + ...`` for the block's strictly triangular, non-negative normalised columns ``L``),
+    so the blocked elimination stays subtraction-free: it computes the same quantities as the scalar one, with the
+    non-negative products associated and summed in another order. The block's ``b`` rank-one updates of ``M_FF`` are
+    then one product ``col[F] row[F]`` (``[|F|, b] x [b, |F|]``), at matrix-multiply speed, where the scalar steps
+    made ``S`` sequential memory-bound passes over the whole matrix. The blocks run in ``stages`` loops, each on the
+    leading window that its blocks still touch (an equal share of the blocks each; 4 stages do about half the flops
+    of one window of size ``S``). ``M`` is padded at the end to whole blocks with zero rows and columns, which
+    eliminate to nothing. Products use ``Precision.HIGHEST`` (no reduced-precision float32 products on GPUs).
+    ``O(S^3)`` flops, ``S`` sequential steps on ``b x b`` arrays.
+    """
+    if block < 1 or stages < 1:
+        raise ValueError(f"block and stages must be at least 1, got block={block}, stages={stages}")
+    S = M.shape[0]
+    b = max(1, min(block, S))
+    n_blocks = -(-S // b)
+    Sp = n_blocks * b
+    M = jnp.pad(M, ((0, Sp - S), (0, Sp - S)))
+    loc, eye = jnp.arange(b), jnp.eye(b, dtype=M.dtype)
+    dot = functools.partial(jnp.matmul, precision=jax.lax.Precision.HIGHEST)
+
+    def step(t, small):
+        A, X, sigma, Y, s_b = small
+        i = b - 1 - t
+        lower = loc < i
+        row = jnp.where(lower, A[i], 0.0)
+        s = jnp.sum(row) + sigma[i]
+        divisor = jnp.where(s > 0, s, 1.0)
+        col = jnp.where(lower & (s > 0), A[:, i] / divisor, 0.0)
+        y = jnp.where(s > 0, Y[:, i] / divisor, 0.0)
+        A = (A + jnp.outer(col, row)).at[:, i].set(jnp.where(lower, col, A[:, i]))
+        X = X + jnp.outer(col, X[i])
+        sigma = sigma + col * sigma[i]
+        Y = (Y + jnp.outer(y, row)).at[:, i].set(y)
+        return A, X, sigma, Y, s_b.at[i].set(s)
+
+    def eliminate_block(W, j, carry):
+        M, scale = carry  # the leading W x W window
+        k0 = W - (j + 1) * b
+        rest = jnp.arange(W) < k0
+        old_rows, old_cols = jax.lax.dynamic_slice(M, (k0, 0), (b, W)), jax.lax.dynamic_slice(M, (0, k0), (W, b))
+        rows, cols = jnp.where(rest[None, :], old_rows, 0.0), jnp.where(rest[:, None], old_cols, 0.0)
+        small = (jax.lax.dynamic_slice(M, (k0, k0), (b, b)), eye, jnp.sum(rows, axis=1), eye, jnp.zeros((b,), M.dtype))
+        A, X, _, Y, s_b = jax.lax.fori_loop(0, b, step, small)
+        rows, cols = dot(X, rows), dot(cols, Y)
+        M = M + dot(cols, rows)  # only F x F: rows and cols vanish outside F
+        M = jax.lax.dynamic_update_slice(M, jnp.where(rest[None, :], rows, old_rows), (k0, 0))
+        M = jax.lax.dynamic_update_slice(M, jnp.where(rest[:, None], cols, old_cols), (0, k0))
+        M = jax.lax.dynamic_update_slice(M, A, (k0, k0))
+        return M, jax.lax.dynamic_update_slice(scale, s_b, (k0,))
+
+    scale = jnp.zeros((Sp,), M.dtype)
+    first = 0
+    for q in range(min(stages, n_blocks)):
+        last = round(n_blocks * (q + 1) / min(stages, n_blocks))
+        W = Sp - first * b  # the blocks first..last-1 only touch positions < W
+        window = jax.lax.fori_loop(0, last - first, functools.partial(eliminate_block, W), (M[:W, :W], scale[:W]))
+        M, scale, first = M.at[:W, :W].set(window[0]), scale.at[:W].set(window[1]), last
+    return M[:S, :S], scale[:S]
+
+
+def chain_gain(P: jax.Array, r: jax.Array, reach: jax.Array | None = None, block: int = GTH_BLOCK) -> jax.Array:
     """Long-run average reward ``g = P* r`` of a Markov chain from every state (``P*`` the Cesàro limit).
 
-    Uses Grassmann-Taksar-Heyman elimination, which only adds non-negative numbers and so stays accurate however
-    slowly the chain mixes (a linear solve with ``I - P`` loses digits in proportion to the mixing time). States are
-    ordered recurrent first and transient last; eliminating from the last position down, a recurrent state with no
-    mass left towards lower positions is the root of its class. Back-substitution gives every class's stationary
-    distribution (hence its gain; each class is renormalised on the fly to stay inside the floating-point range), and
-    transient states average the gains they are absorbed into. ``O(S^3)`` plus the
-    reachability of :func:`recurrent_classes` (or none, given ``reach``: ``P``'s reflexive-transitive reachability
-    as there); handles periodic and multichain matrices.
+    Uses Grassmann-Taksar-Heyman elimination (:func:`_gth_eliminate`, blocked: ``block`` states at a time, the
+    trailing updates as matrix products), which only adds non-negative numbers and so stays accurate however slowly
+    the chain mixes (a linear solve with ``I - P`` loses digits in proportion to the mixing time). States are ordered
+    recurrent first and transient last; eliminating from the last position down, a recurrent state with no mass left
+    towards lower positions is the root of its class. Back-substitution gives every class's stationary distribution
+    (hence its gain; each class is renormalised on the fly to stay inside the floating-point range), and transient
+    states average the gains they are absorbed into. ``O(S^3)`` plus the reachability of :func:`recurrent_classes`
+    (or none, given ``reach``: ``P``'s reflexive-transitive reachability as there); handles periodic and multichain
+    matrices. ``block = 1`` is the scalar elimination (larger blocks sum the same terms in another order).
     """
     S = P.shape[0]
     dtype = P.dtype
     recurrent, same_class = recurrent_classes(P, reach)
     perm = jnp.argsort(~recurrent, stable=True)
-    M = P[perm][:, perm]
     rp, rec, Kp = r[perm], recurrent[perm], same_class[perm][:, perm].astype(dtype)
     pos = jnp.arange(S)
-
-    def eliminate(i, carry):
-        M, scale = carry
-        k = S - 1 - i
-        lower = pos < k
-        row = jnp.where(lower, M[k], 0.0)
-        s = jnp.sum(row)
-        col = jnp.where(lower & (s > 0), M[:, k] / jnp.where(s > 0, s, 1.0), 0.0)
-        M = M.at[:, k].set(jnp.where(lower, col, M[:, k])) + jnp.outer(col, row)
-        return M, scale.at[k].set(s)
-
-    M, scale = jax.lax.fori_loop(0, S - 1, eliminate, (M, jnp.zeros((S,), dtype)))
+    M, scale = _gth_eliminate(P[perm][:, perm], block)
     root = rec & (scale == 0)
 
     def stationary(k, pi):

@@ -61,3 +61,56 @@ def all_deterministic_gains(T, R):
     """Gains of every deterministic stationary policy of an MDP whose policies are all ergodic."""
     S, A, _ = T.shape
     return np.array([gain_ergodic(T, R, one_hot(c, A)) for c in itertools.product(range(A), repeat=S)])
+
+
+def reachability(P):
+    """Reflexive-transitive closure of ``P > 0`` (Warshall's algorithm)."""
+    reach = (P > 0) | np.eye(len(P), dtype=bool)
+    for k in range(len(P)):
+        reach |= reach[:, [k]] & reach[[k], :]
+    return reach
+
+
+def gth_elimination(P):
+    """Scalar Grassmann-Taksar-Heyman elimination in float64 with explicit loops, positions ``S-1 .. 1``: returns
+    ``M`` (``M[:k, k]`` the column divided by ``s_k``, ``M[k, :k]`` the row at its elimination) and ``s``."""
+    M, S = np.array(P, np.float64), len(P)
+    s = np.zeros(S)
+    for k in range(S - 1, 0, -1):
+        s[k] = sum(M[k, j] for j in range(k))
+        if s[k] > 0:
+            M[:k, k] /= s[k]
+            for i in range(k):
+                for j in range(k):
+                    M[i, j] += M[i, k] * M[k, j]
+        else:
+            M[:k, k] = 0.0
+    return M, s
+
+
+def chain_gain(P, r):
+    """``P* r`` in float64: recurrent classes from the closure, each class's stationary distribution by GTH on the
+    class alone (:func:`gth_elimination`, then ``pi_k = sum_{j<k} pi_j M[j, k]``), and the transient states'
+    absorption by a linear solve ``(I - P_TT) g_T = P_TR g_R``."""
+    P, r = np.asarray(P, np.float64), np.asarray(r, np.float64)
+    S = len(P)
+    reach = reachability(P)
+    recurrent = np.all(~reach | reach.T, axis=1)
+    g = np.zeros(S)
+    done = np.zeros(S, bool)
+    for s in np.flatnonzero(recurrent):
+        if done[s]:
+            continue
+        members = np.flatnonzero(reach[s] & reach[:, s])
+        M, _ = gth_elimination(P[np.ix_(members, members)])
+        pi = np.zeros(len(members))
+        pi[0] = 1.0
+        for k in range(1, len(members)):
+            pi[k] = pi[:k] @ M[:k, k]
+        g[members] = pi @ r[members] / pi.sum()
+        done[members] = True
+    T = np.flatnonzero(~recurrent)
+    if len(T):
+        R_ = np.flatnonzero(recurrent)
+        g[T] = np.linalg.solve(np.eye(len(T)) - P[np.ix_(T, T)], P[np.ix_(T, R_)] @ g[R_])
+    return g
