@@ -522,20 +522,18 @@ def _gth_eliminate(M: jax.Array, block: int = GTH_BLOCK, stages: int = _GTH_STAG
     Blocked: eliminating a block ``B`` of ``b`` positions leaves the stochastic complement ``M_FF + M_FB (I -
     M_BB)^{-1} M_BF`` on the positions ``F`` below it (Meyer 1989, "Stochastic complementation, uncoupling Markov
     chains, and the theory of nearly reducible systems", SIAM Rev. 31; GTH and block elimination: Stewart 1994,
-    "Introduction to the Numerical Solution of Markov Chains", ch. 2). The scalar steps run on the ``b x b`` block
-    ``A = M_BB`` only, with ``sigma[i] = sum(M[B_i, F])`` (updated like a column of ``A``) completing each ``s_k``, and
-    two ``b x b`` coefficient matrices that start at ``I``: ``X``, updated like the rows of ``A``, gives the rows
-    ``row_k[F] = X[i] M[B, F]``; ``Y``, updated like the columns of ``A`` and divided by ``s_k`` with them, gives the
-    columns ``col_k[F] = M[F, B] Y[:, i]``. ``X``, ``Y`` and ``sigma`` are sums of non-negative products too (``X =
-    (I - L)^{-1} = I + L + L^2 + ...`` for the block's strictly triangular, non-negative normalised columns ``L``),
-    so the blocked elimination stays subtraction-free: it computes the same quantities as the scalar one, with the
-    non-negative products associated and summed in another order. The block's ``b`` rank-one updates of ``M_FF`` are
-    then one product ``col[F] row[F]`` (``[|F|, b] x [b, |F|]``), at matrix-multiply speed, where the scalar steps
-    made ``S`` sequential memory-bound passes over the whole matrix. The blocks run in ``stages`` loops, each on the
-    leading window that its blocks still touch (an equal share of the blocks each; 4 stages do about half the flops
-    of one window of size ``S``). ``M`` is padded at the end to whole blocks with zero rows and columns, which
-    eliminate to nothing. Products use ``Precision.HIGHEST`` (no reduced-precision float32 products on GPUs).
-    ``O(S^3)`` flops, ``S`` sequential steps on ``b x b`` arrays.
+    "Introduction to the Numerical Solution of Markov Chains", ch. 2). The scalar steps of the block update only the
+    ``b x b`` block, its rows on ``F`` (``[b, |F|]``) and its columns on ``F`` (``[|F|, b]``), each by the rank-one
+    term of the scalar algorithm, so these hold exactly the scalar algorithm's numbers (sums of non-negative terms,
+    bounded like them); the ``F x F`` part only receives, and the block's ``b`` rank-one updates of it are summed as
+    one product ``col[F] row[F]`` (``[|F|, b] x [b, |F|]``) at matrix-multiply speed, where the scalar steps made ``S``
+    sequential memory-bound passes over the whole matrix. (Carrying ``b x b`` coefficient matrices instead of the
+    panels, products of up to ``b`` factors ``1 / s_k``, overflows float32 on chains that drift towards higher
+    positions: RiverSwim's optimal chain.) The blocks run in ``stages`` loops, each on the leading window that its
+    blocks still touch (an equal share of the blocks each; 4 stages do about half the flops of one window of size
+    ``S``). ``M`` is padded at the end to whole blocks with zero rows and columns, which eliminate to nothing.
+    Products use ``Precision.HIGHEST`` (no reduced-precision float32 products on GPUs). ``O(S^3)`` flops, ``S``
+    sequential steps on ``b x |F|`` panels.
     """
     if block < 1 or stages < 1:
         raise ValueError(f"block and stages must be at least 1, got block={block}, stages={stages}")
@@ -544,23 +542,22 @@ def _gth_eliminate(M: jax.Array, block: int = GTH_BLOCK, stages: int = _GTH_STAG
     n_blocks = -(-S // b)
     Sp = n_blocks * b
     M = jnp.pad(M, ((0, Sp - S), (0, Sp - S)))
-    loc, eye = jnp.arange(b), jnp.eye(b, dtype=M.dtype)
+    loc = jnp.arange(b)
     dot = functools.partial(jnp.matmul, precision=jax.lax.Precision.HIGHEST)
 
     def step(t, small):
-        A, X, sigma, Y, s_b = small
+        A, rows, cols, s_b = small  # block [b, b], its rows on F [b, W], its columns on F [W, b] (zero off F)
         i = b - 1 - t
         lower = loc < i
         row = jnp.where(lower, A[i], 0.0)
-        s = jnp.sum(row) + sigma[i]
+        s = jnp.sum(row) + jnp.sum(rows[i])
         divisor = jnp.where(s > 0, s, 1.0)
         col = jnp.where(lower & (s > 0), A[:, i] / divisor, 0.0)
-        y = jnp.where(s > 0, Y[:, i] / divisor, 0.0)
+        col_f = jnp.where(s > 0, cols[:, i] / divisor, 0.0)
         A = (A + jnp.outer(col, row)).at[:, i].set(jnp.where(lower, col, A[:, i]))
-        X = X + jnp.outer(col, X[i])
-        sigma = sigma + col * sigma[i]
-        Y = (Y + jnp.outer(y, row)).at[:, i].set(y)
-        return A, X, sigma, Y, s_b.at[i].set(s)
+        rows = rows + jnp.outer(col, rows[i])  # rows i' < i of the block, on F
+        cols = (cols + jnp.outer(col_f, row)).at[:, i].set(col_f)  # columns i' < i on F; column i normalised
+        return A, rows, cols, s_b.at[i].set(s)
 
     def eliminate_block(W, j, carry):
         M, scale = carry  # the leading W x W window
@@ -568,9 +565,8 @@ def _gth_eliminate(M: jax.Array, block: int = GTH_BLOCK, stages: int = _GTH_STAG
         rest = jnp.arange(W) < k0
         old_rows, old_cols = jax.lax.dynamic_slice(M, (k0, 0), (b, W)), jax.lax.dynamic_slice(M, (0, k0), (W, b))
         rows, cols = jnp.where(rest[None, :], old_rows, 0.0), jnp.where(rest[:, None], old_cols, 0.0)
-        small = (jax.lax.dynamic_slice(M, (k0, k0), (b, b)), eye, jnp.sum(rows, axis=1), eye, jnp.zeros((b,), M.dtype))
-        A, X, _, Y, s_b = jax.lax.fori_loop(0, b, step, small)
-        rows, cols = dot(X, rows), dot(cols, Y)
+        small = (jax.lax.dynamic_slice(M, (k0, k0), (b, b)), rows, cols, jnp.zeros((b,), M.dtype))
+        A, rows, cols, s_b = jax.lax.fori_loop(0, b, step, small)
         M = M + dot(cols, rows)  # only F x F: rows and cols vanish outside F
         M = jax.lax.dynamic_update_slice(M, jnp.where(rest[None, :], rows, old_rows), (k0, 0))
         M = jax.lax.dynamic_update_slice(M, jnp.where(rest[:, None], cols, old_cols), (0, k0))

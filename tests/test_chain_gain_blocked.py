@@ -173,3 +173,32 @@ def test_chain_gain_under_vmap_matches_the_reference():
     g = jax.jit(jax.vmap(lambda P, r: dp.chain_gain(P, r, block=8)))(P, r)
     for q, (Pq, rq) in enumerate(chains):
         np.testing.assert_allclose(g[q], ref.chain_gain(Pq, rq), rtol=TOL)
+
+
+def drifting_chain(S: int, up: float = 0.6, down: float = 0.02) -> tuple[np.ndarray, np.ndarray]:
+    """A birth-death chain that drifts towards higher positions (RiverSwim's optimal chain has this shape): the mass
+    leaving a state downwards is ``down``, so products of ``b`` factors ``1 / s_k`` within a block exceed float32."""
+    P = np.zeros((S, S))
+    for s in range(S):
+        P[s, min(s + 1, S - 1)] += up
+        P[s, max(s - 1, 0)] += down
+        P[s, s] += 1.0 - up - down
+    r = np.zeros(S)
+    r[-1] = 1.0
+    return P, r
+
+
+@pytest.mark.parametrize("S", [20, 80, 130])
+def test_a_chain_drifting_upwards_stays_finite_and_exact(S):
+    # Regression: the first blocked version carried b x b coefficient matrices, products of 1 / s_k factors; on this
+    # chain (and the benchmark's RiverSwim/prms_3 optimal policy, 80 states) they overflowed to inf, and the gain came
+    # out 0 or NaN for block 32. The panels now hold the scalar algorithm's bounded numbers.
+    P, r = drifting_chain(S)
+    expected = ref.chain_gain(P, r)
+    M, s = ref.gth_elimination(P)
+    Pj, rj = jnp.asarray(P, jnp.float32), jnp.asarray(r, jnp.float32)
+    for block in (1, 4, 20, 32, 64):
+        np.testing.assert_allclose(chain_gain(Pj, rj, block=block), expected, rtol=TOL, err_msg=f"block {block}")
+        Mj, sj = (np.asarray(x, np.float64) for x in eliminate(Pj, block=block, stages=4))
+        assert np.all(np.isfinite(Mj)) and np.all(np.isfinite(sj))
+        np.testing.assert_allclose(sj, s, rtol=TOL, atol=0, err_msg=f"block {block}")
