@@ -24,26 +24,34 @@ Candidate kernels of ``(s, a)`` with ``N(s, a)`` visits:
 * ``N(s, a) < eta`` ("simple optimistic sampling"): with ``p_hat = N(s, a, .) / max(1, N(s, a))``,
   ``p^- = p_hat - min(sqrt(3 p_hat ln(4S) / N') + 3 ln(4S) / N', p_hat)`` (``N' = max(1, N(s, a))``), and each
   candidate puts the missing mass ``1 - sum p^-`` on one next state drawn uniformly among the real states,
-  independently per pair and candidate.
+  independently per pair and candidate (one ``randint`` over the real states per pair and candidate).
 
-Planning: the extended MDP (:func:`extended_mdp`) is solved for ``discount`` (default 0.99, as the reference):
-by policy iteration with exact (linear-solve) evaluation, warm-started from the previous epoch's values, rather
-than by value iteration to ``1e-3``. Its stopping rule (:func:`jaxmdp.dynamic_programming.policy_iteration`, no switch
-gains more than ``eps = 1e-5 (1 + max|V|)`` in ``Q``) bounds the plan's values by ``V* - eps / (1 - discount) <= u <=
-V*``: at ``discount = 0.99`` up to ``1e-3 max|V|`` below the optimum when actions are nearly tied (float32 cannot
-resolve such ties much better), with ``V*`` typically met to float32 precision. ``discount = 1`` asks for Agrawal &
-Jia's gain-optimal policy instead, by relative value iteration with the span stopping rule (``plan_tol``, at most
-``plan_max_iter`` sweeps). It is not the default: the sampled extended MDPs
-are often nearly decomposable (simple optimistic sampling draws deterministic rows, and posterior draws with the
-``1/S`` prior put ``1e-30``-sized mass on most states), their optimal gain then depends on the state and relative
-value iteration needs thousands to hundreds of thousands of sweeps (one 3 000-step run on RiverSwim 25: median 44
-sweeps per plan, maximum 27 230) -- and a batched plan waits for its slowest member. The agent acts with
-``Q(s, a) = max_k Q_ext(s, (a, k))``, i.e. the real action of the best extended action.
+Planning: the extended MDP is solved for ``discount`` (default 0.99, as the reference): by policy iteration with exact
+(linear-solve) evaluation, warm-started from the previous epoch's values, rather than by value iteration to ``1e-3``.
+Its stopping rule (:func:`jaxmdp.dynamic_programming.policy_iteration_by`, no switch gains more than ``eps = 1e-5 (1 +
+max|V|)`` in ``Q``) bounds the plan's values by ``V* - eps / (1 - discount) <= u <= V*``: at ``discount = 0.99`` up to
+``1e-3 max|V|`` below the optimum when actions are nearly tied (float32 cannot resolve such ties much better), with
+``V*`` typically met to float32 precision. ``discount = 1`` asks for Agrawal & Jia's gain-optimal policy instead, by
+relative value iteration with the span stopping rule (``plan_tol``, at most ``plan_max_iter`` sweeps). It is not the
+default: the sampled extended MDPs are often nearly decomposable (simple optimistic sampling draws deterministic rows,
+and posterior draws with the ``1/S`` prior put ``1e-30``-sized mass on most states), their optimal gain then depends on
+the state and relative value iteration needs thousands to hundreds of thousands of sweeps (one 3 000-step run on
+RiverSwim 25: median 44 sweeps per plan, maximum 27 230) -- and a batched plan waits for its slowest member. The agent
+acts with ``Q(s, a) = max_k Q_ext(s, (a, k))``, i.e. the real action of the best extended action.
 
-Sampling costs ``psi`` candidates (the largest ``psi`` of a batch), but memory and the planner's action count scale
-with ``max_psi`` (``[max_psi, S, A, S]`` candidates per member), so set ``max_psi`` to :func:`psi` of the MDPs at
-hand (e.g. 2 for RiverSwim 25 at the defaults) when running many seeds or large MDPs; results do not change as long
-as ``max_psi >= psi``.
+The plan never builds the extended MDP's ``[S, A max_psi, S]`` kernel (:func:`draws`,
+:func:`extended_policy_iteration`; :func:`candidate_kernels` and :func:`extended_mdp` materialise it for tests). A
+simple optimistic candidate's expectation is ``p^-(s, a) . V + missing(s, a) V[z_k(s, a)]``, so a backup costs
+``O(S A S)`` for ``p^- . V`` and ``O(max_psi S A)`` for the states ``z`` (kept as ``[max_psi, S, A]`` indices).
+Posterior candidates (pairs at ``eta``) are Dirichlet draws streamed one slot at a time (``[S, A, S]``): each backup
+draws them again from the same keys (the same bits), skipping the slots past ``psi`` and, for a whole ``vmap``, all of
+them when no pair of any member is at ``eta``; when ``max_psi S A S <= 2^23`` (Taxi-sized and smaller) the draws are
+kept for the whole plan instead. An improvement step keeps per pair the best candidate (value and row) and per state
+the best real action; an evaluation solves ``(I - gamma P_pi) V = r_pi`` for the chosen rows (``[S, S]``). Memory is
+``O(S A S + max_psi S A)`` per member (kept draws aside). Results do not change as long as ``max_psi >= psi``, but
+``max_psi`` (a static buffer size) still sets the slot loops' length, so set it to :func:`psi` of the MDPs at hand
+(e.g. 2 for RiverSwim 25 at the defaults). With pairs at ``eta`` and more than ``2^23`` entries, every backup pays
+``psi`` Dirichlet draws of ``[S, A, S]``: a few per discounted plan, but one per sweep of relative value iteration.
 
 Policy estimate (for regret), as the reference (docs/agents.md §4): posterior means (Dirichlet mean, ``mu``),
 ``policy_discount``-discounted optimal values (0.99, solved exactly), greedy ``[S, A]``.
