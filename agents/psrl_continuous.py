@@ -39,19 +39,21 @@ the state and relative value iteration needs thousands to hundreds of thousands 
 RiverSwim 25: median 44 sweeps per plan, maximum 27 230) -- and a batched plan waits for its slowest member. The agent
 acts with ``Q(s, a) = max_k Q_ext(s, (a, k))``, i.e. the real action of the best extended action.
 
-The plan never builds the extended MDP's ``[S, A max_psi, S]`` kernel (:func:`draws`,
-:func:`extended_policy_iteration`; :func:`candidate_kernels` and :func:`extended_mdp` materialise it for tests). A
-simple optimistic candidate's expectation is ``p^-(s, a) . V + missing(s, a) V[z_k(s, a)]``, so a backup costs
-``O(S A S)`` for ``p^- . V`` and ``O(max_psi S A)`` for the states ``z`` (kept as ``[max_psi, S, A]`` indices).
-Posterior candidates (pairs at ``eta``) are Dirichlet draws streamed one slot at a time (``[S, A, S]``): each backup
-draws them again from the same keys (the same bits), skipping the slots past ``psi`` and, for a whole ``vmap``, all of
-them when no pair of any member is at ``eta``; when ``max_psi S A S <= 2^23`` (Taxi-sized and smaller) the draws are
-kept for the whole plan instead. An improvement step keeps per pair the best candidate (value and row) and per state
-the best real action; an evaluation solves ``(I - gamma P_pi) V = r_pi`` for the chosen rows (``[S, S]``). Memory is
-``O(S A S + max_psi S A)`` per member (kept draws aside). Results do not change as long as ``max_psi >= psi``, but
-``max_psi`` (a static buffer size) still sets the slot loops' length, so set it to :func:`psi` of the MDPs at hand
-(e.g. 2 for RiverSwim 25 at the defaults). With pairs at ``eta`` and more than ``2^23`` entries, every backup pays
-``psi`` Dirichlet draws of ``[S, A, S]``: a few per discounted plan, but one per sweep of relative value iteration.
+The plan never builds the extended MDP's ``[S, A max_psi, S]`` kernel (:func:`draws`, :func:`extended_policy_iteration`;
+:func:`candidate_kernels` and :func:`extended_mdp` materialise it for tests). A simple optimistic candidate's
+expectation is ``p^-(s, a) . V + missing(s, a) V[z_k(s, a)]``, so a backup costs ``O(S A S)`` for ``p^- . V`` and
+``O(max_psi S A)`` for the states ``z`` (kept as ``[max_psi, S, A]`` indices). Posterior candidates (pairs at ``eta``)
+are Dirichlet draws with one key per pair and slot: the plan keeps those of the first ``M = min(S A, 2^22 / (max_psi
+S))`` pairs at ``eta`` (``[max_psi, M, S]``, drawn once, only when some pair of some member of a ``vmap`` is at
+``eta``); should more pairs be at ``eta``, each backup draws every pair's rows again, one slot ``[S, A, S]`` at a time,
+from the same keys (the same bits). Within ``T = 500 000`` steps at most ``T / eta`` pairs reach ``eta``, fewer than
+``M`` at every size of the benchmark. An improvement step keeps per pair the best candidate (value and row) and per
+state the best real action; an evaluation solves ``(I - gamma P_pi) V = r_pi`` for the chosen rows (``[S, S]``). Memory
+is ``O(S A S + max_psi S A)`` per member (kept draws aside). Results do not change as long as ``max_psi >= psi``, but
+``max_psi`` (a static buffer size) still sets the slot loops' length, so set it to :func:`psi` of the MDPs at hand (e.g.
+2 for RiverSwim 25 at the defaults). With more than ``M`` pairs at ``eta`` (e.g. optimism off, where every pair is),
+every backup pays ``psi`` Dirichlet draws of ``[S, A, S]``: a few per discounted plan, one per sweep of relative value
+iteration.
 
 Policy estimate (for regret), as the reference (docs/agents.md §4): posterior means (Dirichlet mean, ``mu``),
 ``policy_discount``-discounted optimal values (0.99, solved exactly), greedy ``[S, A]``.
@@ -294,17 +296,20 @@ def _posterior_alpha(state: PSRLContinuousState) -> jax.Array:
     return dirichlet_concentration(1.0 / S, state.counts, state.state_mask)
 
 
-# Up to this many entries (max_psi S A S) a plan keeps the posterior candidates' draws for its whole policy iteration;
-# above, each improvement step draws them again from the same keys (the same bits, without [max_psi, S, A, S] in
-# memory). Taxi (108 x 6, psi 17): 1.2e6, kept; MiniGridEmpty 400 x 3, psi 60: 2.9e7, drawn again.
-_STORE_LIMIT = 1 << 23
+# The posterior rows that a plan keeps: those of the first M pairs at eta, M = min(S A, _KEEP_LIMIT / (max_psi S))
+# (``max_psi M S`` floats, 16 MiB a member). Above M pairs at eta, every backup draws all rows again from the same
+# keys. For T = 500 000 at most T / eta pairs reach eta: 52 at S = 948 (eta 9 480, M = 73), 125 at S = 400 (M = 174);
+# Taxi (108 x 6, psi 17) keeps all its 648 pairs.
+_KEEP_LIMIT = 1 << 22
 
 
 class Draws(struct.PyTreeNode):
     """One plan's candidates in structured form (module docstring): candidate ``k`` of ``(s, a)`` is
-    ``p_minus[s, a] + missing[s, a] e_z[k, s, a]`` where ``posterior[s, a]`` is False, else the Dirichlet draw
-    ``dirichlet(fold_in(key, k), alpha)[s, a]`` (:meth:`posterior_draw`, or ``stored[k]`` when the draws are kept).
-    ``active[k]``: slot ``k < psi``."""
+    ``p_minus[s, a] + missing[s, a] e_z[k, s, a]`` where ``posterior[s, a]`` is False, else a Dirichlet draw with
+    concentration ``alpha[s, a]`` and key ``fold_in(fold_in(key, k), s A + a)`` (:meth:`rows`, the same bits for a
+    pair whichever rows are drawn with it). ``kept[k, m]``: the draws of pair ``pairs[m]`` (the first ``M`` pairs at
+    ``eta``, then the fill value ``S A``); ``overflow``: more than ``M`` pairs at ``eta``. ``active[k]``: slot
+    ``k < psi``."""
 
     p_minus: jax.Array  # [S, A, S]
     missing: jax.Array  # [S, A]
@@ -313,19 +318,29 @@ class Draws(struct.PyTreeNode):
     alpha: jax.Array  # [S, A, S]
     key: jax.Array
     active: jax.Array  # [max_psi] bool
-    stored: jax.Array | None  # [max_psi, S, A, S] or None (static choice)
+    pairs: jax.Array  # [M] int32 flat pair indices s A + a
+    kept: jax.Array  # [max_psi, M, S]
     offset: float = struct.field(pytree_node=False, default=0.0)
 
     @property
     def any_posterior(self) -> jax.Array:
         return jnp.any(self.posterior)
 
-    def draw(self, k: jax.Array) -> jax.Array:
-        """Candidate ``k``'s posterior draw ``[S, A, S]`` for every pair (those not at ``eta`` ignore it)."""
-        return dirichlet_sample(jax.random.fold_in(self.key, k), self.alpha, offset=self.offset)
+    @property
+    def overflow(self) -> jax.Array:
+        return jnp.sum(self.posterior) > self.pairs.shape[0]
 
-    def posterior_draw(self, k: jax.Array) -> jax.Array:
-        return self.draw(k) if self.stored is None else self.stored[k]
+    def rows(self, k: jax.Array, pairs: jax.Array) -> jax.Array:
+        """Candidate ``k``'s posterior draws ``[n, S]`` of the flat pairs ``pairs[n]`` (clipped to the real range)."""
+        S = self.alpha.shape[-1]
+        alpha = self.alpha.reshape(-1, S)
+        pairs = jnp.minimum(pairs, alpha.shape[0] - 1)
+        key_k = jax.random.fold_in(self.key, k)
+        return jax.vmap(lambda p: dirichlet_sample(jax.random.fold_in(key_k, p), alpha[p], offset=self.offset))(pairs)
+
+    def draw(self, k: jax.Array) -> jax.Array:
+        """Candidate ``k``'s posterior draws ``[S, A, S]`` for every pair (those not at ``eta`` ignore theirs)."""
+        return self.rows(k, jnp.arange(self.missing.size)).reshape(self.alpha.shape)
 
 
 def draws(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "paper") -> Draws:
@@ -334,8 +349,8 @@ def draws(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "pap
     The state receiving the missing mass is one ``randint`` over the real states (``state_mask``, in index order,
     wherever the padding lies) per pair and slot (``variant="colosseum"``: per slot, shared by all pairs). The
     colosseum variant's deviation divides by ``max(1, N(s, a, s'))`` and its posterior draws are normalised by ``sum +
-    1e-5``. The Dirichlet draws are kept only when ``max_psi S A S <= _STORE_LIMIT`` (and then only drawn if some pair
-    is at ``eta``); otherwise :meth:`Draws.posterior_draw` draws them again from the same keys."""
+    1e-5``. The posterior draws of the first ``M`` pairs at ``eta`` are kept (:data:`_KEEP_LIMIT`), drawn only if some
+    pair (of any member of a ``vmap``) is at ``eta``; the others are drawn again when needed (:meth:`Draws.draw`)."""
     colosseum = variant == "colosseum"
     hp, c = state.hparams, state.constants
     dtype = state.Q.dtype
@@ -358,14 +373,16 @@ def draws(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "pap
     real_states = jnp.argsort(~mask, stable=True)  # the real states first, in index order
     index = jax.random.randint(k_z, (K,) if colosseum else (K, S, A), 0, jnp.sum(mask))
     z = jnp.broadcast_to(real_states[index].reshape((K, 1, 1) if colosseum else (K, S, A)), (K, S, A))
-    out = Draws(p_minus=p_minus, missing=missing, z=z.astype(jnp.int32), posterior=N >= c.eta, alpha=alpha,
-                key=k_dir, active=jnp.arange(K) < c.psi, stored=None,
-                offset=COLOSSEUM_DIRICHLET_OFFSET if colosseum else 0.0)
-    if K * S * A * S <= _STORE_LIMIT:
-        zeros = jnp.zeros((S, A, S), dtype)
-        stored = jax.lax.map(lambda k: only_if(out.any_posterior & out.active[k], out.draw, zeros, k), jnp.arange(K))
-        out = out.replace(stored=stored)
-    return out
+    posterior = N >= c.eta
+    M = min(S * A, max(1, _KEEP_LIMIT // (K * S)))
+    (pairs,) = jnp.nonzero(posterior.reshape(-1), size=M, fill_value=S * A)
+    out = Draws(p_minus=p_minus, missing=missing, z=z.astype(jnp.int32), posterior=posterior, alpha=alpha,
+                key=k_dir, active=jnp.arange(K) < c.psi, pairs=pairs.astype(jnp.int32),
+                kept=jnp.zeros((K, M, S), dtype), offset=COLOSSEUM_DIRICHLET_OFFSET if colosseum else 0.0)
+    zeros = jnp.zeros((M, S), dtype)
+    kept = jax.lax.map(lambda k: only_if(out.any_posterior & out.active[k], out.rows, zeros, k, out.pairs),
+                       jnp.arange(K))
+    return out.replace(kept=kept)
 
 
 def candidate_kernels(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "paper") -> jax.Array:
@@ -381,7 +398,7 @@ def candidate_kernels(key: jax.Array, state: PSRLContinuousState, *, variant: Va
     zeros = jnp.zeros(d.alpha.shape, d.alpha.dtype)
 
     def one(k):
-        posterior = only_if(d.any_posterior, d.posterior_draw, zeros, k)
+        posterior = only_if(d.any_posterior, d.draw, zeros, k)
         optimistic = d.p_minus + d.missing[..., None] * jax.nn.one_hot(d.z[k], S, dtype=d.alpha.dtype)
         return jnp.where(d.posterior[..., None], posterior, optimistic)
 
@@ -440,37 +457,60 @@ def _extended_rewards(R: jax.Array, state: PSRLContinuousState, variant: Variant
 
 
 def _best_candidates(
-    d: Draws, R_ext: jax.Array, V: jax.Array, gamma: jax.Array, *, rows: bool
-) -> tuple[jax.Array, jax.Array, jax.Array]:
-    """Per pair the best candidate under values ``V``: ``Q[s, a] = max_k R_ext[k, s, a] + gamma row_k(s, a) . V``,
-    its ``k`` (the lowest among ties) and, when ``rows``, the best posterior row ``[S, A, S]`` (else a dummy).
+    d: Draws, R_ext: jax.Array, V: jax.Array, gamma: jax.Array
+) -> tuple[jax.Array, jax.Array, Callable[[jax.Array, jax.Array], jax.Array]]:
+    """Per pair the best candidate under values ``V``: ``Q[s, a] = max_k R_ext[k, s, a] + gamma row_k(s, a) . V``, its
+    ``k`` (the lowest among ties), and ``posterior_row(s, a)``: the best posterior rows ``[n, S]`` of pairs
+    ``(s[n], a[n])`` (meaningful for pairs at ``eta``).
 
-    Optimistic rows cost ``O(S A S)`` for ``p_minus . V`` and ``O(max_psi S A)`` for ``V[z]``. Posterior rows stream
-    over the slots, one ``[S, A, S]`` draw at a time, each slot skipped past ``psi`` or when no pair (of any member
-    of a ``vmap``) is at ``eta``."""
-    S, A = d.missing.shape
+    Optimistic rows cost ``O(S A S)`` for ``p_minus . V`` and ``O(max_psi S A)`` for ``V[z]``; the kept posterior rows
+    ``O(max_psi M S)``. With more than ``M`` pairs at ``eta`` (some member of a ``vmap``), the posterior rows of all
+    pairs are drawn again, one slot ``[S, A, S]`` at a time, each slot skipped past ``psi``."""
+    K, S, A = d.z.shape
+    M = d.pairs.shape[0]
     dtype = V.dtype
-    base = jnp.einsum("sat,t->sa", d.p_minus, V)
-    q_opt = R_ext + gamma * (base + d.missing * V[d.z])  # [max_psi, S, A]
+    expected = lambda rows: jnp.sum(rows * V, axis=-1)  # noqa: E731  (one formula for kept and redrawn rows)
+    q_opt = R_ext + gamma * (expected(d.p_minus) + d.missing * V[d.z])  # [max_psi, S, A]
     q_opt = jnp.where(d.active[:, None, None], q_opt, -jnp.inf)
     k_opt = jnp.argmax(q_opt, axis=0).astype(jnp.int32)
     best_opt = jnp.max(q_opt, axis=0)
 
-    def better(carry, k):
-        q, kk, row = carry
-        P = d.posterior_draw(k)
-        q_k = R_ext[k] + gamma * jnp.einsum("sat,t->sa", P, V)
-        up = q_k > q
-        row = jnp.where(up[..., None], P, row) if rows else row
-        return jnp.where(up, q_k, q), jnp.where(up, k, kk), row
+    pairs = jnp.minimum(d.pairs, S * A - 1)
+    q_kept = R_ext.reshape(K, S * A)[:, pairs] + gamma * expected(d.kept)  # [max_psi, M]
+    q_kept = jnp.where(d.active[:, None], q_kept, -jnp.inf)
+    k_kept = jnp.argmax(q_kept, axis=0).astype(jnp.int32)
 
-    def slot(k, carry):
-        return only_if(d.any_posterior & d.active[k], better, carry, carry, k)
+    def scatter(fill, x):  # [M] values of the kept pairs -> [S, A], fill elsewhere
+        return jnp.full((S * A,), fill, x.dtype).at[d.pairs].set(x, mode="drop").reshape(S, A)
 
-    init = (jnp.full((S, A), -jnp.inf, dtype), jnp.zeros((S, A), jnp.int32),
-            jnp.zeros((S, A, S) if rows else (), dtype))
-    q_post, k_post, post_rows = jax.lax.fori_loop(0, d.z.shape[0], slot, init)
-    return (jnp.where(d.posterior, q_post, best_opt), jnp.where(d.posterior, k_post, k_opt), post_rows)
+    q_post, k_post = scatter(-jnp.inf, jnp.max(q_kept, axis=0)), scatter(0, k_kept)
+    position = scatter(0, jnp.arange(M, dtype=jnp.int32))
+
+    def posterior_row(s, a):
+        return d.kept[k_post[s, a], position[s, a]]
+
+    if M < S * A:  # static: some pairs' draws may not be kept
+
+        def better(carry, k):
+            q, kk, row = carry
+            P = d.draw(k)
+            q_k = R_ext[k] + gamma * expected(P)
+            up = q_k > q
+            return jnp.where(up, q_k, q), jnp.where(up, k, kk), jnp.where(up[..., None], P, row)
+
+        def slot(k, carry):
+            return only_if(d.overflow & d.active[k], better, carry, carry, k)
+
+        init = (jnp.full((S, A), -jnp.inf, dtype), jnp.zeros((S, A), jnp.int32), jnp.zeros((S, A, S), dtype))
+        q_all, k_all, rows_all = jax.lax.fori_loop(0, K, slot, init)
+        overflow = d.overflow
+        q_post, k_post = jnp.where(overflow, q_all, q_post), jnp.where(overflow, k_all, k_post)
+        kept_row = posterior_row
+
+        def posterior_row(s, a):
+            return jnp.where(overflow, rows_all[s, a], kept_row(s, a))
+
+    return jnp.where(d.posterior, q_post, best_opt), jnp.where(d.posterior, k_post, k_opt), posterior_row
 
 
 class _Choice(struct.PyTreeNode):
@@ -486,14 +526,14 @@ def _greedy(
 ) -> tuple[jax.Array, _Choice]:
     """One improvement step: ``Q[S, A] = max_k Q_ext(s, (a, k))`` (padded actions mirroring action 0) and the greedy
     extended action per state (lowest real action, then lowest candidate, among ties) as a :class:`_Choice`."""
-    q, k, post_rows = _best_candidates(d, R_ext, V, gamma, rows=True)
+    q, k, posterior_row = _best_candidates(d, R_ext, V, gamma)
     q = copy_action_zero(q, action_mask)
     S = q.shape[0]
     s = jnp.arange(S)
     a = dp.greedy_actions(q, action_mask)
     ka = k[s, a]
     optimistic = d.p_minus[s, a] + d.missing[s, a][:, None] * jax.nn.one_hot(d.z[ka, s, a], S, dtype=V.dtype)
-    row = jnp.where(d.posterior[s, a][:, None], post_rows[s, a], optimistic)
+    row = jnp.where(d.posterior[s, a][:, None], posterior_row(s, a), optimistic)
     return q, _Choice(action=a, row=row, reward=R_ext[ka, s, a])
 
 
@@ -542,7 +582,7 @@ def plan(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "pape
 
     def average(_):
         res = dp.relative_value_iteration(
-            lambda u: copy_action_zero(_best_candidates(d, R_ext, u, jnp.ones((), u.dtype), rows=False)[0], mask),
+            lambda u: copy_action_zero(_best_candidates(d, R_ext, u, jnp.ones((), u.dtype))[0], mask),
             state.u,
             state.state_mask,
             mask,

@@ -140,15 +140,16 @@ def test_average_reward_plan_is_gain_optimal_in_the_dense_extended_mdp(variant, 
 
 @pytest.mark.parametrize("variant", ["paper", "colosseum"])
 def test_kept_and_redrawn_posterior_draws_give_the_same_bits(monkeypatch, variant):
-    """Some pairs at eta, discounted and average reward, alone and batched: the plan with the posterior draws kept
-    (max_psi S A S <= _STORE_LIMIT) equals the plan that draws them again at every improvement step."""
+    """Some pairs at eta, discounted and average reward, alone and batched: the plan that keeps every pair's posterior
+    draws (M = S A) equals the plan that keeps one pair's (M = 1 < pairs at eta) and so draws all rows again at every
+    backup."""
     members = [_state(variant, "some", discount, seed)[1] for discount, seed in ((0.99, 1), (1.0, 2), (0.99, 3))]
     agent = get("psrl_continuous", variant)
     batch = jax.tree.map(lambda *x: jnp.stack(x), *members)
     keys = jax.random.split(jax.random.key(5), len(members))
 
     def run(limit):
-        monkeypatch.setattr(pc, "_STORE_LIMIT", limit)
+        monkeypatch.setattr(pc, "_KEEP_LIMIT", limit)
         alone = [jax.jit(agent.plan)(k, m) for k, m in zip(keys, members)]
         return alone, jax.jit(jax.vmap(agent.plan))(keys, batch)
 
