@@ -43,17 +43,17 @@ The plan never builds the extended MDP's ``[S, A max_psi, S]`` kernel (:func:`dr
 :func:`candidate_kernels` and :func:`extended_mdp` materialise it for tests). A simple optimistic candidate's
 expectation is ``p^-(s, a) . V + missing(s, a) V[z_k(s, a)]``, so a backup costs ``O(S A S)`` for ``p^- . V`` and
 ``O(max_psi S A)`` for the states ``z`` (kept as ``[max_psi, S, A]`` indices). Posterior candidates (pairs at ``eta``)
-are Dirichlet draws with one key per pair and slot: the plan keeps those of the first ``M = min(S A, 2^22 / (max_psi
-S))`` pairs at ``eta`` (``[max_psi, M, S]``, drawn once, only when some pair of some member of a ``vmap`` is at
-``eta``); should more pairs be at ``eta``, each backup draws every pair's rows again, one slot ``[S, A, S]`` at a time,
-from the same keys (the same bits). Within ``T = 500 000`` steps at most ``T / eta`` pairs reach ``eta``, fewer than
-``M`` at every size of the benchmark. An improvement step keeps per pair the best candidate (value and row) and per
-state the best real action; an evaluation solves ``(I - gamma P_pi) V = r_pi`` for the chosen rows (``[S, S]``). Memory
-is ``O(S A S + max_psi S A)`` per member (kept draws aside). Results do not change as long as ``max_psi >= psi``, but
-``max_psi`` (a static buffer size) still sets the slot loops' length, so set it to :func:`psi` of the MDPs at hand (e.g.
-2 for RiverSwim 25 at the defaults). With more than ``M`` pairs at ``eta`` (e.g. optimism off, where every pair is),
-every backup pays ``psi`` Dirichlet draws of ``[S, A, S]``: a few per discounted plan, one per sweep of relative value
-iteration.
+are Dirichlet draws: the plan keeps those of the first ``M = min(S A, 2^22 / (max_psi S))`` pairs at ``eta``
+(``[max_psi, M, S]``, drawn once, only when some pair of some member of a ``vmap`` is at ``eta``); should more pairs be
+at ``eta``, it uses a draw of every pair's rows instead, drawn again at each backup one slot ``[S, A, S]`` at a time
+from the same keys (the same bits each time). Within ``T = 500 000`` steps at most ``T / eta`` pairs reach ``eta``,
+fewer than ``M`` at every size of the benchmark. An improvement step keeps per pair the best candidate (value and row)
+and per state the best real action; an evaluation solves ``(I - gamma P_pi) V = r_pi`` for the chosen rows (``[S, S]``).
+Memory is ``O(S A S + max_psi S A)`` per member (kept draws aside). Results do not change as long as ``max_psi >= psi``,
+but ``max_psi`` (a static buffer size) still sets the slot loops' length, so set it to :func:`psi` of the MDPs at hand
+(e.g. 2 for RiverSwim 25 at the defaults). With more than ``M`` pairs at ``eta`` (e.g. optimism off, where every pair
+is), every backup pays ``psi`` Dirichlet draws of ``[S, A, S]``: a few per discounted plan, one per sweep of relative
+value iteration.
 
 Policy estimate (for regret), as the reference (docs/agents.md §4): posterior means (Dirichlet mean, ``mu``),
 ``policy_discount``-discounted optimal values (0.99, solved exactly), greedy ``[S, A]``.
@@ -297,19 +297,18 @@ def _posterior_alpha(state: PSRLContinuousState) -> jax.Array:
 
 
 # The posterior rows that a plan keeps: those of the first M pairs at eta, M = min(S A, _KEEP_LIMIT / (max_psi S))
-# (``max_psi M S`` floats, 16 MiB a member). Above M pairs at eta, every backup draws all rows again from the same
-# keys. For T = 500 000 at most T / eta pairs reach eta: 52 at S = 948 (eta 9 480, M = 73), 125 at S = 400 (M = 174);
-# Taxi (108 x 6, psi 17) keeps all its 648 pairs.
+# (``max_psi M S`` floats, 16 MiB a member). Above M pairs at eta, the plan uses a draw of all pairs' rows instead,
+# drawn again from the same keys at every backup. For T = 500 000 at most T / eta pairs reach eta: 52 at S = 948
+# (eta 9 480, M = 73), 125 at S = 400 (M = 174); Taxi (108 x 6, psi 17) keeps all its 648 pairs.
 _KEEP_LIMIT = 1 << 22
 
 
 class Draws(struct.PyTreeNode):
     """One plan's candidates in structured form (module docstring): candidate ``k`` of ``(s, a)`` is
     ``p_minus[s, a] + missing[s, a] e_z[k, s, a]`` where ``posterior[s, a]`` is False, else a Dirichlet draw with
-    concentration ``alpha[s, a]`` and key ``fold_in(fold_in(key, k), s A + a)`` (:meth:`rows`, the same bits for a
-    pair whichever rows are drawn with it). ``kept[k, m]``: the draws of pair ``pairs[m]`` (the first ``M`` pairs at
-    ``eta``, then the fill value ``S A``); ``overflow``: more than ``M`` pairs at ``eta``. ``active[k]``: slot
-    ``k < psi``."""
+    concentration ``alpha[s, a]``: ``kept[k, m]`` for pair ``pairs[m]`` (the first ``M`` pairs at ``eta``, then the
+    fill value ``S A``), or, when more than ``M`` pairs are at ``eta`` (``overflow``), row ``(s, a)`` of :meth:`draw`.
+    ``active[k]``: slot ``k < psi``."""
 
     p_minus: jax.Array  # [S, A, S]
     missing: jax.Array  # [S, A]
@@ -330,17 +329,23 @@ class Draws(struct.PyTreeNode):
     def overflow(self) -> jax.Array:
         return jnp.sum(self.posterior) > self.pairs.shape[0]
 
-    def rows(self, k: jax.Array, pairs: jax.Array) -> jax.Array:
-        """Candidate ``k``'s posterior draws ``[n, S]`` of the flat pairs ``pairs[n]`` (clipped to the real range)."""
+    def _dirichlet(self, k: jax.Array, alpha: jax.Array) -> jax.Array:
+        return dirichlet_sample(jax.random.fold_in(self.key, k), alpha, offset=self.offset)
+
+    def kept_rows(self, k: jax.Array) -> jax.Array:
+        """Candidate ``k``'s posterior draws ``[M, S]`` of the kept pairs."""
         S = self.alpha.shape[-1]
-        alpha = self.alpha.reshape(-1, S)
-        pairs = jnp.minimum(pairs, alpha.shape[0] - 1)
-        key_k = jax.random.fold_in(self.key, k)
-        return jax.vmap(lambda p: dirichlet_sample(jax.random.fold_in(key_k, p), alpha[p], offset=self.offset))(pairs)
+        return self._dirichlet(k, self.alpha.reshape(-1, S)[jnp.minimum(self.pairs, self.missing.size - 1)])
 
     def draw(self, k: jax.Array) -> jax.Array:
-        """Candidate ``k``'s posterior draws ``[S, A, S]`` for every pair (those not at ``eta`` ignore theirs)."""
-        return self.rows(k, jnp.arange(self.missing.size)).reshape(self.alpha.shape)
+        """Candidate ``k``'s posterior draws ``[S, A, S]`` for every pair, used when ``overflow``."""
+        return self._dirichlet(k, self.alpha)
+
+    def posterior_draw(self, k: jax.Array) -> jax.Array:
+        """The ``[S, A, S]`` posterior candidates ``k`` that a plan uses (rows of pairs not at ``eta`` meaningless)."""
+        S = self.alpha.shape[-1]
+        kept = jnp.zeros((self.missing.size, S), self.alpha.dtype).at[self.pairs].set(self.kept[k], mode="drop")
+        return jnp.where(self.overflow, self.draw(k), kept.reshape(self.alpha.shape))
 
 
 def draws(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "paper") -> Draws:
@@ -350,7 +355,8 @@ def draws(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "pap
     wherever the padding lies) per pair and slot (``variant="colosseum"``: per slot, shared by all pairs). The
     colosseum variant's deviation divides by ``max(1, N(s, a, s'))`` and its posterior draws are normalised by ``sum +
     1e-5``. The posterior draws of the first ``M`` pairs at ``eta`` are kept (:data:`_KEEP_LIMIT`), drawn only if some
-    pair (of any member of a ``vmap``) is at ``eta``; the others are drawn again when needed (:meth:`Draws.draw`)."""
+    pair (of any member of a ``vmap``) is at ``eta``; with more pairs at ``eta``, every backup draws all rows again
+    from the same keys (:meth:`Draws.draw`)."""
     colosseum = variant == "colosseum"
     hp, c = state.hparams, state.constants
     dtype = state.Q.dtype
@@ -380,7 +386,7 @@ def draws(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "pap
                 key=k_dir, active=jnp.arange(K) < c.psi, pairs=pairs.astype(jnp.int32),
                 kept=jnp.zeros((K, M, S), dtype), offset=COLOSSEUM_DIRICHLET_OFFSET if colosseum else 0.0)
     zeros = jnp.zeros((M, S), dtype)
-    kept = jax.lax.map(lambda k: only_if(out.any_posterior & out.active[k], out.rows, zeros, k, out.pairs),
+    kept = jax.lax.map(lambda k: only_if(out.any_posterior & out.active[k], out.kept_rows, zeros, k),
                        jnp.arange(K))
     return out.replace(kept=kept)
 
@@ -398,7 +404,7 @@ def candidate_kernels(key: jax.Array, state: PSRLContinuousState, *, variant: Va
     zeros = jnp.zeros(d.alpha.shape, d.alpha.dtype)
 
     def one(k):
-        posterior = only_if(d.any_posterior, d.draw, zeros, k)
+        posterior = only_if(d.any_posterior, d.posterior_draw, zeros, k)
         optimistic = d.p_minus + d.missing[..., None] * jax.nn.one_hot(d.z[k], S, dtype=d.alpha.dtype)
         return jnp.where(d.posterior[..., None], posterior, optimistic)
 

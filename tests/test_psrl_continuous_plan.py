@@ -138,25 +138,46 @@ def test_average_reward_plan_is_gain_optimal_in_the_dense_extended_mdp(variant, 
         np.testing.assert_allclose(d, float(ref.gain), atol=3e-5)
 
 
+@pytest.mark.statistical(p=0.0)
 @pytest.mark.parametrize("variant", ["paper", "colosseum"])
-def test_kept_and_redrawn_posterior_draws_give_the_same_bits(monkeypatch, variant):
-    """Some pairs at eta, discounted and average reward, alone and batched: the plan that keeps every pair's posterior
-    draws (M = S A) equals the plan that keeps one pair's (M = 1 < pairs at eta) and so draws all rows again at every
-    backup."""
-    members = [_state(variant, "some", discount, seed)[1] for discount, seed in ((0.99, 1), (1.0, 2), (0.99, 3))]
-    agent = get("psrl_continuous", variant)
-    batch = jax.tree.map(lambda *x: jnp.stack(x), *members)
-    keys = jax.random.split(jax.random.key(5), len(members))
+def test_more_pairs_at_eta_than_kept(monkeypatch, variant):
+    """M = 1 kept pair, fewer than the pairs at eta: the plan uses the draws of every pair (redrawn at each backup),
+    and still solves the dense extended MDP of its draws (discounted: dp.policy_iteration; average reward: the optimal
+    gain), for every key (p = 0). Batched with a member without pairs at eta (kept path), each member plans as alone."""
+    monkeypatch.setattr(pc, "_KEEP_LIMIT", 0)
+    jax.clear_caches()  # jitted plans of other tests were traced with the default M
+    try:
+        _check_more_pairs_at_eta_than_kept(variant)
+    finally:
+        monkeypatch.undo()
+        jax.clear_caches()
 
-    def run(limit):
-        monkeypatch.setattr(pc, "_KEEP_LIMIT", limit)
-        alone = [jax.jit(agent.plan)(k, m) for k, m in zip(keys, members)]
-        return alone, jax.jit(jax.vmap(agent.plan))(keys, batch)
 
-    (alone_kept, batch_kept), (alone_redrawn, batch_redrawn) = run(1 << 30), run(0)
-    for x, y in zip(alone_kept, alone_redrawn):
-        jax.tree.map(np.testing.assert_array_equal, x, y)
-    jax.tree.map(np.testing.assert_array_equal, batch_kept, batch_redrawn)
+def _check_more_pairs_at_eta_than_kept(variant):
+    for discount in (0.99, 1.0):
+        agent, state = _state(variant, "some", discount=discount, seed=4)
+        assert bool(pc.draws(jax.random.key(0), state, variant=variant).overflow)
+        plan = jax.jit(agent.plan)
+        for k in jax.random.split(key(24), 2):
+            new = plan(k, state)
+            T, R, mask = _dense(k, state, variant)
+            if discount < 1:
+                ref = _dense_policy_iteration(T, R, mask, state.u, discount)
+                np.testing.assert_allclose(new.u, ref.V, rtol=0, atol=2e-6 * (1 + float(np.abs(ref.V).max())))
+            elif bool(new.plan_converged):
+                real = np.flatnonzero(STATE_MASK)
+                Tr = jnp.asarray(np.asarray(T)[np.ix_(real, np.arange(T.shape[1]), real)])
+                ref = dp.optimal_gain(Tr, rewards=jnp.asarray(np.asarray(R)[real]), tol=2e-6, max_iter=1_000_000)
+                np.testing.assert_allclose((np.asarray(new.Q).max(-1) - np.asarray(new.u))[real], float(ref.gain),
+                                           atol=3e-5)
+        other = _state(variant, "none", discount=discount, seed=5)[1]
+        keys = jax.random.split(key(25), 2)
+        batch = jax.tree.map(lambda *x: jnp.stack(x), state, other)
+        both = jax.jit(jax.vmap(agent.plan))(keys, batch)
+        for i, member in enumerate((state, other)):
+            alone = plan(keys[i], member)
+            np.testing.assert_allclose(both.u[i], alone.u, rtol=1e-6, atol=1e-6)
+            np.testing.assert_array_equal(both.Q[i].argmax(-1), alone.Q.argmax(-1))
 
 
 @pytest.mark.statistical(p=1.4e-6)
