@@ -24,26 +24,36 @@ Candidate kernels of ``(s, a)`` with ``N(s, a)`` visits:
 * ``N(s, a) < eta`` ("simple optimistic sampling"): with ``p_hat = N(s, a, .) / max(1, N(s, a))``,
   ``p^- = p_hat - min(sqrt(3 p_hat ln(4S) / N') + 3 ln(4S) / N', p_hat)`` (``N' = max(1, N(s, a))``), and each
   candidate puts the missing mass ``1 - sum p^-`` on one next state drawn uniformly among the real states,
-  independently per pair and candidate.
+  independently per pair and candidate (one ``randint`` over the real states per pair and candidate).
 
-Planning: the extended MDP (:func:`extended_mdp`) is solved for ``discount`` (default 0.99, as the reference):
-by policy iteration with exact (linear-solve) evaluation, warm-started from the previous epoch's values, rather
-than by value iteration to ``1e-3``. Its stopping rule (:func:`jaxmdp.dynamic_programming.policy_iteration`, no switch
-gains more than ``eps = 1e-5 (1 + max|V|)`` in ``Q``) bounds the plan's values by ``V* - eps / (1 - discount) <= u <=
-V*``: at ``discount = 0.99`` up to ``1e-3 max|V|`` below the optimum when actions are nearly tied (float32 cannot
-resolve such ties much better), with ``V*`` typically met to float32 precision. ``discount = 1`` asks for Agrawal &
-Jia's gain-optimal policy instead, by relative value iteration with the span stopping rule (``plan_tol``, at most
-``plan_max_iter`` sweeps). It is not the default: the sampled extended MDPs
-are often nearly decomposable (simple optimistic sampling draws deterministic rows, and posterior draws with the
-``1/S`` prior put ``1e-30``-sized mass on most states), their optimal gain then depends on the state and relative
-value iteration needs thousands to hundreds of thousands of sweeps (one 3 000-step run on RiverSwim 25: median 44
-sweeps per plan, maximum 27 230) -- and a batched plan waits for its slowest member. The agent acts with
-``Q(s, a) = max_k Q_ext(s, (a, k))``, i.e. the real action of the best extended action.
+Planning: the extended MDP is solved for ``discount`` (default 0.99, as the reference): by policy iteration with exact
+(linear-solve) evaluation, warm-started from the previous epoch's values, rather than by value iteration to ``1e-3``.
+Its stopping rule (:func:`jaxmdp.dynamic_programming.policy_iteration_by`, no switch gains more than ``eps = 1e-5 (1 +
+max|V|)`` in ``Q``) bounds the plan's values by ``V* - eps / (1 - discount) <= u <= V*``: at ``discount = 0.99`` up to
+``1e-3 max|V|`` below the optimum when actions are nearly tied (float32 cannot resolve such ties much better), with
+``V*`` typically met to float32 precision. ``discount = 1`` asks for Agrawal & Jia's gain-optimal policy instead, by
+relative value iteration with the span stopping rule (``plan_tol``, at most ``plan_max_iter`` sweeps). It is not the
+default: the sampled extended MDPs are often nearly decomposable (simple optimistic sampling draws deterministic rows,
+and posterior draws with the ``1/S`` prior put ``1e-30``-sized mass on most states), their optimal gain then depends on
+the state and relative value iteration needs thousands to hundreds of thousands of sweeps (one 3 000-step run on
+RiverSwim 25: median 44 sweeps per plan, maximum 27 230) -- and a batched plan waits for its slowest member. The agent
+acts with ``Q(s, a) = max_k Q_ext(s, (a, k))``, i.e. the real action of the best extended action.
 
-Sampling costs ``psi`` candidates (the largest ``psi`` of a batch), but memory and the planner's action count scale
-with ``max_psi`` (``[max_psi, S, A, S]`` candidates per member), so set ``max_psi`` to :func:`psi` of the MDPs at
-hand (e.g. 2 for RiverSwim 25 at the defaults) when running many seeds or large MDPs; results do not change as long
-as ``max_psi >= psi``.
+The plan never builds the extended MDP's ``[S, A max_psi, S]`` kernel (:func:`draws`, :func:`extended_policy_iteration`;
+:func:`candidate_kernels` and :func:`extended_mdp` materialise it for tests). A simple optimistic candidate's
+expectation is ``p^-(s, a) . V + missing(s, a) V[z_k(s, a)]``, so a backup costs ``O(S A S)`` for ``p^- . V`` and
+``O(max_psi S A)`` for the states ``z`` (kept as ``[max_psi, S, A]`` indices). Posterior candidates (pairs at ``eta``)
+are Dirichlet draws: the plan keeps those of the first ``M = min(S A, 2^22 / (max_psi S))`` pairs at ``eta``
+(``[max_psi, M, S]``, drawn once, only when some pair of some member of a ``vmap`` is at ``eta``); should more pairs be
+at ``eta``, it uses a draw of every pair's rows instead, drawn again at each backup one slot ``[S, A, S]`` at a time
+from the same keys (the same bits each time). Within ``T = 500 000`` steps at most ``T / eta`` pairs reach ``eta``,
+fewer than ``M`` at every size of the benchmark. An improvement step keeps per pair the best candidate (value and row)
+and per state the best real action; an evaluation solves ``(I - gamma P_pi) V = r_pi`` for the chosen rows (``[S, S]``).
+Memory is ``O(S A S + max_psi S A)`` per member (kept draws aside). Results do not change as long as ``max_psi >= psi``,
+but ``max_psi`` (a static buffer size) still sets the slot loops' length, so set it to :func:`psi` of the MDPs at hand
+(e.g. 2 for RiverSwim 25 at the defaults). With more than ``M`` pairs at ``eta`` (e.g. optimism off, where every pair
+is), every backup pays ``psi`` Dirichlet draws of ``[S, A, S]``: a few per discounted plan, one per sweep of relative
+value iteration.
 
 Policy estimate (for regret), as the reference (docs/agents.md §4): posterior means (Dirichlet mean, ``mu``),
 ``policy_discount``-discounted optimal values (0.99, solved exactly), greedy ``[S, A]``.
@@ -89,6 +99,7 @@ from agents.posteriors import (
 from agents.tabular_common import copy_action_zero, discounted_greedy_policy, greedy_action
 from jaxmdp import dynamic_programming as dp
 from jaxmdp._checks import Variant, check_int, check_range
+from jaxmdp.jaxlib_workarounds.linalg import solve as linear_solve
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
 
 __all__ = [
@@ -97,7 +108,10 @@ __all__ = [
     "Constants",
     "constants",
     "psi",
+    "Draws",
+    "draws",
     "candidate_kernels",
+    "extended_policy_iteration",
     "extended_mdp",
     "only_if",
     "colosseum_extended_rewards",
@@ -282,17 +296,72 @@ def _posterior_alpha(state: PSRLContinuousState) -> jax.Array:
     return dirichlet_concentration(1.0 / S, state.counts, state.state_mask)
 
 
-def candidate_kernels(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "paper") -> jax.Array:
-    """``[max_psi, S, A, S]`` candidate kernels (module docstring); slots ``k >= psi`` repeat candidate 0, so they
-    never change a maximum over candidates.
+# The posterior rows that a plan keeps: those of the first M pairs at eta, M = min(S A, _KEEP_LIMIT / (max_psi S))
+# (``max_psi M S`` floats, 16 MiB a member). Above M pairs at eta, the plan uses a draw of all pairs' rows instead,
+# drawn again from the same keys at every backup. For T = 500 000 at most T / eta pairs reach eta: 52 at S = 948
+# (eta 9 480, M = 73), 125 at S = 400 (M = 174); Taxi (108 x 6, psi 17) keeps all its 648 pairs.
+_KEEP_LIMIT = 1 << 22
 
-    ``variant="colosseum"``: the reference's simple optimistic sampling, whose deviation divides by the per-next-state
-    count ``max(1, N(s, a, s'))`` and whose candidate ``k`` hands the missing mass of every pair to one shared state
-    ``z_k``; posterior draws are normalised by ``sum + 1e-5``."""
+
+class Draws(struct.PyTreeNode):
+    """One plan's candidates in structured form (module docstring): candidate ``k`` of ``(s, a)`` is
+    ``p_minus[s, a] + missing[s, a] e_z[k, s, a]`` where ``posterior[s, a]`` is False, else a Dirichlet draw with
+    concentration ``alpha[s, a]``: ``kept[k, m]`` for pair ``pairs[m]`` (the first ``M`` pairs at ``eta``, then the
+    fill value ``S A``), or, when more than ``M`` pairs are at ``eta`` (``overflow``), row ``(s, a)`` of :meth:`draw`.
+    ``active[k]``: slot ``k < psi``."""
+
+    p_minus: jax.Array  # [S, A, S]
+    missing: jax.Array  # [S, A]
+    z: jax.Array  # [max_psi, S, A] int32, real states
+    posterior: jax.Array  # [S, A] bool: N(s, a) >= eta
+    alpha: jax.Array  # [S, A, S]
+    key: jax.Array
+    active: jax.Array  # [max_psi] bool
+    pairs: jax.Array  # [M] int32 flat pair indices s A + a
+    kept: jax.Array  # [max_psi, M, S]
+    offset: float = struct.field(pytree_node=False, default=0.0)
+
+    @property
+    def any_posterior(self) -> jax.Array:
+        return jnp.any(self.posterior)
+
+    @property
+    def overflow(self) -> jax.Array:
+        return jnp.sum(self.posterior) > self.pairs.shape[0]
+
+    def _dirichlet(self, k: jax.Array, alpha: jax.Array) -> jax.Array:
+        return dirichlet_sample(jax.random.fold_in(self.key, k), alpha, offset=self.offset)
+
+    def kept_rows(self, k: jax.Array) -> jax.Array:
+        """Candidate ``k``'s posterior draws ``[M, S]`` of the kept pairs."""
+        S = self.alpha.shape[-1]
+        return self._dirichlet(k, self.alpha.reshape(-1, S)[jnp.minimum(self.pairs, self.missing.size - 1)])
+
+    def draw(self, k: jax.Array) -> jax.Array:
+        """Candidate ``k``'s posterior draws ``[S, A, S]`` for every pair, used when ``overflow``."""
+        return self._dirichlet(k, self.alpha)
+
+    def posterior_draw(self, k: jax.Array) -> jax.Array:
+        """The ``[S, A, S]`` posterior candidates ``k`` that a plan uses (rows of pairs not at ``eta`` meaningless)."""
+        S = self.alpha.shape[-1]
+        kept = jnp.zeros((self.missing.size, S), self.alpha.dtype).at[self.pairs].set(self.kept[k], mode="drop")
+        return jnp.where(self.overflow, self.draw(k), kept.reshape(self.alpha.shape))
+
+
+def draws(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "paper") -> Draws:
+    """The candidates of one plan (module docstring) without their dense kernels.
+
+    The state receiving the missing mass is one ``randint`` over the real states (``state_mask``, in index order,
+    wherever the padding lies) per pair and slot (``variant="colosseum"``: per slot, shared by all pairs). The
+    colosseum variant's deviation divides by ``max(1, N(s, a, s'))`` and its posterior draws are normalised by ``sum +
+    1e-5``. The posterior draws of the first ``M`` pairs at ``eta`` are kept (:data:`_KEEP_LIMIT`), drawn only if some
+    pair (of any member of a ``vmap``) is at ``eta``; with more pairs at ``eta``, every backup draws all rows again
+    from the same keys (:meth:`Draws.draw`)."""
     colosseum = variant == "colosseum"
     hp, c = state.hparams, state.constants
     dtype = state.Q.dtype
     S, A = state.Q.shape
+    K = hp.max_psi
     mask = state.state_mask
     counts = state.counts.astype(dtype)
     if hp.scaled_dirichlet:
@@ -305,42 +374,42 @@ def candidate_kernels(key: jax.Array, state: PSRLContinuousState, *, variant: Va
     log4s = jnp.log(4.0 * jnp.sum(mask).astype(dtype))
     n_dev = jnp.maximum(counts, 1.0) if colosseum else n1
     p_minus = p_hat - jnp.minimum(jnp.sqrt(3.0 * p_hat * log4s / n_dev) + 3.0 * log4s / n_dev, p_hat)
-    missing = 1.0 - jnp.sum(p_minus, axis=-1, keepdims=True)
-    use_posterior = (N >= c.eta)[..., None]
-    log_mask = jnp.where(mask, 0.0, -jnp.inf)
+    missing = 1.0 - jnp.sum(p_minus, axis=-1)
+    k_dir, k_z = jax.random.split(key)
+    real_states = jnp.argsort(~mask, stable=True)  # the real states first, in index order
+    index = jax.random.randint(k_z, (K,) if colosseum else (K, S, A), 0, jnp.sum(mask))
+    z = jnp.broadcast_to(real_states[index].reshape((K, 1, 1) if colosseum else (K, S, A)), (K, S, A))
+    posterior = N >= c.eta
+    M = min(S * A, max(1, _KEEP_LIMIT // (K * S)))
+    (pairs,) = jnp.nonzero(posterior.reshape(-1), size=M, fill_value=S * A)
+    out = Draws(p_minus=p_minus, missing=missing, z=z.astype(jnp.int32), posterior=posterior, alpha=alpha,
+                key=k_dir, active=jnp.arange(K) < c.psi, pairs=pairs.astype(jnp.int32),
+                kept=jnp.zeros((K, M, S), dtype), offset=COLOSSEUM_DIRICHLET_OFFSET if colosseum else 0.0)
+    zeros = jnp.zeros((M, S), dtype)
+    kept = jax.lax.map(lambda k: only_if(out.any_posterior & out.active[k], out.kept_rows, zeros, k),
+                       jnp.arange(K))
+    return out.replace(kept=kept)
 
-    # Each kind of candidate row is drawn only if some pair uses it (the other kind's values are discarded by the
-    # ``where`` below): for large MDPs ``eta = 10 S`` and no pair reaches it for most of a run, so the dense Dirichlet
-    # draw of every ``[S, A, S]`` entry was nearly all of a plan's time and none of its result (docs/benchmarks/
-    # continuous_planning.md). The values used are the same bits as when both are drawn.
-    any_posterior, any_optimistic = jnp.any(use_posterior), ~jnp.all(use_posterior)
 
-    def draw(k):
-        k_dir, k_z = jax.random.split(jax.random.fold_in(key, k))
-        offset = COLOSSEUM_DIRICHLET_OFFSET if colosseum else 0.0
-        posterior = only_if(
-            any_posterior,
-            lambda k, a: dirichlet_sample(k, a, offset=offset),
-            jnp.zeros(alpha.shape, dtype),
-            k_dir,
-            alpha,
-        )
-        z_shape = () if colosseum else (S, A)
-        z = only_if(
-            any_optimistic,
-            lambda k, logits: jax.random.categorical(k, logits, shape=z_shape),
-            jnp.zeros(z_shape, jnp.int32),
-            k_z,
-            log_mask,
-        )
-        optimistic = p_minus + missing * jax.nn.one_hot(z, S, dtype=dtype)
-        return jnp.where(use_posterior, posterior, optimistic)
+def candidate_kernels(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "paper") -> jax.Array:
+    """The dense ``[max_psi, S, A, S]`` candidate kernels of :func:`draws` (the same draws a plan with this key
+    uses; for tests and inspection, a plan never builds them). Slots ``k >= psi`` repeat candidate 0, so they never
+    change a maximum over candidates.
 
-    # Candidates k < psi only, so that sampling costs psi (the largest in a batch), not max_psi. A static loop over
-    # the slots, each skipped past psi: a loop to the batched psi under vmap selected (copied) the whole
-    # [max_psi, S, A, S] buffer at every candidate.
-    P = jax.lax.map(lambda k: only_if(k < c.psi, draw, jnp.zeros((S, A, S), dtype), k), jnp.arange(hp.max_psi))
-    return jnp.where((jnp.arange(hp.max_psi) < c.psi)[:, None, None, None], P, P[:1])
+    ``variant="colosseum"``: the reference's simple optimistic sampling, whose deviation divides by the per-next-state
+    count ``max(1, N(s, a, s'))`` and whose candidate ``k`` hands the missing mass of every pair to one shared state
+    ``z_k``; posterior draws are normalised by ``sum + 1e-5``."""
+    d = draws(key, state, variant=variant)
+    S = state.Q.shape[0]
+    zeros = jnp.zeros(d.alpha.shape, d.alpha.dtype)
+
+    def one(k):
+        posterior = only_if(d.any_posterior, d.posterior_draw, zeros, k)
+        optimistic = d.p_minus + d.missing[..., None] * jax.nn.one_hot(d.z[k], S, dtype=d.alpha.dtype)
+        return jnp.where(d.posterior[..., None], posterior, optimistic)
+
+    P = jax.lax.map(one, jnp.arange(d.z.shape[0]))
+    return jnp.where(d.active[:, None, None, None], P, P[:1])
 
 
 def only_if(pred: jax.Array, compute: Callable[..., Any], default: Any, *operands: Any) -> Any:
@@ -362,9 +431,9 @@ def only_if(pred: jax.Array, compute: Callable[..., Any], default: Any, *operand
 
 
 def extended_mdp(R: jax.Array, P: jax.Array, action_mask: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
-    """The extended MDP as a dense model: action ``j = a * max_psi + k`` of ``s`` has candidate ``k``'s kernel of
-    ``(s, a)`` and reward ``R[s, a]``. Returns ``(T[S, A max_psi, S], R[S, A max_psi], action_mask[A max_psi])``;
-    padded actions mirror action 0."""
+    """The extended MDP as a dense model (for tests and inspection; :func:`plan` uses its structure instead): action
+    ``j = a * max_psi + k`` of ``s`` has candidate ``k``'s kernel of ``(s, a)`` and reward ``R[s, a]``. Returns
+    ``(T[S, A max_psi, S], R[S, A max_psi], action_mask[A max_psi])``; padded actions mirror action 0."""
     K, S, A, _ = P.shape
     R = copy_action_zero(R, action_mask)
     P = jnp.where(action_mask[None, None, :, None], P, P[:, :, :1])
@@ -383,35 +452,143 @@ def colosseum_extended_rewards(R: jax.Array, psi: jax.Array, max_psi: int, actio
     return R[:, j % jnp.sum(action_mask)].reshape(S, A * max_psi)
 
 
+def _extended_rewards(R: jax.Array, state: PSRLContinuousState, variant: Variant) -> jax.Array:
+    """``[max_psi, S, A]``: the reward of extended action ``(a, k)`` in ``s``, padded actions mirroring action 0."""
+    S, A = R.shape
+    K = state.hparams.max_psi
+    if variant == "colosseum":
+        R_ext = colosseum_extended_rewards(R, state.constants.psi, K, state.action_mask).reshape(S, A, K)
+        return jnp.transpose(R_ext, (2, 0, 1))
+    return jnp.broadcast_to(copy_action_zero(R, state.action_mask), (K, S, A))
+
+
+def _best_candidates(
+    d: Draws, R_ext: jax.Array, V: jax.Array, gamma: jax.Array
+) -> tuple[jax.Array, jax.Array, Callable[[jax.Array, jax.Array], jax.Array]]:
+    """Per pair the best candidate under values ``V``: ``Q[s, a] = max_k R_ext[k, s, a] + gamma row_k(s, a) . V``, its
+    ``k`` (the lowest among ties), and ``posterior_row(s, a)``: the best posterior rows ``[n, S]`` of pairs
+    ``(s[n], a[n])`` (meaningful for pairs at ``eta``).
+
+    Optimistic rows cost ``O(S A S)`` for ``p_minus . V`` and ``O(max_psi S A)`` for ``V[z]``; the kept posterior rows
+    ``O(max_psi M S)``. With more than ``M`` pairs at ``eta`` (some member of a ``vmap``), the posterior rows of all
+    pairs are drawn again, one slot ``[S, A, S]`` at a time, each slot skipped past ``psi``."""
+    K, S, A = d.z.shape
+    M = d.pairs.shape[0]
+    dtype = V.dtype
+    expected = lambda rows: jnp.sum(rows * V, axis=-1)  # noqa: E731  (one formula for kept and redrawn rows)
+    q_opt = R_ext + gamma * (expected(d.p_minus) + d.missing * V[d.z])  # [max_psi, S, A]
+    q_opt = jnp.where(d.active[:, None, None], q_opt, -jnp.inf)
+    k_opt = jnp.argmax(q_opt, axis=0).astype(jnp.int32)
+    best_opt = jnp.max(q_opt, axis=0)
+
+    pairs = jnp.minimum(d.pairs, S * A - 1)
+    q_kept = R_ext.reshape(K, S * A)[:, pairs] + gamma * expected(d.kept)  # [max_psi, M]
+    q_kept = jnp.where(d.active[:, None], q_kept, -jnp.inf)
+    k_kept = jnp.argmax(q_kept, axis=0).astype(jnp.int32)
+
+    def scatter(fill, x):  # [M] values of the kept pairs -> [S, A], fill elsewhere
+        return jnp.full((S * A,), fill, x.dtype).at[d.pairs].set(x, mode="drop").reshape(S, A)
+
+    q_post, k_post = scatter(-jnp.inf, jnp.max(q_kept, axis=0)), scatter(0, k_kept)
+    position = scatter(0, jnp.arange(M, dtype=jnp.int32))
+
+    def posterior_row(s, a):
+        return d.kept[k_post[s, a], position[s, a]]
+
+    if M < S * A:  # static: some pairs' draws may not be kept
+
+        def better(carry, k):
+            q, kk, row = carry
+            P = d.draw(k)
+            q_k = R_ext[k] + gamma * expected(P)
+            up = q_k > q
+            return jnp.where(up, q_k, q), jnp.where(up, k, kk), jnp.where(up[..., None], P, row)
+
+        def slot(k, carry):
+            return only_if(d.overflow & d.active[k], better, carry, carry, k)
+
+        init = (jnp.full((S, A), -jnp.inf, dtype), jnp.zeros((S, A), jnp.int32), jnp.zeros((S, A, S), dtype))
+        q_all, k_all, rows_all = jax.lax.fori_loop(0, K, slot, init)
+        overflow = d.overflow
+        q_post, k_post = jnp.where(overflow, q_all, q_post), jnp.where(overflow, k_all, k_post)
+        kept_row = posterior_row
+
+        def posterior_row(s, a):
+            return jnp.where(overflow, rows_all[s, a], kept_row(s, a))
+
+    return jnp.where(d.posterior, q_post, best_opt), jnp.where(d.posterior, k_post, k_opt), posterior_row
+
+
+class _Choice(struct.PyTreeNode):
+    """A deterministic policy of the extended MDP, per state: real action, chosen kernel row, reward."""
+
+    action: jax.Array  # [S] int32
+    row: jax.Array  # [S, S]
+    reward: jax.Array  # [S]
+
+
+def _greedy(
+    d: Draws, R_ext: jax.Array, V: jax.Array, gamma: jax.Array, action_mask: jax.Array
+) -> tuple[jax.Array, _Choice]:
+    """One improvement step: ``Q[S, A] = max_k Q_ext(s, (a, k))`` (padded actions mirroring action 0) and the greedy
+    extended action per state (lowest real action, then lowest candidate, among ties) as a :class:`_Choice`."""
+    q, k, posterior_row = _best_candidates(d, R_ext, V, gamma)
+    q = copy_action_zero(q, action_mask)
+    S = q.shape[0]
+    s = jnp.arange(S)
+    a = dp.greedy_actions(q, action_mask)
+    ka = k[s, a]
+    optimistic = d.p_minus[s, a] + d.missing[s, a][:, None] * jax.nn.one_hot(d.z[ka, s, a], S, dtype=V.dtype)
+    row = jnp.where(d.posterior[s, a][:, None], posterior_row(s, a), optimistic)
+    return q, _Choice(action=a, row=row, reward=R_ext[ka, s, a])
+
+
+def extended_policy_iteration(
+    d: Draws, R_ext: jax.Array, gamma: jax.Array, V0: jax.Array, action_mask: jax.Array
+) -> dp.ValueIterationResult:
+    """Policy iteration (:func:`jaxmdp.dynamic_programming.policy_iteration_by`, exact evaluation, ``rtol = 1e-5``)
+    on the extended MDP of ``d`` and rewards ``R_ext[max_psi, S, A]``, from the policy greedy on one backup of
+    ``V0``. Improvement picks per pair the best candidate and per state the best real action (:func:`_greedy`);
+    evaluation solves ``(I - gamma P_pi) V = r_pi`` for the chosen rows. ``Q[S, A] = max_k Q_ext(s, (a, k))``."""
+    S = V0.shape[0]
+
+    def evaluate(pi):
+        return linear_solve(jnp.eye(S, dtype=pi.row.dtype) - gamma * pi.row, pi.reward)
+
+    def improve(pi, V):
+        q, proposal = _greedy(d, R_ext, V, gamma, action_mask)
+        current = pi.reward + gamma * (pi.row @ V)
+        return q, jnp.max(jnp.where(action_mask, q, -jnp.inf), axis=-1) - current, proposal
+
+    return dp.policy_iteration_by(evaluate, improve, _greedy(d, R_ext, V0, gamma, action_mask)[1])
+
+
 def plan(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "paper") -> PSRLContinuousState:
     """Start an epoch: draw the extended MDP and solve it (module docstring).
 
-    Discounted (default): policy iteration with exact evaluation, started from the policy greedy on one backup of
-    the previous values (optimal to the precision of the module docstring, typically a few linear solves). Average
-    reward (``discount == 1``): relative value iteration with the span stopping rule. A no-op unless
-    :func:`needs_plan` (the runner keeps the result only for members that asked). ``variant="colosseum"``: the
-    reference's candidates (:func:`candidate_kernels`) and extended rewards (:func:`colosseum_extended_rewards`).
+    Discounted (default): policy iteration with exact evaluation (:func:`extended_policy_iteration`), started from
+    the policy greedy on one backup of the previous values (optimal to the precision of the module docstring,
+    typically a few linear solves). Average reward (``discount == 1``): relative value iteration with the span
+    stopping rule, on the same structured backup. A no-op unless :func:`needs_plan` (the runner keeps the result only
+    for members that asked). ``variant="colosseum"``: the reference's candidates (:func:`draws`) and extended rewards
+    (:func:`colosseum_extended_rewards`).
     """
     hp = state.hparams
-    S, A = state.Q.shape
     k_r, k_p = jax.random.split(key)
-    R_draw = normal_gamma_sample(k_r, state.rewards)
-    T, R, mask = extended_mdp(R_draw, candidate_kernels(k_p, state, variant=variant), state.action_mask)
-    if variant == "colosseum":
-        R = colosseum_extended_rewards(R_draw, state.constants.psi, hp.max_psi, state.action_mask)
-    gamma = jnp.asarray(hp.discount, T.dtype)
+    R_ext = _extended_rewards(normal_gamma_sample(k_r, state.rewards), state, variant)
+    d = draws(k_p, state, variant=variant)
+    mask = state.action_mask
+    gamma = jnp.asarray(hp.discount, R_ext.dtype)
 
     # Under vmap the hyperparameters stored in the state are batched, so this cond becomes a select that runs both
     # branches: each branch is kept cheap and well posed when its result is not the one selected.
     def discounted(_):
-        g = jnp.where(gamma < 1, gamma, 0.99)
-        start = dp.greedy(dp.q_values(T, state.u, g, R), mask)
-        res = dp.policy_iteration(T, g, rewards=R, policy=start)
+        res = extended_policy_iteration(d, R_ext, jnp.where(gamma < 1, gamma, 0.99), state.u, mask)
         return res.Q, res.V, res.iterations, res.converged
 
     def average(_):
         res = dp.relative_value_iteration(
-            lambda u: R + jnp.einsum("sjt,t->sj", T, u),
+            lambda u: copy_action_zero(_best_candidates(d, R_ext, u, jnp.ones((), u.dtype))[0], mask),
             state.u,
             state.state_mask,
             mask,
@@ -423,9 +600,9 @@ def plan(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "pape
         )
         return res.Q, res.u, res.iterations, res.converged
 
-    Q_ext, u, iterations, converged = jax.lax.cond(gamma < 1, discounted, average, None)
+    Q, u, iterations, converged = jax.lax.cond(gamma < 1, discounted, average, None)
     new = state.replace(
-        Q=jnp.max(Q_ext.reshape(S, A, hp.max_psi), axis=-1),
+        Q=Q,
         u=u,
         schedule=start_epoch(state.schedule),
         plan_due=jnp.zeros((), bool),

@@ -56,6 +56,7 @@ __all__ = [
     "value_iteration",
     "policy_evaluation",
     "policy_iteration",
+    "policy_iteration_by",
     "solve_discounted",
     "finite_horizon_value_iteration",
     "finite_horizon_policy_evaluation",
@@ -290,6 +291,13 @@ def value_iteration(
     return ValueIterationResult(Q=res.Q, V=V, iterations=res.iterations, converged=res.converged)
 
 
+def _policy_values(model: Model, pi: jax.Array, gamma: float | jax.Array, R: jax.Array) -> jax.Array:
+    """``V = (I - gamma P_pi)^{-1} r_pi`` (the solve of :func:`policy_evaluation`)."""
+    P = policy_matrix(model, pi)
+    S = P.shape[0]
+    return linear_solve(jnp.eye(S, dtype=P.dtype) - gamma * P, policy_rewards(model, pi, R))
+
+
 def policy_evaluation(
     model: Model, pi: jax.Array, gamma: float | jax.Array = 0.99, rewards: jax.Array | None = None
 ) -> tuple[jax.Array, jax.Array]:
@@ -298,10 +306,47 @@ def policy_evaluation(
     The solve is :func:`jaxmdp.jaxlib_workarounds.linalg.solve` (one system at a time under ``vmap``: jaxlib 0.10.2's
     batched CPU solve can deadlock)."""
     R = _rewards(model, rewards)
-    P = policy_matrix(model, pi)
-    S = P.shape[0]
-    V = linear_solve(jnp.eye(S, dtype=P.dtype) - gamma * P, policy_rewards(model, pi, R))
+    V = _policy_values(model, pi, gamma, R)
     return q_values(model, V, gamma, R), V
+
+
+def policy_iteration_by(
+    evaluate: Callable[[Any], jax.Array],
+    improve: Callable[[Any, jax.Array], tuple[jax.Array, jax.Array, Any]],
+    policy: Any,
+    *,
+    max_iter: int = 200,
+    rtol: float = 1e-5,
+) -> ValueIterationResult:
+    """Howard's policy iteration on a model given by two functions, from ``policy`` (a pytree whose leaves all have
+    the states on their leading axis, e.g. a one-hot ``[S, A]`` policy or a chosen kernel row per state).
+
+    ``evaluate(policy) -> V[S]`` evaluates the policy exactly; ``improve(policy, V) -> (Q, gain[S], proposal)`` makes
+    one backup of ``V`` (``Q``, returned as the result's ``Q``), the greedy ``proposal`` and, per state, ``gain = max_a
+    Q(s, a) - Q(s, policy(s))``. A state switches to the proposal only when its gain exceeds ``eps = rtol * (1 +
+    max|V|)``, so floating-point noise cannot make the loop cycle; it stops when no state switches (then ``V* - eps /
+    (1 - gamma) <= V <= V*``) or after ``max_iter`` evaluations (``iterations`` counts them). :func:`policy_iteration`
+    is this loop on a model's dense or successor-list backup; optimistic PSRL's extended MDP supplies a structured one
+    (``agents.psrl_continuous``)."""
+
+    def cond(c):
+        return c[3] & (c[4] < max_iter)
+
+    def body(c):
+        pi, _, _, _, i = c
+        V = evaluate(pi)
+        Q, gain, proposal = improve(pi, V)
+        switch = gain > rtol * (1.0 + jnp.max(jnp.abs(V)))
+        new_pi = jax.tree.map(lambda b, p: jnp.where(switch.reshape(switch.shape + (1,) * (b.ndim - 1)), b, p),
+                              proposal, pi)
+        return new_pi, Q, V, jnp.any(switch), i + 1
+
+    V_shape = jax.eval_shape(evaluate, policy)
+    Q_shape = jax.eval_shape(lambda p, v: improve(p, v)[0], policy, V_shape)
+    init = (policy, jnp.zeros(Q_shape.shape, Q_shape.dtype), jnp.zeros(V_shape.shape, V_shape.dtype),
+            jnp.asarray(True), jnp.asarray(0))
+    _, Q, V, changed, it = jax.lax.while_loop(cond, body, init)
+    return ValueIterationResult(Q=Q, V=V, iterations=it, converged=~changed)
 
 
 def policy_iteration(
@@ -318,32 +363,20 @@ def policy_iteration(
     An action is replaced only when another improves its ``Q`` by more than ``eps = rtol * (1 + max|V|)``, so
     floating-point noise cannot make it cycle. The final policy is then within ``eps`` of greedy, so
     ``V* - eps / (1 - gamma) <= V <= V*`` (a bound met only when actions are nearly tied). ``Q``/``V`` are those of
-    the final policy; ``iterations`` counts evaluations.
+    the final policy; ``iterations`` counts evaluations. (:func:`policy_iteration_by` with the model's backup.)
     """
     R = _rewards(model, rewards)
     mask = _action_mask(model)
     pi0 = greedy(R, mask) if policy is None else policy
 
-    def improve(pi, Q, V):
-        best = greedy(Q, mask)
+    def improve(pi, V):
+        Q = q_values(model, V, gamma, R)
         cur = jnp.sum(pi * Q, axis=-1)
         gain = jnp.max(jnp.where(mask, Q, -jnp.inf) if mask is not None else Q, axis=-1) - cur
-        switch = gain > rtol * (1.0 + jnp.max(jnp.abs(V)))
-        return jnp.where(switch[:, None], best, pi), jnp.any(switch)
+        return Q, gain, greedy(Q, mask)
 
-    def cond(c):
-        return c[3] & (c[4] < max_iter)
-
-    def body(c):
-        pi, _, _, _, i = c
-        Q, V = policy_evaluation(model, pi, gamma, R)
-        new_pi, changed = improve(pi, Q, V)
-        return new_pi, Q, V, changed, i + 1
-
-    S, A = R.shape
-    init = (pi0, jnp.zeros((S, A), R.dtype), jnp.zeros((S,), R.dtype), jnp.asarray(True), jnp.asarray(0))
-    pi, Q, V, changed, it = jax.lax.while_loop(cond, body, init)
-    return ValueIterationResult(Q=Q, V=V, iterations=it, converged=~changed)
+    return policy_iteration_by(lambda pi: _policy_values(model, pi, gamma, R), improve, pi0, max_iter=max_iter,
+                               rtol=rtol)
 
 
 def solve_discounted(

@@ -5,8 +5,9 @@ ergodic"), the agent first takes ``--steps`` uniformly random actions (its ``upd
 reward statistics as after that many steps of play), then plans twice: a cold plan (bias ``u = 0``) and, after
 ``--more`` further random steps, a warm one (from the first plan's ``u``, as the agent's next epoch does). Each is
 timed (best of ``--repeats`` compiled calls, one member) with its planner's iteration count; PSRL's plan is split
-into its reward draw, its candidate kernels (the posterior Dirichlet draws and the simple optimistic sampling) and
-the rest (extended MDP and policy iteration).
+into its reward draw, its candidate draws (``agents.psrl_continuous.draws``: the simple optimistic sampling's states
+and, when kept, the posterior Dirichlet draws; the dense candidate kernels before the structured plan) and the rest
+(policy iteration on the extended MDP).
 
     python scripts/profile_continuous_plans.py --agents psrl_continuous ucrl2 --steps 5000
 """
@@ -109,7 +110,7 @@ def profile(agent_name: str, label: str, args) -> dict:
         c = state.constants
         row.update(psi=int(c.psi), eta=float(c.eta),
                    pairs_posterior=int(jnp.sum(state.schedule.visits >= c.eta)))
-        draw_s, _ = best_of(jax.jit(jax.vmap(pc.candidate_kernels)), keys, one(more), repeats=args.repeats)
+        draw_s, _ = best_of(jax.jit(jax.vmap(pc.draws)), keys, one(more), repeats=args.repeats)
         rew_s, _ = best_of(jax.jit(jax.vmap(normal_gamma_sample)), keys, one(more.rewards), repeats=args.repeats)
         row.update(candidates_ms=1e3 * draw_s, reward_draw_ms=1e3 * rew_s)
     print(json.dumps(row), flush=True)

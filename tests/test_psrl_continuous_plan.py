@@ -1,0 +1,202 @@
+"""Optimistic PSRL (continuous): the structured extended-MDP plan against the dense extended MDP of the same draws.
+
+The plan never builds the ``[max_psi, S, A, S]`` candidate kernels (agents/psrl_continuous.py); these tests
+materialise them from the same draws (``candidate_kernels``) and solve the explicit extended MDP with
+``dp.policy_iteration`` (the planner the agent used before), with a float64 solver of their own, and with
+``dp.optimal_gain`` for the average-reward branch.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import agents.psrl_continuous as pc
+import jaxmdp
+from agents import get
+from agents.posteriors import normal_gamma_sample
+from jaxmdp import dynamic_programming as dp
+from jaxmdp.experiment.agent_interface import spec_of
+from stat_checks import Checks, key
+
+# S = 7 padded to 8 with a padded state in the middle (index 3), A = 3 with action 2 padded; psi = 3 of max_psi = 4.
+S, A = 8, 3
+STATE_MASK = np.array([True, True, True, False, True, True, True, True])
+ACTION_MASK = np.array([True, True, False])
+N_KEYS = 3
+
+
+def _state(variant, case, discount=0.99, seed=0):
+    """A state with random counts on the real pairs: ``case`` none / some / all of them at ``eta = 5``."""
+    agent = get("psrl_continuous", variant)
+    rng = np.random.default_rng(seed)
+    mdp = jaxmdp.custom_mdp(np.full((S, A, S), 1.0 / S), R=np.zeros((S, A)))
+    spec = spec_of(mdp, 500_000).replace(state_mask=jnp.asarray(STATE_MASK), action_mask=jnp.asarray(ACTION_MASK))
+    hp = agent.default_hparams.replace(max_psi=4, psi_weight=0.08, eta_weight=0.0, discount=discount, plan_tol=1e-5)
+    state = agent.init(jax.random.key(0), spec, hp)
+    real_pairs = STATE_MASK[:, None] & ACTION_MASK[None, :]
+    at_eta = {"none": np.zeros((S, A), bool), "all": np.ones((S, A), bool),
+              "some": rng.random((S, A)) < 0.4}[case] & real_pairs
+    # Pairs below eta: 0 to 4 visits; pairs at eta: 5 to 12. Next states uniform among the real ones.
+    visits = np.where(at_eta, rng.integers(5, 13, (S, A)), rng.integers(0, 5, (S, A))) * real_pairs
+    p = STATE_MASK / STATE_MASK.sum()
+    counts = np.stack([[rng.multinomial(visits[s, a], p) for a in range(A)] for s in range(S)])
+    counts = jnp.asarray(counts, jnp.int32)
+    mu = jnp.asarray(rng.uniform(0, 1, (S, A)), jnp.float32)
+    state = state.replace(counts=counts, schedule=state.schedule.replace(visits=counts.sum(-1)),
+                          rewards=state.rewards.replace(mu=mu), u=jnp.asarray(rng.uniform(0, 3, S), jnp.float32))
+    assert int(state.constants.psi) == 3 and float(state.constants.eta) == 5.0
+    n_eta = int(jnp.sum((state.schedule.visits >= 5) & STATE_MASK[:, None] & ACTION_MASK[None, :]))
+    assert {"none": n_eta == 0, "some": 0 < n_eta < 14, "all": n_eta == 14}[case], n_eta
+    return agent, state
+
+
+def _dense(k, state, variant):
+    """The explicit extended MDP of the draws that plan(k, state) makes (same key split)."""
+    k_r, k_p = jax.random.split(k)
+    R = normal_gamma_sample(k_r, state.rewards)
+    P = pc.candidate_kernels(k_p, state, variant=variant)
+    T, Rx, mask = pc.extended_mdp(R, P, state.action_mask)
+    if variant == "colosseum":
+        Rx = pc.colosseum_extended_rewards(R, state.constants.psi, state.hparams.max_psi, state.action_mask)
+    return T, Rx, mask
+
+
+@jax.jit
+def _dense_policy_iteration(T, R, mask, u, gamma):
+    """The planner before the structured one: dp.policy_iteration on the dense extended MDP, warm-started greedy."""
+    start = dp.greedy(dp.q_values(T, u, gamma, R), mask)
+    return dp.policy_iteration(T, gamma, rewards=R, policy=start)
+
+
+def _float64_optimum(T, R, mask, gamma):
+    """``V*`` of the dense model in float64 (policy iteration, 1e-12 switching rule, Bellman residual checked)."""
+    T, R = np.asarray(T, np.float64), np.where(mask, np.asarray(R, np.float64), -np.inf)
+    n = R.shape[0]
+    pi = R.argmax(-1)
+    for _ in range(1000):
+        V = np.linalg.solve(np.eye(n) - gamma * T[np.arange(n), pi], R[np.arange(n), pi])
+        Q = R + gamma * T @ V
+        switch = Q.max(-1) > Q[np.arange(n), pi] + 1e-12 * (1 + np.abs(V).max())
+        if not switch.any():
+            break
+        pi = np.where(switch, Q.argmax(-1), pi)
+    assert np.max(np.abs(Q.max(-1) - V)) <= 1e-9 * (1 + np.abs(V).max())
+    return V
+
+
+CASES = [(v, c) for v in ("paper", "colosseum") for c in ("none", "some", "all")]
+
+
+@pytest.mark.statistical(p=0.0)
+@pytest.mark.parametrize("variant,case", CASES)
+def test_discounted_plan_equals_policy_iteration_on_the_dense_extended_mdp(variant, case):
+    # For every key (a deterministic comparison, p = 0): the structured plan's values equal those of the dense
+    # planner on the same draws to float32 precision, and lie within policy iteration's guarantee of the float64
+    # optimum (0 <= V* - V <= eps / (1 - gamma), eps = 1e-5 (1 + max|V|), plus float32 evaluation error, see
+    # test_psrl_continuous.test_discounted_planning_matches_exact_solution).
+    agent, state = _state(variant, case)
+    plan = jax.jit(agent.plan)
+    gamma, K = 0.99, state.hparams.max_psi
+    for k in jax.random.split(key(21), N_KEYS):
+        new = plan(k, state)
+        assert bool(new.plan_converged)
+        T, R, mask = _dense(k, state, variant)
+        ref = _dense_policy_iteration(T, R, mask, state.u, gamma)
+        scale = 1 + float(np.abs(ref.V).max())
+        np.testing.assert_allclose(new.u, ref.V, rtol=0, atol=2e-6 * scale)
+        Q_ref = np.asarray(ref.Q).reshape(S, A, K).max(-1)
+        np.testing.assert_allclose(new.Q, Q_ref, rtol=0, atol=2e-6 * scale)
+        V = _float64_optimum(T, R, mask, gamma)[STATE_MASK]
+        u = np.asarray(new.u, np.float64)[STATE_MASK]
+        eps, eta = 1e-5 * (1 + np.abs(u).max()), 2e-4 * np.abs(V).max()
+        assert np.all(V - u >= -eta) and np.all(V - u <= eps / (1 - gamma) + eta), (V, u)
+
+
+@pytest.mark.statistical(p=0.0)
+@pytest.mark.parametrize("variant,case", CASES)
+def test_average_reward_plan_is_gain_optimal_in_the_dense_extended_mdp(variant, case):
+    # Relative value iteration on the structured backup: a converged plan's gain bounds (max_a Q - u, tolerance
+    # plan_tol = 1e-5) contain the optimal gain of the explicit extended MDP; its greedy real action is that of an
+    # optimal extended action of the same gain. Every key (p = 0).
+    agent, state = _state(variant, case, discount=1.0)
+    plan = jax.jit(agent.plan)
+    for k in jax.random.split(key(22), N_KEYS):
+        new = plan(k, state)
+        if not bool(new.plan_converged):
+            assert int(new.plan_iterations) == state.hparams.plan_max_iter
+            continue
+        T, R, mask = _dense(k, state, variant)
+        # Padded states are absorbing in neither model's sense; drop them (no real state reaches them).
+        real = np.flatnonzero(STATE_MASK)
+        Tr = np.asarray(T)[np.ix_(real, np.arange(T.shape[1]), real)]
+        ref = dp.optimal_gain(jnp.asarray(Tr), rewards=jnp.asarray(np.asarray(R)[real]), tol=2e-6, max_iter=1_000_000)
+        assert bool(ref.converged)
+        d = (np.asarray(new.Q).max(-1) - np.asarray(new.u))[real]
+        np.testing.assert_allclose(d, float(ref.gain), atol=3e-5)
+
+
+@pytest.mark.statistical(p=0.0)
+@pytest.mark.parametrize("variant", ["paper", "colosseum"])
+def test_more_pairs_at_eta_than_kept(monkeypatch, variant):
+    """M = 1 kept pair, fewer than the pairs at eta: the plan uses the draws of every pair (redrawn at each backup),
+    and still solves the dense extended MDP of its draws (discounted: dp.policy_iteration; average reward: the optimal
+    gain), for every key (p = 0). Batched with a member without pairs at eta (kept path), each member plans as alone."""
+    monkeypatch.setattr(pc, "_KEEP_LIMIT", 0)
+    jax.clear_caches()  # jitted plans of other tests were traced with the default M
+    try:
+        _check_more_pairs_at_eta_than_kept(variant)
+    finally:
+        monkeypatch.undo()
+        jax.clear_caches()
+
+
+def _check_more_pairs_at_eta_than_kept(variant):
+    for discount in (0.99, 1.0):
+        agent, state = _state(variant, "some", discount=discount, seed=4)
+        assert bool(pc.draws(jax.random.key(0), state, variant=variant).overflow)
+        plan = jax.jit(agent.plan)
+        for k in jax.random.split(key(24), 2):
+            new = plan(k, state)
+            T, R, mask = _dense(k, state, variant)
+            if discount < 1:
+                ref = _dense_policy_iteration(T, R, mask, state.u, discount)
+                np.testing.assert_allclose(new.u, ref.V, rtol=0, atol=2e-6 * (1 + float(np.abs(ref.V).max())))
+            elif bool(new.plan_converged):
+                real = np.flatnonzero(STATE_MASK)
+                Tr = jnp.asarray(np.asarray(T)[np.ix_(real, np.arange(T.shape[1]), real)])
+                ref = dp.optimal_gain(Tr, rewards=jnp.asarray(np.asarray(R)[real]), tol=2e-6, max_iter=1_000_000)
+                np.testing.assert_allclose((np.asarray(new.Q).max(-1) - np.asarray(new.u))[real], float(ref.gain),
+                                           atol=3e-5)
+        other = _state(variant, "none", discount=discount, seed=5)[1]
+        keys = jax.random.split(key(25), 2)
+        batch = jax.tree.map(lambda *x: jnp.stack(x), state, other)
+        both = jax.jit(jax.vmap(agent.plan))(keys, batch)
+        for i, member in enumerate((state, other)):
+            alone = plan(keys[i], member)
+            np.testing.assert_allclose(both.u[i], alone.u, rtol=1e-6, atol=1e-6)
+            np.testing.assert_array_equal(both.Q[i].argmax(-1), alone.Q.argmax(-1))
+
+
+@pytest.mark.statistical(p=1.4e-6)
+@pytest.mark.parametrize("variant", ["paper", "colosseum"])
+def test_missing_mass_goes_to_a_uniform_real_state(variant):
+    # 4000 keys. The state receiving the missing mass is never padded (state 3, in the middle: the draw maps an
+    # index among the real states to its state), and each real state's count is Binomial(4000, 1/7) for two
+    # independent draws (paper: slot 0 of pair (0, 0) and slot 1 of pair (5, 1)) or one (colosseum: slot 0's state,
+    # shared by all pairs). 14 or 7 binomial checks at 1e-7 each: false-failure probability <= 1.4e-6.
+    _, state = _state(variant, "none")
+    z = np.asarray(jax.jit(jax.vmap(lambda k: pc.draws(k, state, variant=variant).z))(
+        jax.random.split(key(23), 4000)))  # [n, max_psi, S, A]
+    assert np.all(STATE_MASK[z])  # never a padded state, in any slot or pair
+    samples = [z[:, 0, 0, 0], z[:, 1, 5, 1]] if variant == "paper" else [z[:, 0, 0, 0]]
+    checks = Checks()
+    for x in samples:
+        counts = np.bincount(x, minlength=S)
+        for t in np.flatnonzero(STATE_MASK):
+            checks.binomial(int(counts[t]), x.size, 1 / 7, f"state {t}")
+    if variant == "colosseum":
+        assert np.all(z == z[:, :, :1, :1])  # one state per slot, shared by all pairs
+    assert checks.n == 7 * len(samples)
