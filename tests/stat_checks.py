@@ -91,10 +91,14 @@ class Checks:
         """i.i.d. ``x`` with mean ``mean``, variance at most ``var`` and ``|x - mean| <= bound``: Bernstein's
         inequality, P(|x̄ - mean| >= t) <= 2 exp(-n t^2 / (2 var + 2 bound t / 3)), solved for the ``t`` at which the
         right side is ``alpha``."""
+        self.bernstein_mean(float(x.mean()), x.size, mean, var, bound, what)
+
+    def bernstein_mean(self, sample_mean: float, n: int, mean: float, var: float, bound: float, what: str) -> None:
+        """:meth:`bernstein` given only the mean ``sample_mean`` of the ``n`` draws."""
         self.n += 1
-        n, log_term = x.size, np.log(2 / self.alpha)
+        log_term = np.log(2 / self.alpha)
         t = (bound * log_term / 3 + np.sqrt((bound * log_term / 3) ** 2 + 2 * n * var * log_term)) / n
-        assert abs(x.mean() - mean) <= t, f"{what}: mean {x.mean()} differs from {mean} by more than {t}"
+        assert abs(sample_mean - mean) <= t, f"{what}: mean {sample_mean} differs from {mean} by more than {t}"
 
     def bounded_moments(self, x: np.ndarray, dist, lo: float, hi: float, what: str) -> None:
         """Mean and variance of i.i.d. ``x`` in ``[lo, hi]`` against the scipy distribution ``dist`` (2 Bernstein

@@ -90,7 +90,7 @@ def test_log_gamma_exact_on_large_arrays(buffers):
     # pass loop, with both buffers overflowing, did the work). Not a statistical check: the margins are wide (a
     # factor two or more either way at the sampler's acceptance rates).
     stream = jax.random.fold_in(jax.random.key(seed), bs._STREAM)
-    first = bs._trial(jax.random.fold_in(stream, 0), bs._shape_terms(jnp.asarray(a)))
+    first = bs._trial(jax.random.fold_in(stream, 0), bs.shape_terms(jnp.asarray(a)))
     rejected = int(jnp.isnan(first).sum())
     assert (rejected < m1 // 2) if buffers is None else (rejected > 50 * m1)
     checks = Checks()

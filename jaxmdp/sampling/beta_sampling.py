@@ -1,7 +1,8 @@
 """Exact Gamma and Beta variates that vectorise well: rejection sampling whose rare rejections are compacted.
 
 The one Gamma sampler of the project: environment rewards (Beta) and the agents' Dirichlet and Normal-Gamma
-posterior draws (:mod:`agents.posteriors`) both use it.
+posterior draws (:mod:`agents.posteriors`) both use it. Its trial (:func:`trial_log_gamma`, :func:`shape_terms`) is
+also that of the candidate reward sampler :mod:`jaxmdp.sampling.beta_shared` (not used by the step yet).
 
 **Method.** Marsaglia & Tsang (2000) for the shape ``a' >= 1``: ``d = a' - 1/3``, ``c = 1 / sqrt(9 d)``; a trial
 draws ``x ~ N(0, 1)`` and ``w ~ U(0, 1]``, sets ``v = (1 + c x)^3`` and accepts ``d v`` when ``v > 0`` and
@@ -70,7 +71,7 @@ import numpy as np
 
 from jaxmdp.sampling.compaction import compact
 
-__all__ = ["sample_log_gamma", "sample_beta", "buffer_sizes", "DEFAULT_CANDIDATES"]
+__all__ = ["sample_log_gamma", "sample_beta", "buffer_sizes", "shape_terms", "trial_log_gamma", "DEFAULT_CANDIDATES"]
 
 #: Trials per round for arrays too small to compact: with acceptance > 0.95 a round fails with probability < 7e-6.
 DEFAULT_CANDIDATES = 4
@@ -80,7 +81,7 @@ _FINE_CANDIDATES = 4  # trials per slot and round in the second buffer
 _COMPACT_MIN = 1024  # arrays with fewer entries run whole-array rounds (buffer_sizes)
 
 
-class _Shape(NamedTuple):
+class ShapeTerms(NamedTuple):
     """Per-entry constants of the boosted shape ``a'``: ``d = a' - 1/3``, ``ln d``, ``sqrt(2) c = 1 / sqrt(4.5 d)``
     and ``1 / a`` for boosted entries (0 for ``a >= 1``)."""
 
@@ -89,19 +90,36 @@ class _Shape(NamedTuple):
     c2: jax.Array
     inv_a: jax.Array
 
-    def take(self, index: jax.Array) -> _Shape:
-        return _Shape(*(jnp.take(x, index, mode="clip") for x in self))
+    def take(self, index: jax.Array) -> ShapeTerms:
+        return ShapeTerms(*(jnp.take(x, index, mode="clip") for x in self))
 
 
-def _shape_terms(a: jax.Array) -> _Shape:
+def shape_terms(a: jax.Array) -> ShapeTerms:
     small = a < 1.0
     d = jnp.where(small, a + 1.0, a) - 1.0 / 3.0
     # 1/a overflows for subnormal shapes; the largest float keeps 0 * inv_a = 0 (the boost of a trial with U = 1).
     inv_a = jnp.where(small, jnp.minimum(1.0 / a, jnp.finfo(a.dtype).max), 0.0)
-    return _Shape(d, jnp.log(d), jax.lax.rsqrt(4.5 * d), inv_a)
+    return ShapeTerms(d, jnp.log(d), jax.lax.rsqrt(4.5 * d), inv_a)
 
 
-def _trial(key: jax.Array, shape: _Shape) -> jax.Array:
+def trial_log_gamma(e: jax.Array, w: jax.Array, shape: ShapeTerms) -> tuple[jax.Array, jax.Array]:
+    """One Marsaglia-Tsang trial per entry from its deviates: ``e = x / sqrt(2)`` (``x ~ N(0, 1)``) and ``w`` uniform
+    on ``(0, 1]``, arrays of one shape. Returns ``(accept, ln G)``, ``ln G`` meaningful where accepted (with the
+    recycled boost for shapes below one; module docstring)."""
+    dtype = shape.d.dtype
+    x = np.sqrt(2.0).astype(dtype) * e
+    y = 1.0 + shape.c2 * e  # 1 + c x
+    v = y * y * y
+    positive = v > 0
+    log_v = jnp.log(jnp.where(positive, v, 1.0))
+    log_w = jnp.log(w)
+    log_t = 0.5 * x * x + shape.d * (1.0 - v + log_v)
+    accept = positive & ((w < 1.0 - 0.0331 * (x * x) * (x * x)) | (log_w < log_t))
+    # Recycled boost: ln U = ln w - ln t(x) <= 0 (the minimum absorbs rounding of squeeze-accepted trials).
+    return accept, shape.log_d + log_v + jnp.minimum(log_w - log_t, 0.0) * shape.inv_a
+
+
+def _trial(key: jax.Array, shape: ShapeTerms) -> jax.Array:
     """One trial for each entry of ``shape`` (a flat array of ``n``), with ``n`` normals and ``n`` uniforms drawn from
     ``key``: ``ln G`` where accepted, NaN where rejected."""
     dtype = shape.d.dtype
@@ -111,25 +129,16 @@ def _trial(key: jax.Array, shape: _Shape) -> jax.Array:
     # form c x as (sqrt(2) c) e: see "batches" in the module docstring.
     lo = np.nextafter(np.array(-1.0, dtype), np.array(0.0, dtype))
     e = jax.lax.erf_inv(jax.random.uniform(k_x, (n,), dtype, minval=lo, maxval=1.0))
-    x = np.sqrt(2.0).astype(dtype) * e
     w = 1.0 - jax.random.uniform(k_w, (n,), dtype)  # uniform on (0, 1]
-    y = 1.0 + shape.c2 * e  # 1 + c x
-    v = y * y * y
-    positive = v > 0
-    log_v = jnp.log(jnp.where(positive, v, 1.0))
-    log_w = jnp.log(w)
-    log_t = 0.5 * x * x + shape.d * (1.0 - v + log_v)
-    accept = positive & ((w < 1.0 - 0.0331 * (x * x) * (x * x)) | (log_w < log_t))
-    # Recycled boost: ln U = ln w - ln t(x) <= 0 (the minimum absorbs rounding of squeeze-accepted trials).
-    log_g = shape.log_d + log_v + jnp.minimum(log_w - log_t, 0.0) * shape.inv_a
+    accept, log_g = trial_log_gamma(e, w, shape)
     return jnp.where(accept, log_g, jnp.nan)
 
 
-def _candidates(count: int, shape: _Shape) -> _Shape:
+def _candidates(count: int, shape: ShapeTerms) -> ShapeTerms:
     """Shape terms of ``count`` trials per entry as one flat array, candidate-major (trial ``c`` of entry ``i`` at
     ``c * n + i``). A flat ``count * n`` array keeps the innermost dimension long enough for XLA to vectorise under
     ``vmap`` when ``n`` is small (the two Gammas of a Beta)."""
-    return _Shape(*(jnp.tile(x, count) for x in shape))
+    return ShapeTerms(*(jnp.tile(x, count) for x in shape))
 
 
 def _first_of(trials: jax.Array, count: int, log_g: jax.Array) -> jax.Array:
@@ -142,7 +151,7 @@ def _first_of(trials: jax.Array, count: int, log_g: jax.Array) -> jax.Array:
     return jnp.where(jnp.isnan(log_g), first, log_g)
 
 
-def _rounds(key: jax.Array, tag0: int, shape: _Shape, count: int, log_g: jax.Array) -> jax.Array:
+def _rounds(key: jax.Array, tag0: int, shape: ShapeTerms, count: int, log_g: jax.Array) -> jax.Array:
     """Rounds of ``count`` trials per entry (round ``r`` on the key ``fold_in(key, tag0 + r)``; ``shape`` laid out by
     :func:`_candidates`) until every entry of ``log_g`` is accepted; entries already accepted keep their value.
 
@@ -164,7 +173,7 @@ def _compacted_pass(key: jax.Array, log_g: jax.Array, a: jax.Array, m1: int, m2:
     """A pass over the rejected (NaN) entries of ``log_g`` (shapes ``a``) with the pass's own ``key``: two compacted
     buffers. Entries left NaN (a buffer overflowed) wait for the next pass."""
     idx1, in1 = compact(jnp.isnan(log_g), m1)
-    shape1 = _shape_terms(jnp.take(a, idx1, mode="clip"))
+    shape1 = shape_terms(jnp.take(a, idx1, mode="clip"))
     log_g1 = jnp.where(in1, _trial(jax.random.fold_in(key, 0), shape1), 0.0)  # empty slots: 0, never retried
     idx2, in2 = compact(jnp.isnan(log_g1), m2)
     shape2 = _candidates(_FINE_CANDIDATES, shape1.take(idx2))
@@ -222,7 +231,7 @@ def sample_log_gamma(
     proper = (flat > 0) & (flat < jnp.inf)
     flat_ok = jnp.where(proper, flat, 1.0)
     stream = jax.random.fold_in(key, _STREAM)
-    shape = _shape_terms(flat_ok)
+    shape = shape_terms(flat_ok)
     if compacted:
         # One round over the whole array, then passes over its rejected entries until none is left.
         log_g = _first_of(_trial(jax.random.fold_in(stream, 0), _candidates(candidates, shape)), candidates,

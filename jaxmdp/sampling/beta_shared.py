@@ -1,0 +1,164 @@
+"""Candidate reward sampler, not used by the step yet: exact Beta draws, one pair of shapes at a time,
+``Beta(a, b) = G_a / (G_a + G_b)`` with the two Gammas taken from one sequence of Marsaglia-Tsang trials.
+
+**Why.** The environment draws one Beta per step and environment: two shapes per member under ``vmap``. Drawn with
+:func:`jaxmdp.sampling.beta_sampling.sample_beta` (rounds of four trials per Gamma inside a ``while_loop``: a
+``fold_in``, and per round a ``fold_in``, a ``split`` and two ``uniform`` arrays of eight: 20 Threefry hashes), the
+draw costs twice as much as the rest of a step and holds most families near 3 M steps/s
+(docs/benchmarks/bench_env.md). Three things make it slow on CPU, and this sampler avoids each: every ``jax.random``
+call is a rolled loop over memory (:mod:`jaxmdp.sampling.threefry`), arrays of a few entries per member vectorise
+badly under ``vmap`` (the member axis is not the innermost one; XLA also splits their fusions), and the round loop runs
+at every step. Here a round is ``trials`` (default 4) trials in scalar code, each from one unrolled Threefry hash, round
+0 sits outside the loop, and a second round is needed at under 0.05% of the draws: the step ran 1.8-2.6x faster on
+the families with Beta rewards (docs/benchmarks/bench_env.md).
+
+**Why not yet in the step.** A member of a ``vmap``-ed batch does not always get bit for bit its value alone (about 4%
+of the draws differ in the last bits, some in an acceptance): XLA CPU compiles single-element fusions (an unbatched
+call's scalar code) through another emitter than the vectorised kernels of a batch, and the two contract different
+multiply-adds into FMAs (``ln t(x)`` and ``ln G`` differ). The project guarantees that batched trajectories equal single
+runs (tests/test_env.py), which :func:`~jaxmdp.sampling.beta_sampling.sample_beta` keeps because its trials are arrays
+of eight per member in both programs. Arrays of eight here (4 trials x 2 shapes) kept the property in one test but lost
+the speed (XLA split and duplicated the fusions); tests/test_beta_rewards.py marks the gap as an expected failure.
+
+**Method.** Trials ``1, 2, ...`` are i.i.d.: trial ``j`` has the normal ``x_j = sqrt(2) erf_inv(2 u_j - 1)`` and the
+uniform ``w_j = 1 - u'_j`` on ``(0, 1]`` (the Marsaglia-Tsang trial of :mod:`~jaxmdp.sampling.beta_sampling`,
+:func:`~jaxmdp.sampling.beta_sampling.trial_log_gamma`, with its boost for shapes below one). In a round of ``n``
+trials, the trials go to ``G_a`` until one is accepted for shape ``a``, the following ones to ``G_b`` until one is
+accepted for shape ``b``; a round that does not accept both is discarded and the next round drawn. This is exact: on
+the event that ``G_a`` takes trial ``j`` and ``G_b`` trial ``k > j``, which depends only on which trials are accepted,
+the values are those of trials ``j`` and ``k``, and an accepted trial's value has the exact Gamma law whatever the
+acceptances of the other trials (``P(T_j accepted for a, value in A) = P(accepted) Gamma_a(A)``); summed over the
+pairs ``j < k``, the round's success is independent of ``(G_a, G_b)``, which are independent with the Gamma laws, and
+rounds are independent. Every trial is accepted with probability ``p > 0.95`` (worst at ``a' = 1``: 0.9517), so a
+round fails with probability at most ``q^n + n p q^(n-1)`` (``q = 1 - p``): 4.4e-4 for ``n = 4`` (2.6e-5 for ``n =
+5``, 1.5e-6 for ``n = 6``), much less for shapes away from 1 (0 seen in 2 M draws of Beta(0.8, 20) at ``n = 5``).
+Under ``vmap`` the loop over further rounds runs at a step as soon as one member needs it (for all members): with
+1024 members at the worst shapes, at about a third of the steps with ``n = 4`` and 3% with ``n = 5``; measured, four
+trials were the fastest at 1024 environments on the families (docs/benchmarks/bench_env.md). Trial 0 can only be
+``G_a``'s and the last trial is only useful to ``G_b``, so a round evaluates ``2 n - 2`` trial tests.
+
+**Random numbers.** Threefry-2x32 of the key (the function ``jax.random`` uses;
+:func:`jaxmdp.sampling.threefry.threefry2x32`) on the counters ``(T, j)``, ``T = 0x62657461`` ("beta"): trial ``j``
+(counted over rounds) uses both 32-bit words of the hash of counter ``j``, the first for ``u_j`` and the second for
+``u'_j`` (``jax.random`` keeps one 32-bit word per hash, the XOR of the two). ``jax.random`` hashes counters whose high word is 0 (``split``,
+``fold_in``, ``bits`` of arrays below ``2^32`` entries), so the sampler never reuses a hash that a ``jax.random`` call
+on the same key computes. Uniforms take a word's top 23 bits (float32) as ``jax.random.uniform`` does; float64 trials
+take one 64-bit word (both words of a hash, top 52 bits) per uniform, from counters ``2 j`` and ``2 j + 1``. Keys of
+another implementation (``rbg``) draw trial ``j``'s words with ``jax.random.bits(fold_in(key, j))``. As
+``jax.random.normal``, ``x`` stops at about 5.4 (``P(|x| > 5.4) ~ 7e-8``).
+
+**Same key, same value.** The value is a function of the key, the shapes and ``trials``, up to the last-bit
+differences between a batch and a single call described above.
+
+**Bad input.** As :func:`~jaxmdp.sampling.beta_sampling.sample_log_gamma`: a zero shape is a Gamma of 0 (``ln G =
+-inf``), an infinite one ``+inf``, a negative or NaN one NaN; such shapes are drawn as shape 1 and replaced, so
+nothing hangs. Hence ``Beta(0, b) = 0`` and ``Beta(a, 0) = 1`` for proper ``a, b``, NaN for any other improper pair
+(infinite shapes included), as before.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxmdp.sampling.beta_sampling import ShapeTerms, shape_terms, trial_log_gamma
+from jaxmdp.sampling.threefry import threefry2x32
+
+__all__ = ["sample_beta_shared", "DEFAULT_TRIALS"]
+
+#: Trials per round (module docstring: a round fails with probability at most 4.4e-4).
+DEFAULT_TRIALS = 4
+
+_TAG = np.uint32(0x62657461)  # high word of the sampler's Threefry counters (jax.random's are 0)
+
+
+def _unit(bits: jax.Array, dtype) -> jax.Array:
+    """Uniforms on ``[0, 1)`` from unsigned words (their top mantissa bits), as ``jax.random.uniform`` forms them."""
+    nbits = np.iinfo(bits.dtype).bits
+    one = np.array(1.0, dtype).view(bits.dtype)
+    floats = jax.lax.bitcast_convert_type((bits >> np.array(nbits - np.finfo(dtype).nmant, bits.dtype)) | one, dtype)
+    return floats - np.array(1.0, dtype)
+
+
+def _trial_uniforms(key: jax.Array, j: jax.Array, dtype) -> tuple[jax.Array, jax.Array]:
+    """The uniforms ``(u_j, u'_j)`` on ``[0, 1)`` of trial ``j``, scalars (module docstring, "Random numbers")."""
+    data = jax.random.key_data(key)
+    wide = np.dtype(dtype).itemsize == 8
+    typed = jnp.issubdtype(key.dtype, jax.dtypes.prng_key)
+    if (typed and str(jax.random.key_impl(key)) != "threefry2x32") or data.shape != (2,):
+        bits = jax.random.bits(jax.random.fold_in(key, j), (2,), jnp.uint64 if wide else jnp.uint32)
+        return _unit(bits[0], dtype), _unit(bits[1], dtype)
+    j = j.astype(jnp.uint32)
+    if not wide:
+        hi, lo = threefry2x32(data[0], data[1], _TAG, j)
+        return _unit(hi, dtype), _unit(lo, dtype)
+    pair = []
+    for c in (2 * j, 2 * j + 1):
+        hi, lo = threefry2x32(data[0], data[1], _TAG, c)
+        pair.append(_unit((hi.astype(jnp.uint64) << np.uint64(32)) | lo.astype(jnp.uint64), dtype))
+    return pair[0], pair[1]
+
+
+def _round(key: jax.Array, r: jax.Array, n: int, ab: jax.Array, shapes: tuple[ShapeTerms, ShapeTerms]) -> jax.Array:
+    """The Beta draw of round ``r`` (trials ``r n .. r n + n - 1`` given in order to ``G_a`` until one is accepted,
+    then to ``G_b``), or -1 where the round did not accept both (module docstring). Scalar code, so that under
+    ``vmap`` every operation runs over the members."""
+    shape_a, shape_b = shapes
+    dtype = shape_a.d.dtype
+    lo = np.nextafter(np.array(-1.0, dtype), np.array(0.0, dtype))
+    has_a = has_b = jnp.zeros((), bool)
+    log_a = log_b = jnp.zeros((), dtype)
+    for i in range(n):
+        u, u2 = _trial_uniforms(key, r * n + i, dtype)
+        e = jax.lax.erf_inv(jnp.maximum(2.0 * u - 1.0, lo))  # x / sqrt(2), x standard normal
+        w = 1.0 - u2  # uniform on (0, 1]
+        if i > 0:  # trial 0 is always G_a's
+            accept_b, trial_b = trial_log_gamma(e, w, shape_b)
+            to_b = has_a & ~has_b & accept_b  # G_b's only if G_a was accepted before it
+            log_b, has_b = jnp.where(to_b, trial_b, log_b), has_b | to_b
+        if i < n - 1:  # G_a accepted at the last trial leaves nothing for G_b: the round fails either way
+            accept_a, trial_a = trial_log_gamma(e, w, shape_a)
+            to_a = ~has_a & accept_a
+            log_a, has_a = jnp.where(to_a, trial_a, log_a), has_a | to_a
+    proper = (ab > 0) & (ab < jnp.inf)
+    improper = jnp.where(ab == 0, -jnp.inf, jnp.where(ab == jnp.inf, jnp.inf, jnp.nan))
+    log_a = jnp.where(proper[0], log_a, improper[0])
+    log_b = jnp.where(proper[1], log_b, improper[1])
+    top = jnp.maximum(log_a, log_b)
+    ea, eb = jnp.exp(log_a - top), jnp.exp(log_b - top)
+    return jnp.where(has_a & has_b, ea / (ea + eb), -1.0)
+
+
+@functools.partial(jax.jit, static_argnames=("trials", "dtype"))
+def sample_beta_shared(
+    key: jax.Array, a: jax.Array, b: jax.Array, *, trials: int = DEFAULT_TRIALS, dtype=jnp.float32
+) -> jax.Array:
+    """One ``Beta(a, b) = G_a / (G_a + G_b)`` draw for scalar shapes ``a, b > 0`` (``vmap`` for more), exact.
+
+    ``G_a``, ``G_b`` (``Gamma(shape, 1)``, kept as logs so that tiny shapes do not underflow) are the first accepted
+    Marsaglia-Tsang trials of one shared sequence, in rounds of ``trials >= 2`` trials, a round that does not accept
+    both being drawn again (module docstring). Returns the draw in ``dtype`` (float32, or float64 with x64).
+    """
+    if trials < 2:
+        raise ValueError(f"sample_beta_shared: trials must be >= 2 (one trial per Gamma at least), got {trials}")
+    a, b = jnp.asarray(a, dtype), jnp.asarray(b, dtype)
+    if a.shape != () or b.shape != ():
+        raise ValueError(
+            f"sample_beta_shared: a and b must be scalars (vmap for more); got shapes {a.shape}, {b.shape}"
+        )
+    work = jnp.float64 if a.dtype == jnp.float64 else jnp.float32
+    ab = jnp.stack([a, b]).astype(work)
+    ok = jnp.where((ab > 0) & (ab < jnp.inf), ab, 1.0)  # improper shapes are drawn as 1, then replaced
+    shapes = (shape_terms(ok[0]), shape_terms(ok[1]))
+    # Round 0 outside the loop: under vmap the loop then runs only at the steps where some member needs it. The loop
+    # carries one value per member (the draw, -1 while missing), which lets XLA fuse round 0 into a single loop.
+    first = _round(key, jnp.int32(0), trials, ab, shapes)
+    _, draw = jax.lax.while_loop(
+        lambda carry: carry[1] < 0,
+        lambda carry: (carry[0] + 1, _round(key, carry[0], trials, ab, shapes)),
+        (jnp.int32(1), first),
+    )
+    return draw.astype(a.dtype)
