@@ -9,6 +9,7 @@ import pytest
 from scipy import stats
 
 import jaxmdp
+import numpy_reference as ref
 from agent_loop import is_river, make_runner, probe_batch, seeds
 from agents import AGENTS
 from agents.posteriors import normal_gamma_sample
@@ -233,20 +234,9 @@ def test_an_unconverged_plan_is_counted():
 
 
 def _exact_discounted(T, R, gamma):
-    """Optimal ``V*``, ``Q*`` of a dense model in float64: policy iteration with exact (float64) evaluation and a
-    ``1e-12`` switching rule, checked by its Bellman residual (independent of jaxmdp's float32 planner)."""
-    T, R = np.asarray(T, np.float64), np.asarray(R, np.float64)
-    S = R.shape[0]
-    pi = R.argmax(-1)
-    for _ in range(1000):
-        V = np.linalg.solve(np.eye(S) - gamma * T[np.arange(S), pi], R[np.arange(S), pi])
-        Q = R + gamma * T @ V
-        switch = Q.max(-1) > Q[np.arange(S), pi] + 1e-12 * (1 + np.abs(V).max())
-        if not switch.any():
-            break
-        pi = np.where(switch, Q.argmax(-1), pi)
-    assert np.max(np.abs(Q.max(-1) - V)) <= 1e-9 * (1 + np.abs(V).max())  # V = max_a Q(V): V is V*
-    return V, Q
+    """Optimal ``V*``, ``Q*`` of a dense model in float64 (:func:`numpy_reference.discounted_optimum`), independent
+    of jaxmdp's float32 planner."""
+    return ref.discounted_optimum(T, R, gamma)
 
 
 @pytest.mark.statistical(p=0.0)

@@ -15,6 +15,7 @@ import pytest
 
 import agents.psrl_continuous as pc
 import jaxmdp
+import numpy_reference
 from agents import get
 from agents.posteriors import normal_gamma_sample
 from jaxmdp import dynamic_programming as dp
@@ -72,19 +73,8 @@ def _dense_policy_iteration(T, R, mask, u, gamma):
 
 
 def _float64_optimum(T, R, mask, gamma):
-    """``V*`` of the dense model in float64 (policy iteration, 1e-12 switching rule, Bellman residual checked)."""
-    T, R = np.asarray(T, np.float64), np.where(mask, np.asarray(R, np.float64), -np.inf)
-    n = R.shape[0]
-    pi = R.argmax(-1)
-    for _ in range(1000):
-        V = np.linalg.solve(np.eye(n) - gamma * T[np.arange(n), pi], R[np.arange(n), pi])
-        Q = R + gamma * T @ V
-        switch = Q.max(-1) > Q[np.arange(n), pi] + 1e-12 * (1 + np.abs(V).max())
-        if not switch.any():
-            break
-        pi = np.where(switch, Q.argmax(-1), pi)
-    assert np.max(np.abs(Q.max(-1) - V)) <= 1e-9 * (1 + np.abs(V).max())
-    return V
+    """``V*`` of the dense model in float64 (:func:`numpy_reference.discounted_optimum`)."""
+    return numpy_reference.discounted_optimum(T, np.where(mask, np.asarray(R, np.float64), -np.inf), gamma)[0]
 
 
 CASES = [(v, c) for v in ("paper", "colosseum") for c in ("none", "some", "all")]
