@@ -94,7 +94,7 @@ def test_report_files_and_table(full_run):
     md = (out / "report.md").read_text()
     table = [line for line in md.splitlines() if line.startswith("| ")]
     assert table[0] == "| MDP | q_learning_episodic | random_episodic | seeds |"
-    assert [r.split(" | ")[0] for r in table[1:4]] == ["| DeepSea (1)", "| RiverSwim (1)", "| *Average*"]
+    assert [r.split(" | ")[0] for r in table[1:4]] == ["| DeepSea (1)", "| RiverSwim (1)", "| *Average of these 2 of 7*"]
     assert all("**" in r.split(" | ")[1] for r in table[1:3])  # the only learning agent is the row's best
     assert "\\begin{tabular}" in (out / "report.tex").read_text()
     with (out / "measures.csv").open(newline="") as f:
