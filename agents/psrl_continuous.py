@@ -99,7 +99,6 @@ from agents.posteriors import (
 from agents.tabular_common import copy_action_zero, discounted_greedy_policy, greedy_action
 from jaxmdp import dynamic_programming as dp
 from jaxmdp._checks import Variant, check_int, check_range
-from jaxmdp.jaxlib_workarounds.linalg import solve as linear_solve
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
 
 __all__ = [
@@ -490,10 +489,8 @@ def _best_candidates(
         return jnp.full((S * A,), fill, x.dtype).at[d.pairs].set(x, mode="drop").reshape(S, A)
 
     q_post, k_post = scatter(-jnp.inf, jnp.max(q_kept, axis=0)), scatter(0, k_kept)
-    position = scatter(0, jnp.arange(M, dtype=jnp.int32))
-
-    def posterior_row(s, a):
-        return d.kept[k_post[s, a], position[s, a]]
+    position, k_kept = scatter(0, jnp.arange(M, dtype=jnp.int32)), k_post
+    rows_all = None  # every pair's best posterior row, when more pairs than M are at eta
 
     if M < S * A:  # static: some pairs' draws may not be kept
 
@@ -509,12 +506,11 @@ def _best_candidates(
 
         init = (jnp.full((S, A), -jnp.inf, dtype), jnp.zeros((S, A), jnp.int32), jnp.zeros((S, A, S), dtype))
         q_all, k_all, rows_all = jax.lax.fori_loop(0, K, slot, init)
-        overflow = d.overflow
-        q_post, k_post = jnp.where(overflow, q_all, q_post), jnp.where(overflow, k_all, k_post)
-        kept_row = posterior_row
+        q_post, k_post = jnp.where(d.overflow, q_all, q_post), jnp.where(d.overflow, k_all, k_post)
 
-        def posterior_row(s, a):
-            return jnp.where(overflow, rows_all[s, a], kept_row(s, a))
+    def posterior_row(s, a):
+        row = d.kept[k_kept[s, a], position[s, a]]
+        return row if rows_all is None else jnp.where(d.overflow, rows_all[s, a], row)
 
     return jnp.where(d.posterior, q_post, best_opt), jnp.where(d.posterior, k_post, k_opt), posterior_row
 
@@ -550,10 +546,9 @@ def extended_policy_iteration(
     on the extended MDP of ``d`` and rewards ``R_ext[max_psi, S, A]``, from the policy greedy on one backup of
     ``V0``. Improvement picks per pair the best candidate and per state the best real action (:func:`_greedy`);
     evaluation solves ``(I - gamma P_pi) V = r_pi`` for the chosen rows. ``Q[S, A] = max_k Q_ext(s, (a, k))``."""
-    S = V0.shape[0]
 
     def evaluate(pi):
-        return linear_solve(jnp.eye(S, dtype=pi.row.dtype) - gamma * pi.row, pi.reward)
+        return dp.discounted_chain_values(pi.row, pi.reward, gamma)
 
     def improve(pi, V):
         q, proposal = _greedy(d, R_ext, V, gamma, action_mask)

@@ -57,6 +57,7 @@ __all__ = [
     "policy_evaluation",
     "policy_iteration",
     "policy_iteration_by",
+    "discounted_chain_values",
     "solve_discounted",
     "finite_horizon_value_iteration",
     "finite_horizon_policy_evaluation",
@@ -291,11 +292,15 @@ def value_iteration(
     return ValueIterationResult(Q=res.Q, V=V, iterations=res.iterations, converged=res.converged)
 
 
+def discounted_chain_values(P: jax.Array, r: jax.Array, gamma: float | jax.Array) -> jax.Array:
+    """Discounted values ``V = (I - gamma P)^{-1} r`` of a Markov reward chain ``P[S, S]``, ``r[S]`` (Puterman 1994
+    §6.1): one linear solve (:func:`jaxmdp.jaxlib_workarounds.linalg.solve`, one system at a time under ``vmap``)."""
+    return linear_solve(jnp.eye(P.shape[0], dtype=P.dtype) - gamma * P, r)
+
+
 def _policy_values(model: Model, pi: jax.Array, gamma: float | jax.Array, R: jax.Array) -> jax.Array:
     """``V = (I - gamma P_pi)^{-1} r_pi`` (the solve of :func:`policy_evaluation`)."""
-    P = policy_matrix(model, pi)
-    S = P.shape[0]
-    return linear_solve(jnp.eye(S, dtype=P.dtype) - gamma * P, policy_rewards(model, pi, R))
+    return discounted_chain_values(policy_matrix(model, pi), policy_rewards(model, pi, R), gamma)
 
 
 def policy_evaluation(

@@ -17,33 +17,16 @@ the blocked elimination alone at those ``block,stages`` settings instead.
 from __future__ import annotations
 
 import argparse
-import importlib.util
-import subprocess
 import sys
-import tempfile
 import time
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from hardness.benchmark import sets
+from baseline_module import load_revision  # scripts/ is on the path of a script run as python scripts/NAME.py
 from jaxmdp import dynamic_programming as dp
-
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def baseline_module(revision: str):
-    """``jaxmdp/dynamic_programming.py`` as it is at ``revision``, imported as a module of its own."""
-    source = subprocess.run(["git", "show", f"{revision}:jaxmdp/dynamic_programming.py"], cwd=ROOT, check=True,
-                            capture_output=True, text=True).stdout
-    path = Path(tempfile.mkdtemp()) / "baseline_dynamic_programming.py"
-    path.write_text(source)
-    spec = importlib.util.spec_from_file_location("baseline_dynamic_programming", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def policies(mdp, rng: np.random.Generator, redrawn: float) -> dict[str, jax.Array]:
@@ -102,7 +85,7 @@ def main(argv: list[str] | None = None) -> None:
     if args.eliminate:
         eliminate_settings(args)
         return
-    base = baseline_module(args.baseline)
+    base = load_revision(args.baseline, "jaxmdp/dynamic_programming.py", "baseline_dynamic_programming")
     fns = {args.baseline: jax.jit(base.gain_vector), "this tree": jax.jit(dp.gain_vector)}
     instances = {inst.label: inst for inst in sets.instances(args.set)}
     rng = np.random.default_rng(0)

@@ -15,7 +15,6 @@ best of ``--repeats``, the modules alternating. Optional rows: ``--eta-pairs n``
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 import sys
 import time
@@ -29,8 +28,8 @@ import agents.psrl_continuous as pc
 from hardness.benchmark import sets
 from jaxmdp.experiment.planning import default_plan_slots
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from profile_continuous_plans import bucket_labels, played  # noqa: E402
+from baseline_module import load_file  # scripts/ is on the path of a script run as python scripts/NAME.py
+from profile_continuous_plans import bucket_labels, played
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -47,14 +46,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--memory-members", type=int, default=20)
     p.add_argument("--out", default=None, help="write the rows as JSON here")
     return p
-
-
-def load_baseline(path: str):
-    spec = importlib.util.spec_from_file_location("psrl_continuous_baseline", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
 
 
 def stacked(state, n: int):
@@ -88,7 +79,7 @@ def interleaved(fns: dict, args, repeats: int) -> dict:
 
 def main(argv=None) -> list[dict]:
     args = build_parser().parse_args(argv)
-    base = load_baseline(args.baseline)
+    base = load_file(args.baseline, "psrl_continuous_baseline")
     labels = args.labels or bucket_labels(args.set)
     insts = {i.label: i for i in sets.instances(args.set)}
     plans = {"baseline": jax.jit(jax.vmap(base.PSRL_CONTINUOUS.plan)), "structured": jax.jit(jax.vmap(pc.plan))}

@@ -165,7 +165,7 @@ def test_edge_shapes_and_arguments():
     # Huge shapes: Beta(1e6, 1e6) has standard deviation 3.5e-4 around 1/2; tiny ones are 0 or 1 in float32.
     keys = jax.random.split(k, 200)
     big = np.asarray(jax.vmap(lambda q: sample_beta(q, 1e6, 1e6))(keys))
-    assert np.all(np.abs(big - 0.5) < 0.01)
+    assert np.all(np.abs(big - 0.5) < 0.003)  # 8.5 standard deviations
     tiny = np.asarray(jax.vmap(lambda q: sample_beta(q, 1e-20, 1e-20))(keys))
     assert set(np.unique(tiny)) <= {0.0, 1.0}
     with pytest.raises(ValueError, match="trials"):
