@@ -102,19 +102,19 @@ def test_report_files_and_table(full_run):
     assert len(measures) == 4 and all(float(m["diameter"]) > 0 for m in measures)
 
 
-def _fake_run(out, rows, agents):
+def _fake_run(out, rows, agents, setting="episodic ergodic", emission=None):
     """A run folder holding only ``plan.json`` and ``members.csv`` (what the tables read)."""
     labels = sorted({r[0] for r in rows})
-    settings = dict(sets=["episodic ergodic"], agents={"episodic ergodic": agents}, seeds=[0, 1], n_steps=100,
-                    log_periods={"episodic ergodic": 100}, hparams_source="reference")
-    batches = [dict(id=f"b{a}", key="k", set_name="episodic ergodic", agent=a,
+    settings = dict(sets=[setting], agents={setting: agents}, seeds=[0, 1], n_steps=100,
+                    log_periods={setting: 100}, hparams_source="reference", emission=emission)
+    batches = [dict(id=f"b{a}", key="k", set_name=setting, agent=a,
                     members=[[lab, s] for lab in labels for s in (0, 1)]) for a in agents]
     (out / "plan.json").write_text(json.dumps(dict(settings=settings, batches=batches)))
     with (out / "members.csv").open("w", newline="") as f:
         w = csv.writer(f)
         w.writerow(run.MEMBER_FIELDS)
         for label, agent, seed, score in rows:
-            w.writerow(["episodic ergodic", label, label.split("/")[0], agent, seed, 100, 0, score * 100, score, 0, 0,
+            w.writerow([setting, label, label.split("/")[0], agent, seed, 100, 0, score * 100, score, 0, 0,
                         1, f"b{agent}"])
 
 
@@ -230,6 +230,37 @@ def test_published_nontabular_average_rows_are_the_mean_and_population_std_of_th
             ddof1_misses += abs(means.std(ddof=1) - s) > 0.007
     assert ddof1_misses >= 8  # the sample std (ddof 1) misses in half of the 16 columns: the paper used ddof 0
     assert published.NONTABULAR_AVERAGE["episodic communicating"]["dqn_episodic"] == (0.19, 0.22)
+
+
+def test_paper_columns_of_the_deep_agents_need_the_papers_emission(tmp_path):
+    agents = ["dqn_episodic", "boot_dqn_episodic", "random_episodic"]
+    scores = {"DeepSea/prms_0": 0.1, "FrozenLake/prms_0": 0.3}
+    rows = [(m, a, s, x) for m, x in scores.items() for a in agents for s in (0, 1)]
+    _fake_run(tmp_path, rows, agents, setting="episodic communicating", emission="state_info")
+    lines = report.markdown_table(report.summarize(tmp_path), "episodic communicating").splitlines()
+    assert lines[0] == ("| MDP | dqn_episodic | boot_dqn_episodic | random_episodic | dqn_episodic (paper) "
+                        "| boot_dqn_episodic (paper) | seeds |")
+    cells = [line.strip("| ").split(" | ") for line in lines[2:]]
+    assert [c[0] for c in cells] == ["DeepSea (1)", "FrozenLake (1)", "*Average of these 2 of 20*"]
+    assert cells[0][4:6] == ["0.05 ± 0.09", "0.17 ± 0.24"] and cells[1][4:6] == ["0.02 ± 0.01", "0.25 ± 0.25"]
+    # The paper's average over the same two MDPs (mean, ddof 0), not its printed average over 20.
+    assert cells[2][4:6] == [f"{np.mean([0.05, 0.02]):.2f} ± {np.std([0.05, 0.02]):.2f}",
+                             f"{np.mean([0.17, 0.25]):.2f} ± {np.std([0.17, 0.25]):.2f}"]
+    appendix = report._appendix_rows(report.summarize(tmp_path), "episodic communicating", latex=False)[1]
+    assert [r[5] for r in appendix[:3]] == ["0.05 ± 0.09", "0.17 ± 0.24", ""]  # regret (paper); none for random
+    assert [r[8] for r in appendix[:3]] == ["", "", ""]  # no completed counts for the deep agents
+    # Another emission: the paper has no numbers for it, so no paper column.
+    _fake_run(tmp_path, rows, agents, setting="episodic communicating", emission="one_hot")
+    header = report.markdown_table(report.summarize(tmp_path), "episodic communicating").splitlines()[0]
+    assert "(paper)" not in header
+
+
+def test_average_row_of_a_whole_set_of_a_deep_agent_is_the_papers(tmp_path):
+    labels = [i.label for i in sets.instances("continuous ergodic")]
+    _fake_run(tmp_path, [(lab, "dqn_continuous", s, 0.5) for lab in labels for s in (0, 1)], ["dqn_continuous"],
+              setting="continuous ergodic", emission="state_info")
+    last = report.markdown_table(report.summarize(tmp_path), "continuous ergodic").splitlines()[-1]
+    assert last.strip("| ").split(" | ")[:3] == ["*Average*", "0.500 ± 0.000", "0.12 ± 0.14"]
 
 
 def test_bad_configs_raise_clear_errors(tmp_path):
