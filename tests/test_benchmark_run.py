@@ -102,19 +102,19 @@ def test_report_files_and_table(full_run):
     assert len(measures) == 4 and all(float(m["diameter"]) > 0 for m in measures)
 
 
-def _fake_run(out, rows, agents):
+def _fake_run(out, rows, agents, setting="episodic ergodic", emission=None):
     """A run folder holding only ``plan.json`` and ``members.csv`` (what the tables read)."""
     labels = sorted({r[0] for r in rows})
-    settings = dict(sets=["episodic ergodic"], agents={"episodic ergodic": agents}, seeds=[0, 1], n_steps=100,
-                    log_periods={"episodic ergodic": 100}, hparams_source="reference")
-    batches = [dict(id=f"b{a}", key="k", set_name="episodic ergodic", agent=a,
+    settings = dict(sets=[setting], agents={setting: agents}, seeds=[0, 1], n_steps=100,
+                    log_periods={setting: 100}, hparams_source="reference", emission=emission)
+    batches = [dict(id=f"b{a}", key="k", set_name=setting, agent=a,
                     members=[[lab, s] for lab in labels for s in (0, 1)]) for a in agents]
     (out / "plan.json").write_text(json.dumps(dict(settings=settings, batches=batches)))
     with (out / "members.csv").open("w", newline="") as f:
         w = csv.writer(f)
         w.writerow(run.MEMBER_FIELDS)
         for label, agent, seed, score in rows:
-            w.writerow(["episodic ergodic", label, label.split("/")[0], agent, seed, 100, 0, score * 100, score, 0, 0,
+            w.writerow([setting, label, label.split("/")[0], agent, seed, 100, 0, score * 100, score, 0, 0,
                         1, f"b{agent}"])
 
 
@@ -165,6 +165,99 @@ def test_published_average_rows_are_the_mean_and_std_of_the_rows():
             assert abs(means.mean() - m) <= 0.005 and abs(means.std() - s) <= 0.005
             for label, (mean, _) in rows.items():
                 assert published.appendix_g(setting, agent, label).regret[0] == mean
+
+
+# App. G's non-tabular table, cells read off the tex by hand: each differs from the cell above and below it in its
+# column (checked below), so a transcription with a row shifted by one fails; the last row of every sub-table is
+# pinned in full, so a column shifted from any row on fails too.
+_LAST_ROWS = {
+    ("episodic communicating", "Taxi/prms_1"): ((0.86, 0.01), (0.86, 0.01), (0.90, 0.02), (0.87, 0.01)),
+    ("episodic ergodic", "Taxi/prms_1"): ((0.34, 0.02), (0.34, 0.02), (0.36, 0.04), (0.32, 0.02)),
+    ("continuous communicating", "Taxi/prms_0"): ((0.92, 0.01), (0.92, 0.01), (0.93, 0.02), (0.81, 0.17)),
+    ("continuous ergodic", "Taxi/prms_0"): ((0.78, 0.02), (0.78, 0.02), (0.81, 0.03), (0.55, 0.13)),
+}
+NONTABULAR_PINS = {
+    **{(setting, f"{a}_{setting.split()[0]}", label): cell for (setting, label), row in _LAST_ROWS.items()
+       for a, cell in zip(("actor_critic", "actor_critic_rnn", "boot_dqn", "dqn"), row)},
+    ("episodic communicating", "dqn_episodic", "DeepSea/prms_0"): (0.05, 0.09),
+    ("episodic communicating", "actor_critic_episodic", "FrozenLake/prms_0"): (0.12, 0.08),
+    ("episodic communicating", "boot_dqn_episodic", "MiniGridRooms/prms_1"): (0.34, 0.39),
+    ("episodic ergodic", "boot_dqn_episodic", "DeepSea/prms_0"): (0.23, 0.18),
+    ("episodic ergodic", "actor_critic_episodic", "MiniGridEmpty/prms_6"): (0.27, 0.14),
+    ("continuous communicating", "actor_critic_rnn_continuous", "DeepSea/prms_1"): (0.41, 0.50),
+    ("continuous communicating", "actor_critic_continuous", "FrozenLake/prms_1"): (0.27, 0.17),
+    ("continuous communicating", "dqn_continuous", "SimpleGrid/prms_3"): (0.01, 0.02),
+    ("continuous ergodic", "dqn_continuous", "DeepSea/prms_0"): (0.22, 0.39),
+    ("continuous ergodic", "dqn_continuous", "MiniGridRooms/prms_1"): (0.38, 0.27),
+    ("continuous ergodic", "actor_critic_continuous", "RiverSwim/prms_3"): (0.33, 0.49),
+}
+
+
+def test_published_nontabular_rows_agents_and_pinned_cells():
+    assert list(published.NONTABULAR) == list(published.NONTABULAR_AVERAGE) and set(published.NONTABULAR) == set(
+        sets.SETTINGS)
+    for setting, by_agent in published.NONTABULAR.items():
+        kind = "episodic" if sets.is_episodic(setting) else "continuous"
+        deep = [f"{a}_{kind}" for a in ("actor_critic", "actor_critic_rnn", "boot_dqn", "dqn")]
+        assert list(by_agent) == deep == list(published.NONTABULAR_AVERAGE[setting])
+        assert all(run.agent_registry.AGENTS[a].observation == "emission" for a in deep)
+        for rows in by_agent.values():  # the set's 20 MDPs, in its order
+            assert list(rows) == [i.label for i in sets.instances(setting)]
+            assert all(0 <= m <= 1 and 0 <= sd <= 0.5 for m, sd in rows.values())
+    assert len(NONTABULAR_PINS) == 27
+    for (setting, agent, label), cell in NONTABULAR_PINS.items():
+        assert published.nontabular(setting, agent, label) == cell, (setting, agent, label)
+        column = list(published.NONTABULAR[setting][agent].values())
+        k = list(published.NONTABULAR[setting][agent]).index(label)
+        assert cell not in column[max(k - 1, 0):k] + column[k + 1:k + 2]  # the pin tells a shifted row apart
+    assert published.nontabular("episodic ergodic", "q_learning_episodic", "DeepSea/prms_0") is None
+
+
+def test_published_nontabular_average_rows_are_the_mean_and_population_std_of_the_rows():
+    # Tolerance 0.007: the printed average is rounded to 0.01 (error <= 0.005), and it was computed from the unrounded
+    # per-MDP means, whose printed roundings (each error uniform on +-0.005, sd 0.0029) move the mean of 20 by about
+    # 0.0029 / sqrt(20) = 0.00065 (0.002 is 3 sd; the std moves by about as much).
+    ddof1_misses = 0
+    for setting, by_agent in published.NONTABULAR.items():
+        for agent, rows in by_agent.items():
+            means = np.array([m for m, _ in rows.values()])
+            m, s = published.NONTABULAR_AVERAGE[setting][agent]
+            assert published.regret_average(setting, agent) == (m, s)
+            assert abs(means.mean() - m) <= 0.007 and abs(means.std() - s) <= 0.007, (setting, agent)
+            ddof1_misses += abs(means.std(ddof=1) - s) > 0.007
+    assert ddof1_misses >= 8  # the sample std (ddof 1) misses in half of the 16 columns: the paper used ddof 0
+    assert published.NONTABULAR_AVERAGE["episodic communicating"]["dqn_episodic"] == (0.19, 0.22)
+
+
+def test_paper_columns_of_the_deep_agents_need_the_papers_emission(tmp_path):
+    agents = ["dqn_episodic", "boot_dqn_episodic", "random_episodic"]
+    scores = {"DeepSea/prms_0": 0.1, "FrozenLake/prms_0": 0.3}
+    rows = [(m, a, s, x) for m, x in scores.items() for a in agents for s in (0, 1)]
+    _fake_run(tmp_path, rows, agents, setting="episodic communicating", emission="state_info")
+    lines = report.markdown_table(report.summarize(tmp_path), "episodic communicating").splitlines()
+    assert lines[0] == ("| MDP | dqn_episodic | boot_dqn_episodic | random_episodic | dqn_episodic (paper) "
+                        "| boot_dqn_episodic (paper) | seeds |")
+    cells = [line.strip("| ").split(" | ") for line in lines[2:]]
+    assert [c[0] for c in cells] == ["DeepSea (1)", "FrozenLake (1)", "*Average of these 2 of 20*"]
+    assert cells[0][4:6] == ["0.05 ± 0.09", "0.17 ± 0.24"] and cells[1][4:6] == ["0.02 ± 0.01", "0.25 ± 0.25"]
+    # The paper's average over the same two MDPs (mean, ddof 0), not its printed average over 20.
+    assert cells[2][4:6] == [f"{np.mean([0.05, 0.02]):.2f} ± {np.std([0.05, 0.02]):.2f}",
+                             f"{np.mean([0.17, 0.25]):.2f} ± {np.std([0.17, 0.25]):.2f}"]
+    appendix = report._appendix_rows(report.summarize(tmp_path), "episodic communicating", latex=False)[1]
+    assert [r[5] for r in appendix[:3]] == ["0.05 ± 0.09", "0.17 ± 0.24", ""]  # regret (paper); none for random
+    assert [r[8] for r in appendix[:3]] == ["", "", ""]  # no completed counts for the deep agents
+    # Another emission: the paper has no numbers for it, so no paper column.
+    _fake_run(tmp_path, rows, agents, setting="episodic communicating", emission="one_hot")
+    header = report.markdown_table(report.summarize(tmp_path), "episodic communicating").splitlines()[0]
+    assert "(paper)" not in header
+
+
+def test_average_row_of_a_whole_set_of_a_deep_agent_is_the_papers(tmp_path):
+    labels = [i.label for i in sets.instances("continuous ergodic")]
+    _fake_run(tmp_path, [(lab, "dqn_continuous", s, 0.5) for lab in labels for s in (0, 1)], ["dqn_continuous"],
+              setting="continuous ergodic", emission="state_info")
+    last = report.markdown_table(report.summarize(tmp_path), "continuous ergodic").splitlines()[-1]
+    assert last.strip("| ").split(" | ")[:3] == ["*Average*", "0.500 ± 0.000", "0.12 ± 0.14"]
 
 
 def test_bad_configs_raise_clear_errors(tmp_path):

@@ -1,5 +1,5 @@
-"""The paper's published benchmark numbers (§3.3 Table 2 and App. G, Tables 9-12), as data beside which the report
-puts ours.
+"""The paper's published benchmark numbers (§3.3 Table 2, App. G Tables 9-12 and App. G "Non-tabular setting"), as
+data beside which the report puts ours.
 
 Every number is the per-step normalised cumulative regret (App. E; the final ``normalized_cumulative_regret``
 divided by the 500 000 steps), or the matching normalised (expected) reward, mean and standard deviation over 20
@@ -11,13 +11,40 @@ minutes of wall clock (benchmark.md §2): ``completed`` counts the seeds that re
 Table 2 and App. G agree on every mean; a few standard deviations differ by 0.01 (e.g. episodic communicating
 MG-Empty (1), PSRL: ``.09 ± .05`` against ``0.09 ± 0.04``); both are kept as printed. Table 2's *Average* row is the
 mean and the population standard deviation (``ddof = 0``) over the 20 MDPs of the per-MDP means.
+
+The non-tabular numbers (:data:`NONTABULAR`, :data:`NONTABULAR_AVERAGE`) are App. G's table
+``tab:nt_benchmark_table_e`` (sub-tables (a) episodic communicating, (b) episodic ergodic, (c) continuous
+communicating, (d) continuous ergodic): the per-step normalised regret, mean ± std over 20 seeds, of the ``bsuite``
+agents ActorCritic, ActorCriticRNN, BootDQN and DQN (registry names ``actor_critic_*``, ``actor_critic_rnn_*``,
+``boot_dqn_*``, ``dqn_*``), which observed each MDP through the deterministic state-information emission map
+(:data:`NONTABULAR_EMISSION`) and were cut off after 40 minutes of wall clock (the paper prints no completed-seed
+counts for them). Rows and the *Average* row follow Table 2's conventions above (average: mean and ``ddof = 0`` standard
+deviation of the 20 per-MDP means). The paper has no other copy of these numbers: the App. G table captioned "Summary
+of benchmark results for the non-tabular bsuite baselines" (``tab:benchmark_table``) holds the *tabular* agents
+(PSRL, Q-learning, UCRL2), its numbers equal to Table 2's, and §3.3 Table 2 has no non-tabular columns.
 """
 
 from __future__ import annotations
 
 from typing import NamedTuple
 
-__all__ = ["AppendixRow", "TABLE2", "TABLE2_AVERAGE", "APPENDIX_G", "table2", "appendix_g"]
+__all__ = [
+    "AppendixRow",
+    "TABLE2",
+    "TABLE2_AVERAGE",
+    "APPENDIX_G",
+    "NONTABULAR",
+    "NONTABULAR_AVERAGE",
+    "NONTABULAR_EMISSION",
+    "table2",
+    "appendix_g",
+    "nontabular",
+    "regret_table",
+    "regret_average",
+]
+
+#: The emission kind (:data:`jaxmdp.EMISSION_KINDS`) through which the paper's non-tabular agents observed the MDPs.
+NONTABULAR_EMISSION = "state_info"
 
 
 class AppendixRow(NamedTuple):
@@ -38,6 +65,29 @@ def table2(setting: str, agent: str, label: str) -> tuple[float, float] | None:
 def appendix_g(setting: str, agent: str, label: str) -> AppendixRow | None:
     """App. G's row of ``agent`` on the MDP ``label`` of ``setting``; ``None`` where the paper has none."""
     return APPENDIX_G.get(setting, {}).get(agent, {}).get(label)
+
+
+def nontabular(setting: str, agent: str, label: str) -> tuple[float, float] | None:
+    """App. G's non-tabular ``(mean, std)`` of the deep ``agent`` on the MDP ``label`` of ``setting``; ``None`` where
+    the paper has none."""
+    return NONTABULAR.get(setting, {}).get(agent, {}).get(label)
+
+
+def regret_table(setting: str, emission: str | None = None) -> dict[str, dict[str, tuple[float, float]]]:
+    """The paper's per-step normalised regret ``{agent: {label: (mean, std)}}`` for a run of ``setting`` whose agents
+    observed ``emission`` (a :data:`jaxmdp.EMISSION_KINDS` name, ``None`` for the states): Table 2's tabular agents,
+    and the non-tabular agents when ``emission`` is the paper's (:data:`NONTABULAR_EMISSION`); the paper has no
+    numbers for other emissions."""
+    table = dict(TABLE2.get(setting, {}))
+    if emission == NONTABULAR_EMISSION:
+        table.update(NONTABULAR.get(setting, {}))
+    return table
+
+
+def regret_average(setting: str, agent: str) -> tuple[float, float] | None:
+    """The paper's printed *Average* row ``(mean, std)`` of ``agent`` over the 20 MDPs of ``setting`` (Table 2 or the
+    non-tabular table); ``None`` where the paper has none."""
+    return TABLE2_AVERAGE.get(setting, {}).get(agent) or NONTABULAR_AVERAGE.get(setting, {}).get(agent)
 
 
 # fmt: off
@@ -507,6 +557,397 @@ APPENDIX_G: dict[str, dict[str, dict[str, AppendixRow]]] = {
             "SimpleGrid/prms_3": AppendixRow((0.5, 0.0), (0.67, 0.23), (0.33, 0.23), 0),
             "Taxi/prms_0": AppendixRow((0.06, 0.03), (0.88, 0.01), (0.12, 0.01), 20),
         },
+    },
+}
+
+#: App. H, Table 13 (a)-(d), in the paper's order of its sub-tables.
+NONTABULAR: dict[str, dict[str, dict[str, tuple[float, float]]]] = {
+    "episodic communicating": {
+        "actor_critic_episodic": {
+            "DeepSea/prms_0": (0.33, 0.24),
+            "DeepSea/prms_1": (0.32, 0.28),
+            "FrozenLake/prms_0": (0.12, 0.08),
+            "MiniGridEmpty/prms_0": (0.75, 0.38),
+            "MiniGridEmpty/prms_1": (0.81, 0.29),
+            "MiniGridEmpty/prms_2": (0.6, 0.33),
+            "MiniGridEmpty/prms_3": (0.96, 0.08),
+            "MiniGridEmpty/prms_4": (0.99, 0.03),
+            "MiniGridRooms/prms_0": (1.0, 0.0),
+            "MiniGridRooms/prms_1": (1.0, 0.01),
+            "MiniGridRooms/prms_2": (1.0, 0.0),
+            "MiniGridRooms/prms_3": (0.87, 0.3),
+            "RiverSwim/prms_0": (0.0, 0.0),
+            "RiverSwim/prms_1": (0.53, 0.39),
+            "SimpleGrid/prms_0": (0.8, 0.1),
+            "SimpleGrid/prms_1": (0.8, 0.01),
+            "SimpleGrid/prms_2": (0.38, 0.17),
+            "SimpleGrid/prms_3": (0.79, 0.06),
+            "Taxi/prms_0": (0.91, 0.01),
+            "Taxi/prms_1": (0.86, 0.01),
+        },
+        "actor_critic_rnn_episodic": {
+            "DeepSea/prms_0": (0.45, 0.14),
+            "DeepSea/prms_1": (0.45, 0.21),
+            "FrozenLake/prms_0": (0.42, 0.06),
+            "MiniGridEmpty/prms_0": (0.92, 0.15),
+            "MiniGridEmpty/prms_1": (0.94, 0.11),
+            "MiniGridEmpty/prms_2": (0.85, 0.19),
+            "MiniGridEmpty/prms_3": (0.96, 0.07),
+            "MiniGridEmpty/prms_4": (0.96, 0.06),
+            "MiniGridRooms/prms_0": (1.0, 0.0),
+            "MiniGridRooms/prms_1": (1.0, 0.0),
+            "MiniGridRooms/prms_2": (1.0, 0.01),
+            "MiniGridRooms/prms_3": (1.0, 0.0),
+            "RiverSwim/prms_0": (0.0, 0.0),
+            "RiverSwim/prms_1": (0.67, 0.31),
+            "SimpleGrid/prms_0": (0.78, 0.13),
+            "SimpleGrid/prms_1": (0.78, 0.03),
+            "SimpleGrid/prms_2": (0.29, 0.24),
+            "SimpleGrid/prms_3": (0.77, 0.07),
+            "Taxi/prms_0": (0.91, 0.01),
+            "Taxi/prms_1": (0.86, 0.01),
+        },
+        "boot_dqn_episodic": {
+            "DeepSea/prms_0": (0.17, 0.24),
+            "DeepSea/prms_1": (0.28, 0.31),
+            "FrozenLake/prms_0": (0.25, 0.25),
+            "MiniGridEmpty/prms_0": (0.26, 0.38),
+            "MiniGridEmpty/prms_1": (0.43, 0.37),
+            "MiniGridEmpty/prms_2": (0.39, 0.4),
+            "MiniGridEmpty/prms_3": (0.31, 0.39),
+            "MiniGridEmpty/prms_4": (0.33, 0.33),
+            "MiniGridRooms/prms_0": (0.31, 0.37),
+            "MiniGridRooms/prms_1": (0.34, 0.39),
+            "MiniGridRooms/prms_2": (0.54, 0.43),
+            "MiniGridRooms/prms_3": (0.44, 0.41),
+            "RiverSwim/prms_0": (0.01, 0.01),
+            "RiverSwim/prms_1": (0.13, 0.21),
+            "SimpleGrid/prms_0": (0.44, 0.35),
+            "SimpleGrid/prms_1": (0.38, 0.32),
+            "SimpleGrid/prms_2": (0.26, 0.25),
+            "SimpleGrid/prms_3": (0.48, 0.28),
+            "Taxi/prms_0": (0.87, 0.14),
+            "Taxi/prms_1": (0.9, 0.02),
+        },
+        "dqn_episodic": {
+            "DeepSea/prms_0": (0.05, 0.09),
+            "DeepSea/prms_1": (0.21, 0.26),
+            "FrozenLake/prms_0": (0.02, 0.01),
+            "MiniGridEmpty/prms_0": (0.04, 0.07),
+            "MiniGridEmpty/prms_1": (0.09, 0.06),
+            "MiniGridEmpty/prms_2": (0.07, 0.03),
+            "MiniGridEmpty/prms_3": (0.1, 0.28),
+            "MiniGridEmpty/prms_4": (0.1, 0.09),
+            "MiniGridRooms/prms_0": (0.19, 0.32),
+            "MiniGridRooms/prms_1": (0.34, 0.48),
+            "MiniGridRooms/prms_2": (0.36, 0.48),
+            "MiniGridRooms/prms_3": (0.27, 0.44),
+            "RiverSwim/prms_0": (0.0, 0.0),
+            "RiverSwim/prms_1": (0.21, 0.36),
+            "SimpleGrid/prms_0": (0.06, 0.02),
+            "SimpleGrid/prms_1": (0.05, 0.01),
+            "SimpleGrid/prms_2": (0.0, 0.0),
+            "SimpleGrid/prms_3": (0.2, 0.2),
+            "Taxi/prms_0": (0.66, 0.24),
+            "Taxi/prms_1": (0.87, 0.01),
+        },
+    },
+    "episodic ergodic": {
+        "actor_critic_episodic": {
+            "DeepSea/prms_0": (0.46, 0.04),
+            "DeepSea/prms_1": (0.01, 0.01),
+            "FrozenLake/prms_0": (0.67, 0.23),
+            "MiniGridEmpty/prms_0": (0.86, 0.27),
+            "MiniGridEmpty/prms_1": (0.96, 0.07),
+            "MiniGridEmpty/prms_2": (0.98, 0.05),
+            "MiniGridEmpty/prms_3": (0.83, 0.25),
+            "MiniGridEmpty/prms_4": (0.77, 0.23),
+            "MiniGridEmpty/prms_5": (0.71, 0.38),
+            "MiniGridEmpty/prms_6": (0.27, 0.14),
+            "MiniGridRooms/prms_0": (0.87, 0.22),
+            "MiniGridRooms/prms_1": (0.94, 0.16),
+            "MiniGridRooms/prms_2": (0.93, 0.16),
+            "RiverSwim/prms_0": (0.0, 0.0),
+            "RiverSwim/prms_1": (0.0, 0.01),
+            "SimpleGrid/prms_0": (0.53, 0.27),
+            "SimpleGrid/prms_1": (0.79, 0.04),
+            "SimpleGrid/prms_2": (0.51, 0.03),
+            "Taxi/prms_0": (0.77, 0.01),
+            "Taxi/prms_1": (0.34, 0.02),
+        },
+        "actor_critic_rnn_episodic": {
+            "DeepSea/prms_0": (0.48, 0.0),
+            "DeepSea/prms_1": (0.0, 0.0),
+            "FrozenLake/prms_0": (0.88, 0.07),
+            "MiniGridEmpty/prms_0": (0.96, 0.09),
+            "MiniGridEmpty/prms_1": (0.99, 0.01),
+            "MiniGridEmpty/prms_2": (0.98, 0.03),
+            "MiniGridEmpty/prms_3": (0.96, 0.07),
+            "MiniGridEmpty/prms_4": (0.95, 0.06),
+            "MiniGridEmpty/prms_5": (0.65, 0.25),
+            "MiniGridEmpty/prms_6": (0.69, 0.16),
+            "MiniGridRooms/prms_0": (0.94, 0.16),
+            "MiniGridRooms/prms_1": (0.96, 0.08),
+            "MiniGridRooms/prms_2": (1.0, 0.0),
+            "RiverSwim/prms_0": (0.0, 0.0),
+            "RiverSwim/prms_1": (0.0, 0.0),
+            "SimpleGrid/prms_0": (0.67, 0.23),
+            "SimpleGrid/prms_1": (0.78, 0.06),
+            "SimpleGrid/prms_2": (0.47, 0.07),
+            "Taxi/prms_0": (0.77, 0.01),
+            "Taxi/prms_1": (0.34, 0.02),
+        },
+        "boot_dqn_episodic": {
+            "DeepSea/prms_0": (0.23, 0.18),
+            "DeepSea/prms_1": (0.07, 0.09),
+            "FrozenLake/prms_0": (0.34, 0.33),
+            "MiniGridEmpty/prms_0": (0.24, 0.36),
+            "MiniGridEmpty/prms_1": (0.42, 0.29),
+            "MiniGridEmpty/prms_2": (0.35, 0.31),
+            "MiniGridEmpty/prms_3": (0.35, 0.26),
+            "MiniGridEmpty/prms_4": (0.55, 0.25),
+            "MiniGridEmpty/prms_5": (0.24, 0.37),
+            "MiniGridEmpty/prms_6": (0.28, 0.35),
+            "MiniGridRooms/prms_0": (0.52, 0.43),
+            "MiniGridRooms/prms_1": (0.58, 0.4),
+            "MiniGridRooms/prms_2": (0.31, 0.35),
+            "RiverSwim/prms_0": (0.0, 0.01),
+            "RiverSwim/prms_1": (0.01, 0.01),
+            "SimpleGrid/prms_0": (0.37, 0.37),
+            "SimpleGrid/prms_1": (0.43, 0.29),
+            "SimpleGrid/prms_2": (0.24, 0.22),
+            "Taxi/prms_0": (0.76, 0.16),
+            "Taxi/prms_1": (0.36, 0.04),
+        },
+        "dqn_episodic": {
+            "DeepSea/prms_0": (0.25, 0.24),
+            "DeepSea/prms_1": (0.0, 0.0),
+            "FrozenLake/prms_0": (0.09, 0.02),
+            "MiniGridEmpty/prms_0": (0.04, 0.03),
+            "MiniGridEmpty/prms_1": (0.2, 0.15),
+            "MiniGridEmpty/prms_2": (0.27, 0.36),
+            "MiniGridEmpty/prms_3": (0.08, 0.03),
+            "MiniGridEmpty/prms_4": (0.29, 0.15),
+            "MiniGridEmpty/prms_5": (0.02, 0.02),
+            "MiniGridEmpty/prms_6": (0.04, 0.01),
+            "MiniGridRooms/prms_0": (0.16, 0.28),
+            "MiniGridRooms/prms_1": (0.36, 0.47),
+            "MiniGridRooms/prms_2": (0.22, 0.37),
+            "RiverSwim/prms_0": (0.0, 0.0),
+            "RiverSwim/prms_1": (0.0, 0.0),
+            "SimpleGrid/prms_0": (0.01, 0.01),
+            "SimpleGrid/prms_1": (0.09, 0.03),
+            "SimpleGrid/prms_2": (0.04, 0.01),
+            "Taxi/prms_0": (0.54, 0.24),
+            "Taxi/prms_1": (0.32, 0.02),
+        },
+    },
+    "continuous communicating": {
+        "actor_critic_continuous": {
+            "DeepSea/prms_0": (0.14, 0.25),
+            "DeepSea/prms_1": (0.17, 0.38),
+            "DeepSea/prms_2": (0.18, 0.27),
+            "FrozenLake/prms_0": (0.06, 0.04),
+            "FrozenLake/prms_1": (0.27, 0.17),
+            "MiniGridEmpty/prms_0": (0.92, 0.29),
+            "MiniGridEmpty/prms_1": (0.26, 0.33),
+            "MiniGridEmpty/prms_2": (0.13, 0.28),
+            "MiniGridEmpty/prms_3": (0.92, 0.29),
+            "MiniGridEmpty/prms_4": (1.0, 0.0),
+            "MiniGridRooms/prms_0": (0.47, 0.34),
+            "MiniGridRooms/prms_1": (0.34, 0.35),
+            "MiniGridRooms/prms_2": (0.62, 0.42),
+            "RiverSwim/prms_0": (0.0, 0.0),
+            "RiverSwim/prms_1": (0.07, 0.23),
+            "SimpleGrid/prms_0": (0.0, 0.01),
+            "SimpleGrid/prms_1": (0.25, 0.26),
+            "SimpleGrid/prms_2": (0.09, 0.27),
+            "SimpleGrid/prms_3": (0.33, 0.25),
+            "Taxi/prms_0": (0.92, 0.01),
+        },
+        "actor_critic_rnn_continuous": {
+            "DeepSea/prms_0": (0.18, 0.27),
+            "DeepSea/prms_1": (0.41, 0.5),
+            "DeepSea/prms_2": (0.23, 0.28),
+            "FrozenLake/prms_0": (0.17, 0.12),
+            "FrozenLake/prms_1": (0.29, 0.16),
+            "MiniGridEmpty/prms_0": (0.92, 0.29),
+            "MiniGridEmpty/prms_1": (0.34, 0.42),
+            "MiniGridEmpty/prms_2": (0.16, 0.3),
+            "MiniGridEmpty/prms_3": (0.75, 0.45),
+            "MiniGridEmpty/prms_4": (1.0, 0.0),
+            "MiniGridRooms/prms_0": (0.61, 0.47),
+            "MiniGridRooms/prms_1": (0.71, 0.34),
+            "MiniGridRooms/prms_2": (0.77, 0.41),
+            "RiverSwim/prms_0": (0.07, 0.23),
+            "RiverSwim/prms_1": (0.07, 0.23),
+            "SimpleGrid/prms_0": (0.05, 0.08),
+            "SimpleGrid/prms_1": (0.38, 0.23),
+            "SimpleGrid/prms_2": (0.17, 0.28),
+            "SimpleGrid/prms_3": (0.42, 0.19),
+            "Taxi/prms_0": (0.92, 0.01),
+        },
+        "boot_dqn_continuous": {
+            "DeepSea/prms_0": (0.61, 0.2),
+            "DeepSea/prms_1": (0.85, 0.27),
+            "DeepSea/prms_2": (0.62, 0.15),
+            "FrozenLake/prms_0": (0.26, 0.11),
+            "FrozenLake/prms_1": (0.51, 0.14),
+            "MiniGridEmpty/prms_0": (0.77, 0.41),
+            "MiniGridEmpty/prms_1": (0.38, 0.43),
+            "MiniGridEmpty/prms_2": (0.32, 0.43),
+            "MiniGridEmpty/prms_3": (0.77, 0.41),
+            "MiniGridEmpty/prms_4": (0.69, 0.46),
+            "MiniGridRooms/prms_0": (0.74, 0.35),
+            "MiniGridRooms/prms_1": (0.62, 0.43),
+            "MiniGridRooms/prms_2": (0.77, 0.36),
+            "RiverSwim/prms_0": (0.14, 0.3),
+            "RiverSwim/prms_1": (0.0, 0.01),
+            "SimpleGrid/prms_0": (0.55, 0.48),
+            "SimpleGrid/prms_1": (0.35, 0.22),
+            "SimpleGrid/prms_2": (0.55, 0.45),
+            "SimpleGrid/prms_3": (0.3, 0.25),
+            "Taxi/prms_0": (0.93, 0.02),
+        },
+        "dqn_continuous": {
+            "DeepSea/prms_0": (0.55, 0.0),
+            "DeepSea/prms_1": (0.74, 0.43),
+            "DeepSea/prms_2": (0.54, 0.0),
+            "FrozenLake/prms_0": (0.07, 0.03),
+            "FrozenLake/prms_1": (0.18, 0.04),
+            "MiniGridEmpty/prms_0": (0.14, 0.16),
+            "MiniGridEmpty/prms_1": (0.1, 0.22),
+            "MiniGridEmpty/prms_2": (0.14, 0.3),
+            "MiniGridEmpty/prms_3": (0.06, 0.06),
+            "MiniGridEmpty/prms_4": (0.26, 0.27),
+            "MiniGridRooms/prms_0": (0.26, 0.32),
+            "MiniGridRooms/prms_1": (0.24, 0.35),
+            "MiniGridRooms/prms_2": (0.69, 0.34),
+            "RiverSwim/prms_0": (0.0, 0.0),
+            "RiverSwim/prms_1": (0.0, 0.0),
+            "SimpleGrid/prms_0": (0.01, 0.01),
+            "SimpleGrid/prms_1": (0.04, 0.11),
+            "SimpleGrid/prms_2": (0.01, 0.01),
+            "SimpleGrid/prms_3": (0.01, 0.02),
+            "Taxi/prms_0": (0.81, 0.17),
+        },
+    },
+    "continuous ergodic": {
+        "actor_critic_continuous": {
+            "DeepSea/prms_0": (0.29, 0.43),
+            "FrozenLake/prms_0": (0.11, 0.13),
+            "MiniGridEmpty/prms_0": (0.92, 0.07),
+            "MiniGridEmpty/prms_1": (0.95, 0.02),
+            "MiniGridEmpty/prms_2": (0.87, 0.07),
+            "MiniGridEmpty/prms_3": (0.97, 0.02),
+            "MiniGridEmpty/prms_4": (0.97, 0.03),
+            "MiniGridEmpty/prms_5": (0.99, 0.01),
+            "MiniGridEmpty/prms_6": (0.98, 0.02),
+            "MiniGridEmpty/prms_7": (0.99, 0.0),
+            "MiniGridRooms/prms_0": (0.97, 0.05),
+            "MiniGridRooms/prms_1": (0.99, 0.0),
+            "RiverSwim/prms_0": (0.08, 0.29),
+            "RiverSwim/prms_1": (0.07, 0.23),
+            "RiverSwim/prms_2": (0.0, 0.0),
+            "RiverSwim/prms_3": (0.33, 0.49),
+            "SimpleGrid/prms_0": (0.75, 0.01),
+            "SimpleGrid/prms_1": (0.49, 0.01),
+            "SimpleGrid/prms_2": (0.5, 0.0),
+            "Taxi/prms_0": (0.78, 0.02),
+        },
+        "actor_critic_rnn_continuous": {
+            "DeepSea/prms_0": (0.36, 0.45),
+            "FrozenLake/prms_0": (0.21, 0.28),
+            "MiniGridEmpty/prms_0": (0.97, 0.04),
+            "MiniGridEmpty/prms_1": (0.98, 0.01),
+            "MiniGridEmpty/prms_2": (0.94, 0.06),
+            "MiniGridEmpty/prms_3": (0.97, 0.03),
+            "MiniGridEmpty/prms_4": (0.99, 0.0),
+            "MiniGridEmpty/prms_5": (0.99, 0.01),
+            "MiniGridEmpty/prms_6": (0.99, 0.01),
+            "MiniGridEmpty/prms_7": (0.98, 0.01),
+            "MiniGridRooms/prms_0": (0.99, 0.01),
+            "MiniGridRooms/prms_1": (0.99, 0.0),
+            "RiverSwim/prms_0": (0.33, 0.49),
+            "RiverSwim/prms_1": (0.07, 0.23),
+            "RiverSwim/prms_2": (0.13, 0.31),
+            "RiverSwim/prms_3": (0.17, 0.39),
+            "SimpleGrid/prms_0": (0.76, 0.01),
+            "SimpleGrid/prms_1": (0.49, 0.01),
+            "SimpleGrid/prms_2": (0.5, 0.0),
+            "Taxi/prms_0": (0.78, 0.02),
+        },
+        "boot_dqn_continuous": {
+            "DeepSea/prms_0": (0.27, 0.21),
+            "FrozenLake/prms_0": (0.41, 0.17),
+            "MiniGridEmpty/prms_0": (0.32, 0.18),
+            "MiniGridEmpty/prms_1": (0.35, 0.29),
+            "MiniGridEmpty/prms_2": (0.39, 0.18),
+            "MiniGridEmpty/prms_3": (0.42, 0.24),
+            "MiniGridEmpty/prms_4": (0.57, 0.4),
+            "MiniGridEmpty/prms_5": (0.69, 0.36),
+            "MiniGridEmpty/prms_6": (0.54, 0.43),
+            "MiniGridEmpty/prms_7": (0.73, 0.28),
+            "MiniGridRooms/prms_0": (0.59, 0.35),
+            "MiniGridRooms/prms_1": (0.59, 0.25),
+            "RiverSwim/prms_0": (0.0, 0.01),
+            "RiverSwim/prms_1": (0.01, 0.03),
+            "RiverSwim/prms_2": (0.02, 0.04),
+            "RiverSwim/prms_3": (0.01, 0.02),
+            "SimpleGrid/prms_0": (0.57, 0.27),
+            "SimpleGrid/prms_1": (0.36, 0.16),
+            "SimpleGrid/prms_2": (0.37, 0.18),
+            "Taxi/prms_0": (0.81, 0.03),
+        },
+        "dqn_continuous": {
+            "DeepSea/prms_0": (0.22, 0.39),
+            "FrozenLake/prms_0": (0.11, 0.08),
+            "MiniGridEmpty/prms_0": (0.05, 0.02),
+            "MiniGridEmpty/prms_1": (0.05, 0.02),
+            "MiniGridEmpty/prms_2": (0.1, 0.02),
+            "MiniGridEmpty/prms_3": (0.08, 0.04),
+            "MiniGridEmpty/prms_4": (0.08, 0.05),
+            "MiniGridEmpty/prms_5": (0.12, 0.07),
+            "MiniGridEmpty/prms_6": (0.1, 0.06),
+            "MiniGridEmpty/prms_7": (0.17, 0.08),
+            "MiniGridRooms/prms_0": (0.24, 0.17),
+            "MiniGridRooms/prms_1": (0.38, 0.27),
+            "RiverSwim/prms_0": (0.0, 0.0),
+            "RiverSwim/prms_1": (0.0, 0.0),
+            "RiverSwim/prms_2": (0.0, 0.0),
+            "RiverSwim/prms_3": (0.0, 0.0),
+            "SimpleGrid/prms_0": (0.09, 0.04),
+            "SimpleGrid/prms_1": (0.02, 0.01),
+            "SimpleGrid/prms_2": (0.06, 0.04),
+            "Taxi/prms_0": (0.55, 0.13),
+        },
+    },
+}
+
+NONTABULAR_AVERAGE: dict[str, dict[str, tuple[float, float]]] = {
+    "episodic communicating": {
+        "actor_critic_episodic": (0.69, 0.3),
+        "actor_critic_rnn_episodic": (0.75, 0.28),
+        "boot_dqn_episodic": (0.38, 0.21),
+        "dqn_episodic": (0.19, 0.22),
+    },
+    "episodic ergodic": {
+        "actor_critic_episodic": (0.61, 0.32),
+        "actor_critic_rnn_episodic": (0.67, 0.34),
+        "boot_dqn_episodic": (0.33, 0.18),
+        "dqn_episodic": (0.15, 0.15),
+    },
+    "continuous communicating": {
+        "actor_critic_continuous": (0.36, 0.33),
+        "actor_critic_rnn_continuous": (0.43, 0.31),
+        "boot_dqn_continuous": (0.54, 0.24),
+        "dqn_continuous": (0.24, 0.26),
+    },
+    "continuous ergodic": {
+        "actor_critic_continuous": (0.65, 0.36),
+        "actor_critic_rnn_continuous": (0.68, 0.34),
+        "boot_dqn_continuous": (0.4, 0.24),
+        "dqn_continuous": (0.12, 0.14),
     },
 }
 # fmt: on

@@ -8,13 +8,15 @@ Written by :func:`write_report` (called at the end of :func:`hardness.benchmark.
   - the Table 2-style table: one row per MDP (numbered ``Family (k)`` within its family, as the paper), one column per
     agent with the mean ± standard deviation over seeds (``ddof = 1``) of the per-step normalised cumulative regret
     (final ``normalized_cumulative_regret / steps``, App. E), the lowest mean of the learning agents in bold (ties at
-    the printed precision too; the random agent is a baseline, never bold), the paper's Table 2 number of the agent
-    beside it where the paper has one, and the seeds completed; an *Average* row: mean ± standard deviation
-    (``ddof = 0``) over the MDPs of the per-MDP means, Table 2's rule (when a run covers only some of a set's MDPs,
-    the paper's average is recomputed by the same rule over the same MDPs, and the row says so);
+    the printed precision too; the random agent is a baseline, never bold), the paper's number of the agent beside
+    it where the paper has one (Table 2 for the tabular agents; App. G's non-tabular table for the deep agents when
+    the run's emission is the paper's ``state_info``, :func:`~hardness.benchmark.published.regret_table`), and the
+    seeds completed; an *Average* row: mean ± standard deviation (``ddof = 0``) over the MDPs of the per-MDP means,
+    Table 2's rule (when a run covers only some of a set's MDPs, the paper's average is recomputed by the same rule
+    over the same MDPs, and the row says so);
   - the App. G-style table: one row per (MDP, agent): normalised cumulative reward, expected reward and regret, the
-    paper's regret, steps per second of one member (``n_steps`` over its batch's lockstep run time) and completed
-    seeds, ours and the paper's (whose runs were cut off after ten minutes);
+    paper's regret (as in the first table), steps per second of one member (``n_steps`` over its batch's lockstep run
+    time) and completed seeds, ours and the paper's (tabular agents only; their runs were cut off after ten minutes);
 
 * ``curves_<set>.png/.pdf``: the cumulative regret of every agent (mean over seeds) against the steps, one panel per
   MDP, with the random agent as baseline (its own runs when it was run, else the uniform policy's exact expected
@@ -134,7 +136,8 @@ def _fmt(mean: float, std: float, digits: int, bold: bool, latex: bool) -> str:
 def _table2_rows(s: Summary, set_name: str, latex: bool) -> tuple[list[str], list[list[str]]]:
     """Header and rows of the Table 2-style table (module docstring)."""
     agents = s.agents(set_name)
-    paper_agents = [a for a in agents if a in published.TABLE2.get(set_name, {})]
+    paper = published.regret_table(set_name, s.settings.get("emission"))
+    paper_agents = [a for a in agents if a in paper]
     header = ["MDP"] + agents + [f"{a} (paper)" for a in paper_agents] + ["seeds"]
     display = _display_labels([i.label for i in sets.instances(set_name)])
     rows, means = [], defaultdict(list)
@@ -151,7 +154,7 @@ def _table2_rows(s: Summary, set_name: str, latex: bool) -> tuple[list[str], lis
             means[a].append(c[0])
             row.append(_fmt(c[0], c[1], 3, _is_learning(a) and round(c[0], 3) == best, latex))
         for a in paper_agents:
-            p = published.table2(set_name, a, label)
+            p = paper[a].get(label)
             row.append(_fmt(p[0], p[1], 2, False, latex) if p else "")
         done = [c[2] for c in cells.values() if c is not None]
         row.append(f"{min(done) if len(done) == len(agents) else 0}/{s.n_seeds}")
@@ -163,10 +166,10 @@ def _table2_rows(s: Summary, set_name: str, latex: bool) -> tuple[list[str], lis
         x = np.asarray(means[a])
         avg.append(_fmt(float(x.mean()), float(x.std()), 3, False, latex) if x.size else "")
     for a in paper_agents:
-        if len(labels) == n_set:  # the whole set: Table 2's own average row
-            p = published.TABLE2_AVERAGE[set_name][a]
+        if len(labels) == n_set:  # the whole set: the paper's own average row
+            p = published.regret_average(set_name, a)
         else:  # a subset: the same rule (mean, std with ddof 0) over the paper's numbers of the MDPs shown
-            x = np.asarray([q[0] for q in (published.table2(set_name, a, lb) for lb in labels) if q])
+            x = np.asarray([q[0] for q in (paper[a].get(lb) for lb in labels) if q])
             p = (float(x.mean()), float(x.std())) if x.size else None
         avg.append(_fmt(p[0], p[1], 2, False, latex) if p else "")
     avg.append("")
@@ -179,6 +182,7 @@ def _appendix_rows(s: Summary, set_name: str, latex: bool) -> tuple[list[str], l
     header = ["MDP", "agent", "norm. cum. reward", "norm. cum. expected reward", "norm. cum. regret",
               "regret (paper)", "steps/s", "completed seeds", "completed (paper)"]
     display = _display_labels([i.label for i in sets.instances(set_name)])
+    paper = published.regret_table(set_name, s.settings.get("emission"))
     rows = []
     for label in s.labels(set_name):
         for k, a in enumerate(s.agents(set_name)):
@@ -188,11 +192,11 @@ def _appendix_rows(s: Summary, set_name: str, latex: bool) -> tuple[list[str], l
             fields = [s.cell(set_name, label, a, f) for f in ("normalized_cumulative_reward",
                                                                "normalized_cumulative_expected_reward")]
             fields = [(c[0] / s.n_steps, c[1] / s.n_steps) for c in fields]
-            p = published.appendix_g(set_name, a, label)
+            p, p_regret = published.appendix_g(set_name, a, label), paper.get(a, {}).get(label)
             rows.append([display[label] if k == 0 else "", a]
                         + [_fmt(m, sd, 3, False, latex) for m, sd in fields]
                         + [_fmt(regret[0], regret[1], 3, False, latex),
-                           _fmt(*p.regret, 2, False, latex) if p else "",
+                           _fmt(*p_regret, 2, False, latex) if p_regret else "",
                            f"{s.rates[(set_name, label, a)]:,.0f}",
                            f"{regret[2]}/{s.n_seeds}", f"{p.completed}/20" if p else ""])
     return header, rows
