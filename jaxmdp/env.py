@@ -32,7 +32,7 @@ from flax import struct
 
 from jaxmdp.blockmdp.block_mdp import BlockMDP, noise_key, observe
 from jaxmdp.mdp import MDP
-from jaxmdp.sampling.beta_sampling import sample_beta
+from jaxmdp.sampling.beta_shared import sample_beta_shared
 
 __all__ = ["EnvState", "reset", "step", "sample_action", "sample_next_state", "sample_reward"]
 
@@ -75,7 +75,7 @@ def _reward_draw(key: jax.Array, mdp: MDP, mean: jax.Array, conc: jax.Array) -> 
     stochastic = conc > 0
     alpha = jnp.where(stochastic, mean * conc, 1.0)
     beta = jnp.where(stochastic, (1.0 - mean) * conc, 1.0)
-    draw = sample_beta(key, alpha, beta, dtype=mdp.dtype)
+    draw = sample_beta_shared(key, alpha, beta, dtype=mdp.dtype)
     return jnp.where(stochastic, draw, mean)
 
 

@@ -59,6 +59,7 @@ nothing hangs. Hence ``Beta(0, b) = 0`` and ``Beta(a, 0) = 1`` for proper ``a, b
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
@@ -132,25 +133,11 @@ def _round(key: jax.Array, r: jax.Array, n: int, ab: jax.Array, shapes: tuple[Sh
     return jnp.where(has_a & has_b, ea / (ea + eb), -1.0)
 
 
-@functools.partial(jax.jit, static_argnames=("trials", "dtype"))
-def sample_beta_shared(
-    key: jax.Array, a: jax.Array, b: jax.Array, *, trials: int = DEFAULT_TRIALS, dtype=jnp.float32
-) -> jax.Array:
-    """One ``Beta(a, b) = G_a / (G_a + G_b)`` draw for scalar shapes ``a, b > 0`` (``vmap`` for more), exact.
-
-    ``G_a``, ``G_b`` (``Gamma(shape, 1)``, kept as logs so that tiny shapes do not underflow) are the first accepted
-    Marsaglia-Tsang trials of one shared sequence, in rounds of ``trials >= 2`` trials, a round that does not accept
-    both being drawn again (module docstring). Returns the draw in ``dtype`` (float32, or float64 with x64).
-    """
-    if trials < 2:
-        raise ValueError(f"sample_beta_shared: trials must be >= 2 (one trial per Gamma at least), got {trials}")
-    a, b = jnp.asarray(a, dtype), jnp.asarray(b, dtype)
-    if a.shape != () or b.shape != ():
-        raise ValueError(
-            f"sample_beta_shared: a and b must be scalars (vmap for more); got shapes {a.shape}, {b.shape}"
-        )
-    work = jnp.float64 if a.dtype == jnp.float64 else jnp.float32
-    ab = jnp.stack([a, b]).astype(work)
+def _draw(data: jax.Array, a: jax.Array, b: jax.Array, *, trials: int, impl: str | None) -> jax.Array:
+    """The draw of one key (its raw words ``data``; ``impl`` the name of a typed key's implementation, None for a raw
+    key) and one pair of shapes (scalars of the working dtype): scalar code, meant to run under ``vmap``."""
+    key = data if impl is None else jax.random.wrap_key_data(data, impl=impl)
+    ab = jnp.stack([a, b])
     ok = jnp.where((ab > 0) & (ab < jnp.inf), ab, 1.0)  # improper shapes are drawn as 1, then replaced
     shapes = (shape_terms(ok[0]), shape_terms(ok[1]))
     # Round 0 outside the loop: under vmap the loop then runs only at the steps where some member needs it. The loop
@@ -161,4 +148,60 @@ def sample_beta_shared(
         lambda carry: (carry[0] + 1, _round(key, carry[0], trials, ab, shapes)),
         (jnp.int32(1), first),
     )
-    return draw.astype(a.dtype)
+    return draw
+
+
+def _padded(args: tuple[jax.Array, jax.Array, jax.Array], dummy: tuple[np.ndarray, np.ndarray, np.ndarray]):
+    """``args`` (a leading axis of members) with one dummy member appended: a batch that XLA cannot treat as one
+    element (module docstring, "Batches")."""
+    return tuple(jnp.concatenate([x, jnp.asarray(d, x.dtype)[None]]) for x, d in zip(args, dummy))
+
+
+@functools.lru_cache(maxsize=None)
+def _lanes(trials: int, impl: str | None, key_words: int, dtype) -> Callable:
+    """The sampler of one key and pair of shapes as a ``custom_vmap`` function of ``(key words, a, b)`` that always
+    evaluates the vectorised code of a batch of at least two members: alone, with a dummy member appended; under
+    ``vmap``, over the batch (with a dummy member if the batch has one member)."""
+    draws = jax.vmap(functools.partial(_draw, trials=trials, impl=impl))
+    # Raw key words and shapes of the dummy member; shape 1 with these words is accepted in round 0 (tested).
+    dummy = (np.arange(1, key_words + 1, dtype=np.uint32), np.array(1.0, dtype), np.array(1.0, dtype))
+
+    @jax.custom_batching.custom_vmap
+    def lanes(data, a, b):
+        return draws(*_padded((data[None], a[None], b[None]), dummy))[0]
+
+    @lanes.def_vmap
+    def _batched(axis_size, in_batched, data, a, b):
+        args = tuple(x if batched else jnp.broadcast_to(x, (axis_size, *x.shape))
+                     for x, batched in zip((data, a, b), in_batched))
+        if axis_size == 1 or not all(in_batched):  # (a broadcast member's arithmetic may be hoisted to scalar code)
+            return draws(*_padded(args, dummy))[:axis_size], True
+        return draws(*args), True
+
+    return lanes
+
+
+@functools.partial(jax.jit, static_argnames=("trials", "dtype"))
+def sample_beta_shared(
+    key: jax.Array, a: jax.Array, b: jax.Array, *, trials: int = DEFAULT_TRIALS, dtype=jnp.float32
+) -> jax.Array:
+    """One ``Beta(a, b) = G_a / (G_a + G_b)`` draw for scalar shapes ``a, b > 0`` (``vmap`` for more), exact.
+
+    ``G_a``, ``G_b`` (``Gamma(shape, 1)``, kept as logs so that tiny shapes do not underflow) are the first accepted
+    Marsaglia-Tsang trials of one shared sequence, in rounds of ``trials >= 2`` trials, a round that does not accept
+    both being drawn again (module docstring). Returns the draw in ``dtype`` (float32, or float64 with x64); a member
+    of a ``vmap``-ed batch gets bit for bit its value alone.
+    """
+    if trials < 2:
+        raise ValueError(f"sample_beta_shared: trials must be >= 2 (one trial per Gamma at least), got {trials}")
+    a, b = jnp.asarray(a, dtype), jnp.asarray(b, dtype)
+    if a.shape != () or b.shape != ():
+        raise ValueError(
+            f"sample_beta_shared: a and b must be scalars (vmap for more); got shapes {a.shape}, {b.shape}"
+        )
+    work = jnp.float64 if a.dtype == jnp.float64 else jnp.float32
+    typed = jnp.issubdtype(key.dtype, jax.dtypes.prng_key)
+    data = jax.random.key_data(key) if typed else key
+    impl = str(jax.random.key_impl(key)) if typed else None
+    lanes = _lanes(trials, impl, data.shape[0], np.dtype(work))
+    return lanes(data, a.astype(work), b.astype(work)).astype(a.dtype)
