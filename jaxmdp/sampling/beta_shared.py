@@ -1,4 +1,4 @@
-"""Candidate reward sampler, not used by the step yet: exact Beta draws, one pair of shapes at a time,
+"""The step's reward sampler (:func:`jaxmdp.env.sample_reward`): exact Beta draws, one pair of shapes at a time,
 ``Beta(a, b) = G_a / (G_a + G_b)`` with the two Gammas taken from one sequence of Marsaglia-Tsang trials.
 
 **Why.** The environment draws one Beta per step and environment: two shapes per member under ``vmap``. Drawn with
@@ -9,16 +9,31 @@ draw costs twice as much as the rest of a step and holds most families near 3 M 
 call is a rolled loop over memory (:mod:`jaxmdp.sampling.threefry`), arrays of a few entries per member vectorise
 badly under ``vmap`` (the member axis is not the innermost one; XLA also splits their fusions), and the round loop runs
 at every step. Here a round is ``trials`` (default 4) trials in scalar code, each from one unrolled Threefry hash, round
-0 sits outside the loop, and a second round is needed at under 0.05% of the draws: the step ran 1.8-2.6x faster on
-the families with Beta rewards (docs/benchmarks/bench_env.md).
+0 sits outside the loop, and a second round is needed at under 0.05% of the draws: the step runs about 2-3x faster
+on the families with Beta rewards than with :func:`~jaxmdp.sampling.beta_sampling.sample_beta`
+(docs/benchmarks/bench_env.md). Seeded results made before this sampler became the step's (2026-11-26) drew their
+rewards from the old stream: the same distribution, other draws.
 
-**Why not yet in the step.** A member of a ``vmap``-ed batch does not always get bit for bit its value alone (about 4%
-of the draws differ in the last bits, some in an acceptance): XLA CPU compiles single-element fusions (an unbatched
-call's scalar code) through another emitter than the vectorised kernels of a batch, and the two contract different
-multiply-adds into FMAs (``ln t(x)`` and ``ln G`` differ). The project guarantees that batched trajectories equal single
-runs (tests/test_env.py), which :func:`~jaxmdp.sampling.beta_sampling.sample_beta` keeps because its trials are arrays
-of eight per member in both programs. Arrays of eight here (4 trials x 2 shapes) kept the property in one test but lost
-the speed (XLA split and duplicated the fusions); tests/test_beta_rewards.py marks the gap as an expected failure.
+**Batches.** A member of a ``vmap``-ed batch gets bit for bit its value alone (the project's guarantee that batched
+trajectories equal single runs, tests/test_env.py), which scalar code alone does not give on XLA CPU: a single call
+(and a ``vmap`` over one member) is compiled as scalar code, a batch of two or more members as vectorised loops, and
+the two round differently. Measured (256 draws, each intermediate taken out as an output): the uniforms, ``erf_inv``,
+``x``, ``1 + c x``, ``v``, ``ln v``, ``ln w`` and the shape terms agree bit for bit, ``ln t(x) = x^2 / 2 + d (1 - v +
+ln v)`` differs in 254 of 256 (the batch computes ``fma(x / 2, x, d (1 - v + ln v))`` in all 256; the scalar code none
+of the simple contractions tried), ``ln G`` in 6; with everything fused about 4% of the draws differ in the last bits,
+some in an acceptance. XLA emits the same LLVM IR for both apart from the vector types (for a kernel of ``ln t(x)``: 63
+``fadd``, 67 against 68 ``fmul``, no FMA, ``rsqrtss`` against ``vrsqrtps``); the multiply-adds are contracted into FMAs by the x86 back end, differently
+for scalar and vector code. Batches of 2, 3, 4, 7, 8, 16, 60 and 255 members all give the bits of a batch of 1024:
+only the one-member case differs. Hence a ``jax.custom_batching.custom_vmap`` rule: a single call evaluates the
+vectorised code of a batch of two, itself and a dummy member (fixed key words, shapes 1, accepted in round 0, tested),
+and keeps its own value; under ``vmap`` a batch runs the vectorised code as is, with the dummy member appended when it
+has one member or when an argument is shared by the members (a ``vmap`` with ``in_axes=None``: XLA would compute the
+broadcast shape's terms once, in scalar code). Nested ``vmap``, ``lax.map``, ``jit`` and eager calls keep the property
+(tests/test_beta_rewards.py); the speed is that of the plain scalar sampler (docs/benchmarks/bench_env.md).
+Broadcasting one member to a batch of eight does not work instead: XLA moves the arithmetic before the broadcast.
+Shapes that are compile-time constants (closed over, not arguments) are folded by XLA on the host and may differ in the
+last bits from the same shapes passed as arguments, as for :mod:`~jaxmdp.sampling.beta_sampling`. No gradient rule:
+the sampler is not differentiable (nor needs to be).
 
 **Method.** Trials ``1, 2, ...`` are i.i.d.: trial ``j`` has the normal ``x_j = sqrt(2) erf_inv(2 u_j - 1)`` and the
 uniform ``w_j = 1 - u'_j`` on ``(0, 1]`` (the Marsaglia-Tsang trial of :mod:`~jaxmdp.sampling.beta_sampling`,
@@ -47,8 +62,8 @@ take one 64-bit word (both words of a hash, top 52 bits) per uniform, from count
 another implementation (``rbg``) draw trial ``j``'s words with ``jax.random.bits(fold_in(key, j))``. As
 ``jax.random.normal``, ``x`` stops at about 5.4 (``P(|x| > 5.4) ~ 7e-8``).
 
-**Same key, same value.** The value is a function of the key, the shapes and ``trials``, up to the last-bit
-differences between a batch and a single call described above.
+**Same key, same value.** The value is a function of the key, the shapes and ``trials``, whether drawn alone or as a
+member of a batch ("Batches").
 
 **Bad input.** As :func:`~jaxmdp.sampling.beta_sampling.sample_log_gamma`: a zero shape is a Gamma of 0 (``ln G =
 -inf``), an infinite one ``+inf``, a negative or NaN one NaN; such shapes are drawn as shape 1 and replaced, so
