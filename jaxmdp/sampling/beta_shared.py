@@ -15,25 +15,25 @@ on the families with Beta rewards than with :func:`~jaxmdp.sampling.beta_samplin
 rewards from the old stream: the same distribution, other draws.
 
 **Batches.** A member of a ``vmap``-ed batch gets bit for bit its value alone (the project's guarantee that batched
-trajectories equal single runs, tests/test_env.py), which scalar code alone does not give on XLA CPU: a single call
-(and a ``vmap`` over one member) is compiled as scalar code, a batch of two or more members as vectorised loops, and
-the two round differently. Measured (256 draws, each intermediate taken out as an output): the uniforms, ``erf_inv``,
-``x``, ``1 + c x``, ``v``, ``ln v``, ``ln w`` and the shape terms agree bit for bit, ``ln t(x) = x^2 / 2 + d (1 - v +
-ln v)`` differs in 254 of 256 (the batch computes ``fma(x / 2, x, d (1 - v + ln v))`` in all 256; the scalar code none
-of the simple contractions tried), ``ln G`` in 6; with everything fused about 4% of the draws differ in the last bits,
-some in an acceptance. XLA emits the same LLVM IR for both apart from the vector types (for a kernel of ``ln t(x)``: 63
-``fadd``, 67 against 68 ``fmul``, no FMA, ``rsqrtss`` against ``vrsqrtps``); the multiply-adds are contracted into FMAs by the x86 back end, differently
-for scalar and vector code. Batches of 2, 3, 4, 7, 8, 16, 60 and 255 members all give the bits of a batch of 1024:
-only the one-member case differs. Hence a ``jax.custom_batching.custom_vmap`` rule: a single call evaluates the
-vectorised code of a batch of two, itself and a dummy member (fixed key words, shapes 1, accepted in round 0, tested),
-and keeps its own value; under ``vmap`` a batch runs the vectorised code as is, with the dummy member appended when it
-has one member or when an argument is shared by the members (a ``vmap`` with ``in_axes=None``: XLA would compute the
-broadcast shape's terms once, in scalar code). Nested ``vmap``, ``lax.map``, ``jit`` and eager calls keep the property
-(tests/test_beta_rewards.py); the speed is that of the plain scalar sampler (docs/benchmarks/bench_env.md).
-Broadcasting one member to a batch of eight does not work instead: XLA moves the arithmetic before the broadcast.
-Shapes that are compile-time constants (closed over, not arguments) are folded by XLA on the host and may differ in the
-last bits from the same shapes passed as arguments, as for :mod:`~jaxmdp.sampling.beta_sampling`. No gradient rule:
-the sampler is not differentiable (nor needs to be).
+trajectories equal single runs, tests/test_env.py), which scalar code alone does not give on XLA CPU: a single call (and
+a ``vmap`` over one member) is compiled as scalar code, a batch of two or more members as vectorised loops, and the two
+round differently. Measured (256 draws, each intermediate taken out as an output): the uniforms, ``erf_inv``, ``x``, ``1
++ c x``, ``v``, ``ln v``, ``ln w`` and the shape terms agree bit for bit, ``ln t(x) = x^2 / 2 + d (1 - v + ln v)``
+differs in 254 of 256 (the batch computes ``fma(x / 2, x, d (1 - v + ln v))`` in all 256; the scalar code none of the
+simple contractions tried), ``ln G`` in 6; with everything fused about 4% of the draws differ in the last bits, some in
+an acceptance. XLA emits the same LLVM IR for both apart from the vector types (for a kernel of ``ln t(x)``: 63
+``fadd``, 67 against 68 ``fmul``, no FMA, ``rsqrtss`` against ``vrsqrtps``); the multiply-adds are contracted into FMAs
+by the x86 back end, differently for scalar and vector code. Batches of 2, 3, 4, 7, 8, 16, 60 and 255 members all give
+the bits of a batch of 1024: only the one-member case differs. Hence a ``jax.custom_batching.custom_vmap`` rule: a
+single call evaluates the vectorised code of a batch of two, itself and a dummy member (fixed key words, shapes 1,
+accepted in round 0, tested), and keeps its own value; under ``vmap`` a batch runs the vectorised code as is, with the
+dummy member appended when it has one member or when an argument is shared by the members (a ``vmap`` with
+``in_axes=None``: XLA would compute the broadcast shape's terms once, in scalar code). Nested ``vmap``, ``lax.map``,
+``jit`` and eager calls keep the property (tests/test_beta_rewards.py); the speed is that of the plain scalar sampler
+(docs/benchmarks/bench_env.md). Broadcasting one member to a batch of eight does not work instead: XLA moves the
+arithmetic before the broadcast. Shapes that are compile-time constants (closed over, not arguments) are folded by XLA
+on the host and may differ in the last bits from the same shapes passed as arguments, as for
+:mod:`~jaxmdp.sampling.beta_sampling`. No gradient rule: the sampler is not differentiable (nor needs to be).
 
 **Method.** Trials ``1, 2, ...`` are i.i.d.: trial ``j`` has the normal ``x_j = sqrt(2) erf_inv(2 u_j - 1)`` and the
 uniform ``w_j = 1 - u'_j`` on ``(0, 1]`` (the Marsaglia-Tsang trial of :mod:`~jaxmdp.sampling.beta_sampling`,
@@ -55,11 +55,11 @@ trials were the fastest at 1024 environments on the families (docs/benchmarks/be
 **Random numbers.** Threefry-2x32 of the key (the function ``jax.random`` uses;
 :func:`jaxmdp.sampling.threefry.threefry2x32`) on the counters ``(T, j)``, ``T = 0x62657461`` ("beta"): trial ``j``
 (counted over rounds) uses both 32-bit words of the hash of counter ``j``, the first for ``u_j`` and the second for
-``u'_j`` (``jax.random`` keeps one 32-bit word per hash, the XOR of the two). ``jax.random`` hashes counters whose high word is 0 (``split``,
-``fold_in``, ``bits`` of arrays below ``2^32`` entries), so the sampler never reuses a hash that a ``jax.random`` call
-on the same key computes. Uniforms take a word's top 23 bits (float32) as ``jax.random.uniform`` does; float64 trials
-take one 64-bit word (both words of a hash, top 52 bits) per uniform, from counters ``2 j`` and ``2 j + 1``. Keys of
-another implementation (``rbg``) draw trial ``j``'s words with ``jax.random.bits(fold_in(key, j))``. As
+``u'_j`` (``jax.random`` keeps one 32-bit word per hash, the XOR of the two). ``jax.random`` hashes counters whose high
+word is 0 (``split``, ``fold_in``, ``bits`` of arrays below ``2^32`` entries), so the sampler never reuses a hash that a
+``jax.random`` call on the same key computes. Uniforms take a word's top 23 bits (float32) as ``jax.random.uniform``
+does; float64 trials take one 64-bit word (both words of a hash, top 52 bits) per uniform, from counters ``2 j`` and ``2
+j + 1``. Keys of another implementation (``rbg``) draw trial ``j``'s words with ``jax.random.bits(fold_in(key, j))``. As
 ``jax.random.normal``, ``x`` stops at about 5.4 (``P(|x| > 5.4) ~ 7e-8``).
 
 **Same key, same value.** The value is a function of the key, the shapes and ``trials``, whether drawn alone or as a
@@ -176,7 +176,7 @@ def _padded(args: tuple[jax.Array, jax.Array, jax.Array], dummy: tuple[np.ndarra
 def _lanes(trials: int, impl: str | None, key_words: int, dtype) -> Callable:
     """The sampler of one key and pair of shapes as a ``custom_vmap`` function of ``(key words, a, b)`` that always
     evaluates the vectorised code of a batch of at least two members: alone, with a dummy member appended; under
-    ``vmap``, over the batch (with a dummy member if the batch has one member)."""
+    ``vmap``, over the batch (with a dummy member if it has one member or shares an argument)."""
     draws = jax.vmap(functools.partial(_draw, trials=trials, impl=impl))
     # Raw key words and shapes of the dummy member; shape 1 with these words is accepted in round 0 (tested).
     dummy = (np.arange(1, key_words + 1, dtype=np.uint32), np.array(1.0, dtype), np.array(1.0, dtype))
