@@ -105,7 +105,7 @@ def sample_reward(
     Beta draws use :func:`jaxmdp.sampling.beta_shared.sample_beta_shared` (exact; a member of a ``vmap``-ed batch
     gets bit for bit its single call's value; 2-3x faster steps than
     :func:`jaxmdp.sampling.beta_sampling.sample_beta`, itself several times faster than ``jax.random.beta`` under
-    ``vmap``). Rewards drawn before 2026-11-26 came from ``sample_beta``'s stream. MDPs whose static
+    ``vmap``). Seeded rewards drawn before branch ``betabits`` came from ``sample_beta``'s stream. MDPs whose static
     ``stochastic_rewards`` is False (no Beta reward anywhere, recorded at construction) compile no draw at all: the
     reward is the mean.
     """

@@ -11,7 +11,7 @@ badly under ``vmap`` (the member axis is not the innermost one; XLA also splits 
 at every step. Here a round is ``trials`` (default 4) trials in scalar code, each from one unrolled Threefry hash, round
 0 sits outside the loop, and a second round is needed at under 0.05% of the draws: the step runs about 2-3x faster
 on the families with Beta rewards than with :func:`~jaxmdp.sampling.beta_sampling.sample_beta`
-(docs/benchmarks/bench_env.md). Seeded results made before this sampler became the step's (2026-11-26) drew their
+(docs/benchmarks/bench_env.md). Seeded results made before this sampler became the step's (branch betabits) drew their
 rewards from the old stream: the same distribution, other draws.
 
 **Batches.** A member of a ``vmap``-ed batch gets bit for bit its value alone (the project's guarantee that batched
