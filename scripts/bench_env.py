@@ -13,9 +13,10 @@ Prints the tables and writes ``docs/benchmarks/bench_env.md`` (with the command)
     python scripts/bench_env.py --families      # gymnax, then every family's step against the old step
 
 ``--families`` (after the gymnax comparison, without the size sweep) times, in the same process, the step of every
-family's quick-test MDPs (``docs/benchmark.md §3``, both settings, and MiniGridDoorKey) against the same step with the
-candidate Beta sampler :func:`jaxmdp.sampling.beta_shared.sample_beta_shared` (:func:`step_with_shared_sampler`; not
-the step's sampler yet, see its module) and against the old step, the dense formulation that ``jaxmdp.step`` replaced
+family's quick-test MDPs (``docs/benchmark.md §3``, both settings, and MiniGridDoorKey; its Beta sampler
+:func:`jaxmdp.sampling.beta_shared.sample_beta_shared`) against the same step with the previous Beta sampler
+:func:`jaxmdp.sampling.beta_sampling.sample_beta` (:func:`step_with_old_sampler`) and against the old step, the dense
+formulation that ``jaxmdp.step`` replaced
 (its code is kept here as :func:`old_step`: a reset state drawn by a cumulative sum over the whole ``P0`` at every
 episodic step, the successor by a cumulative sum over the successor list, every draw compiled), at 1024 environments
 and 500 steps of random actions (the same draw for all), best of 5 interleaved runs; it writes the table into the
@@ -39,7 +40,6 @@ from jaxmdp.env import EnvState
 import jaxmdp.env
 from jaxmdp.experiment import compilation
 from jaxmdp.sampling.beta_sampling import sample_beta
-from jaxmdp.sampling.beta_shared import sample_beta_shared
 
 DEEPSEA_SIZE, DEEPSEA_ENVS, DEEPSEA_STEPS, DEEPSEA_REPEATS = 20, 1024, 500, 5
 FAMILY_ENVS, FAMILY_STEPS, FAMILY_REPEATS = 1024, 500, 5
@@ -137,15 +137,15 @@ def time_runner(run, repeats: int) -> tuple[float, float]:
     return compile_s, best
 
 
-def step_with_shared_sampler(key: jax.Array, state: EnvState, action: jax.Array, mdp: jaxmdp.MDP):
-    """``jaxmdp.step`` with :func:`~jaxmdp.sampling.beta_shared.sample_beta_shared` as its Beta sampler (swapped in
-    while the step is traced): what the step would cost with it."""
-    current = jaxmdp.env.sample_beta
-    jaxmdp.env.sample_beta = sample_beta_shared
+def step_with_old_sampler(key: jax.Array, state: EnvState, action: jax.Array, mdp: jaxmdp.MDP):
+    """``jaxmdp.step`` with the previous Beta sampler :func:`~jaxmdp.sampling.beta_sampling.sample_beta` swapped in
+    while the step is traced (the step before the shared sampler of :mod:`jaxmdp.sampling.beta_shared`)."""
+    current = jaxmdp.env.sample_beta_shared
+    jaxmdp.env.sample_beta_shared = sample_beta
     try:
         return jaxmdp.step(key, state, action, mdp)
     finally:
-        jaxmdp.env.sample_beta = current
+        jaxmdp.env.sample_beta_shared = current
 
 
 def old_step(key: jax.Array, state: EnvState, action: jax.Array, mdp: jaxmdp.MDP):
@@ -195,12 +195,12 @@ def family_mdps() -> list[tuple[str, jaxmdp.MDP]]:
 
 
 def families_comparison(n_envs: int, n_steps: int, repeats: int) -> list[dict]:
-    """``jaxmdp.step`` against :func:`step_with_shared_sampler` and :func:`old_step` on every family's MDPs, same
+    """``jaxmdp.step`` against :func:`step_with_old_sampler` and :func:`old_step` on every family's MDPs, same
     process, interleaved runs, best of each."""
     rows = []
     for name, mdp in family_mdps():
         mdp = mdp.strip()
-        steps = (("new", jaxmdp.step), ("shared", step_with_shared_sampler), ("old", old_step))
+        steps = (("new", jaxmdp.step), ("old_sampler", step_with_old_sampler), ("old", old_step))
         runners = {
             which: lockstep_runner(lambda k: jaxmdp.reset(k, mdp), lambda k, s, a, f=f: f(k, s, a, mdp),
                                    mdp.n_actions, n_envs, n_steps)
@@ -218,13 +218,14 @@ def families_comparison(n_envs: int, n_steps: int, repeats: int) -> list[dict]:
                 t0 = time.perf_counter()
                 run(jax.random.key(i + 1)).block_until_ready()
                 best[which] = min(best[which], time.perf_counter() - t0)
-        new, shared, old = (n_envs * n_steps / best[w] for w in ("new", "shared", "old"))
+        new, old_sampler, old = (n_envs * n_steps / best[w] for w in ("new", "old_sampler", "old"))
         rows.append(dict(mdp=name, n_states=mdp.n_states, K=mdp.succ.shape[-1], beta=mdp.stochastic_rewards,
-                         n_envs=n_envs, n_steps=n_steps, new_steps_per_s=new, shared_steps_per_s=shared,
-                         old_steps_per_s=old, shared_speedup=shared / new, speedup=new / old,
+                         n_envs=n_envs, n_steps=n_steps, new_steps_per_s=new, old_sampler_steps_per_s=old_sampler,
+                         old_steps_per_s=old, sampler_speedup=new / old_sampler, speedup=new / old,
                          compile_s=compile_s["new"]))
-        print(f"{name:30s} S={mdp.n_states:4d}: step {new / 1e6:7.2f} M/s, shared sampler {shared / 1e6:7.2f} M/s "
-              f"({shared / new:.2f}x), old step {old / 1e6:7.2f} M/s ({new / old:.2f}x)", flush=True)
+        print(f"{name:30s} S={mdp.n_states:4d}: step {new / 1e6:7.2f} M/s, with the old sampler "
+              f"{old_sampler / 1e6:7.2f} M/s (step {new / old_sampler:.2f}x), old step {old / 1e6:7.2f} M/s "
+              f"(step {new / old:.2f}x)", flush=True)
     return rows
 
 
@@ -338,17 +339,19 @@ def main() -> None:
             "",
             f"The quick-test MDPs of every family (seed 0) and MiniGridDoorKey, {FAMILY_ENVS} environments, "
             f"{FAMILY_STEPS} steps of uniformly random actions (the same draw for all), best of {FAMILY_REPEATS} "
-            "interleaved runs: `jaxmdp.step` against the same step with the candidate Beta sampler "
-            "`jaxmdp.sampling.beta_shared` (not the step's sampler yet) and against the dense step it replaced "
-            "(`old_step` in the script). Beta: whether the MDP has Beta rewards (else no draw is compiled).",
+            "interleaved runs: `jaxmdp.step` (Beta sampler `jaxmdp.sampling.beta_shared`) against the same step "
+            "with the previous Beta sampler `jaxmdp.sampling.beta_sampling.sample_beta` (`step_with_old_sampler` in "
+            "the script) and against the dense step it replaced (`old_step`, with the previous sampler). Beta: "
+            "whether the MDP has Beta rewards (else no draw is compiled).",
             "",
-            "| MDP | S | K | Beta | step, M steps/s | with shared sampler, M steps/s | its speed-up | "
+            "| MDP | S | K | Beta | step, M steps/s | with the old sampler, M steps/s | step / old sampler | "
             "old step, M steps/s | step / old step | compile s |",
             "|---|---|---|---|---|---|---|---|---|---|",
         ]
         lines += [
             f"| {r['mdp']} | {r['n_states']} | {r['K']} | {'yes' if r['beta'] else 'no'} | "
-            f"{r['new_steps_per_s'] / 1e6:.2f} | {r['shared_steps_per_s'] / 1e6:.2f} | {r['shared_speedup']:.2f}x | "
+            f"{r['new_steps_per_s'] / 1e6:.2f} | {r['old_sampler_steps_per_s'] / 1e6:.2f} | "
+            f"{r['sampler_speedup']:.2f}x | "
             f"{r['old_steps_per_s'] / 1e6:.2f} | {r['speedup']:.2f}x | {r['compile_s']:.2f} |" for r in families
         ]
     args.doc.parent.mkdir(parents=True, exist_ok=True)

@@ -1,8 +1,8 @@
 """Exact Gamma and Beta variates that vectorise well: rejection sampling whose rare rejections are compacted.
 
-The one Gamma sampler of the project: environment rewards (Beta) and the agents' Dirichlet and Normal-Gamma
-posterior draws (:mod:`agents.posteriors`) both use it. Its trial (:func:`trial_log_gamma`, :func:`shape_terms`) is
-also that of the candidate reward sampler :mod:`jaxmdp.sampling.beta_shared` (not used by the step yet).
+The Gamma sampler of the agents' Dirichlet and Normal-Gamma posterior draws (:mod:`agents.posteriors`). Its trial
+(:func:`trial_log_gamma`, :func:`shape_terms`) is also that of the environment's reward sampler
+:mod:`jaxmdp.sampling.beta_shared`, which replaced :func:`sample_beta` in the step (branch betabits: 2-3x faster steps).
 
 **Method.** Marsaglia & Tsang (2000) for the shape ``a' >= 1``: ``d = a' - 1/3``, ``c = 1 / sqrt(9 d)``; a trial
 draws ``x ~ N(0, 1)`` and ``w ~ U(0, 1]``, sets ``v = (1 + c x)^3`` and accepts ``d v`` when ``v > 0`` and

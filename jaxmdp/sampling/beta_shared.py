@@ -1,4 +1,4 @@
-"""Candidate reward sampler, not used by the step yet: exact Beta draws, one pair of shapes at a time,
+"""The step's reward sampler (:func:`jaxmdp.env.sample_reward`): exact Beta draws, one pair of shapes at a time,
 ``Beta(a, b) = G_a / (G_a + G_b)`` with the two Gammas taken from one sequence of Marsaglia-Tsang trials.
 
 **Why.** The environment draws one Beta per step and environment: two shapes per member under ``vmap``. Drawn with
@@ -9,16 +9,31 @@ draw costs twice as much as the rest of a step and holds most families near 3 M 
 call is a rolled loop over memory (:mod:`jaxmdp.sampling.threefry`), arrays of a few entries per member vectorise
 badly under ``vmap`` (the member axis is not the innermost one; XLA also splits their fusions), and the round loop runs
 at every step. Here a round is ``trials`` (default 4) trials in scalar code, each from one unrolled Threefry hash, round
-0 sits outside the loop, and a second round is needed at under 0.05% of the draws: the step ran 1.8-2.6x faster on
-the families with Beta rewards (docs/benchmarks/bench_env.md).
+0 sits outside the loop, and a second round is needed at under 0.05% of the draws: the step runs about 2-3x faster
+on the families with Beta rewards than with :func:`~jaxmdp.sampling.beta_sampling.sample_beta`
+(docs/benchmarks/bench_env.md). Seeded results made before this sampler became the step's (branch betabits) drew their
+rewards from the old stream: the same distribution, other draws.
 
-**Why not yet in the step.** A member of a ``vmap``-ed batch does not always get bit for bit its value alone (about 4%
-of the draws differ in the last bits, some in an acceptance): XLA CPU compiles single-element fusions (an unbatched
-call's scalar code) through another emitter than the vectorised kernels of a batch, and the two contract different
-multiply-adds into FMAs (``ln t(x)`` and ``ln G`` differ). The project guarantees that batched trajectories equal single
-runs (tests/test_env.py), which :func:`~jaxmdp.sampling.beta_sampling.sample_beta` keeps because its trials are arrays
-of eight per member in both programs. Arrays of eight here (4 trials x 2 shapes) kept the property in one test but lost
-the speed (XLA split and duplicated the fusions); tests/test_beta_rewards.py marks the gap as an expected failure.
+**Batches.** A member of a ``vmap``-ed batch gets bit for bit its value alone (the project's guarantee that batched
+trajectories equal single runs, tests/test_env.py), which scalar code alone does not give on XLA CPU: a single call (and
+a ``vmap`` over one member) is compiled as scalar code, a batch of two or more members as vectorised loops, and the two
+round differently. Measured (256 draws, each intermediate taken out as an output): the uniforms, ``erf_inv``, ``x``, ``1
++ c x``, ``v``, ``ln v``, ``ln w`` and the shape terms agree bit for bit, ``ln t(x) = x^2 / 2 + d (1 - v + ln v)``
+differs in 254 of 256 (the batch computes ``fma(x / 2, x, d (1 - v + ln v))`` in all 256; the scalar code none of the
+simple contractions tried), ``ln G`` in 6; with everything fused about 4% of the draws differ in the last bits, some in
+an acceptance. XLA emits the same LLVM IR for both apart from the vector types (for a kernel of ``ln t(x)``: 63
+``fadd``, 67 against 68 ``fmul``, no FMA, ``rsqrtss`` against ``vrsqrtps``); the multiply-adds are contracted into FMAs
+by the x86 back end, differently for scalar and vector code. Batches of 2, 3, 4, 7, 8, 16, 60 and 255 members all give
+the bits of a batch of 1024: only the one-member case differs. Hence a ``jax.custom_batching.custom_vmap`` rule: a
+single call evaluates the vectorised code of a batch of two, itself and a dummy member (fixed key words, shapes 1,
+accepted in round 0, tested), and keeps its own value; under ``vmap`` a batch runs the vectorised code as is, with the
+dummy member appended when it has one member or when an argument is shared by the members (a ``vmap`` with
+``in_axes=None``: XLA would compute the broadcast shape's terms once, in scalar code). Nested ``vmap``, ``lax.map``,
+``jit`` and eager calls keep the property (tests/test_beta_rewards.py); the speed is that of the plain scalar sampler
+(docs/benchmarks/bench_env.md). Broadcasting one member to a batch of eight does not work instead: XLA moves the
+arithmetic before the broadcast. Shapes that are compile-time constants (closed over, not arguments) are folded by XLA
+on the host and may differ in the last bits from the same shapes passed as arguments, as for
+:mod:`~jaxmdp.sampling.beta_sampling`. No gradient rule: the sampler is not differentiable (nor needs to be).
 
 **Method.** Trials ``1, 2, ...`` are i.i.d.: trial ``j`` has the normal ``x_j = sqrt(2) erf_inv(2 u_j - 1)`` and the
 uniform ``w_j = 1 - u'_j`` on ``(0, 1]`` (the Marsaglia-Tsang trial of :mod:`~jaxmdp.sampling.beta_sampling`,
@@ -40,15 +55,15 @@ trials were the fastest at 1024 environments on the families (docs/benchmarks/be
 **Random numbers.** Threefry-2x32 of the key (the function ``jax.random`` uses;
 :func:`jaxmdp.sampling.threefry.threefry2x32`) on the counters ``(T, j)``, ``T = 0x62657461`` ("beta"): trial ``j``
 (counted over rounds) uses both 32-bit words of the hash of counter ``j``, the first for ``u_j`` and the second for
-``u'_j`` (``jax.random`` keeps one 32-bit word per hash, the XOR of the two). ``jax.random`` hashes counters whose high word is 0 (``split``,
-``fold_in``, ``bits`` of arrays below ``2^32`` entries), so the sampler never reuses a hash that a ``jax.random`` call
-on the same key computes. Uniforms take a word's top 23 bits (float32) as ``jax.random.uniform`` does; float64 trials
-take one 64-bit word (both words of a hash, top 52 bits) per uniform, from counters ``2 j`` and ``2 j + 1``. Keys of
-another implementation (``rbg``) draw trial ``j``'s words with ``jax.random.bits(fold_in(key, j))``. As
+``u'_j`` (``jax.random`` keeps one 32-bit word per hash, the XOR of the two). ``jax.random`` hashes counters whose high
+word is 0 (``split``, ``fold_in``, ``bits`` of arrays below ``2^32`` entries), so the sampler never reuses a hash that a
+``jax.random`` call on the same key computes. Uniforms take a word's top 23 bits (float32) as ``jax.random.uniform``
+does; float64 trials take one 64-bit word (both words of a hash, top 52 bits) per uniform, from counters ``2 j`` and ``2
+j + 1``. Keys of another implementation (``rbg``) draw trial ``j``'s words with ``jax.random.bits(fold_in(key, j))``. As
 ``jax.random.normal``, ``x`` stops at about 5.4 (``P(|x| > 5.4) ~ 7e-8``).
 
-**Same key, same value.** The value is a function of the key, the shapes and ``trials``, up to the last-bit
-differences between a batch and a single call described above.
+**Same key, same value.** The value is a function of the key, the shapes and ``trials``, whether drawn alone or as a
+member of a batch ("Batches").
 
 **Bad input.** As :func:`~jaxmdp.sampling.beta_sampling.sample_log_gamma`: a zero shape is a Gamma of 0 (``ln G =
 -inf``), an infinite one ``+inf``, a negative or NaN one NaN; such shapes are drawn as shape 1 and replaced, so
@@ -59,6 +74,7 @@ nothing hangs. Hence ``Beta(0, b) = 0`` and ``Beta(a, 0) = 1`` for proper ``a, b
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
@@ -132,25 +148,11 @@ def _round(key: jax.Array, r: jax.Array, n: int, ab: jax.Array, shapes: tuple[Sh
     return jnp.where(has_a & has_b, ea / (ea + eb), -1.0)
 
 
-@functools.partial(jax.jit, static_argnames=("trials", "dtype"))
-def sample_beta_shared(
-    key: jax.Array, a: jax.Array, b: jax.Array, *, trials: int = DEFAULT_TRIALS, dtype=jnp.float32
-) -> jax.Array:
-    """One ``Beta(a, b) = G_a / (G_a + G_b)`` draw for scalar shapes ``a, b > 0`` (``vmap`` for more), exact.
-
-    ``G_a``, ``G_b`` (``Gamma(shape, 1)``, kept as logs so that tiny shapes do not underflow) are the first accepted
-    Marsaglia-Tsang trials of one shared sequence, in rounds of ``trials >= 2`` trials, a round that does not accept
-    both being drawn again (module docstring). Returns the draw in ``dtype`` (float32, or float64 with x64).
-    """
-    if trials < 2:
-        raise ValueError(f"sample_beta_shared: trials must be >= 2 (one trial per Gamma at least), got {trials}")
-    a, b = jnp.asarray(a, dtype), jnp.asarray(b, dtype)
-    if a.shape != () or b.shape != ():
-        raise ValueError(
-            f"sample_beta_shared: a and b must be scalars (vmap for more); got shapes {a.shape}, {b.shape}"
-        )
-    work = jnp.float64 if a.dtype == jnp.float64 else jnp.float32
-    ab = jnp.stack([a, b]).astype(work)
+def _draw(data: jax.Array, a: jax.Array, b: jax.Array, *, trials: int, impl: str | None) -> jax.Array:
+    """The draw of one key (its raw words ``data``; ``impl`` the name of a typed key's implementation, None for a raw
+    key) and one pair of shapes (scalars of the working dtype): scalar code, meant to run under ``vmap``."""
+    key = data if impl is None else jax.random.wrap_key_data(data, impl=impl)
+    ab = jnp.stack([a, b])
     ok = jnp.where((ab > 0) & (ab < jnp.inf), ab, 1.0)  # improper shapes are drawn as 1, then replaced
     shapes = (shape_terms(ok[0]), shape_terms(ok[1]))
     # Round 0 outside the loop: under vmap the loop then runs only at the steps where some member needs it. The loop
@@ -161,4 +163,60 @@ def sample_beta_shared(
         lambda carry: (carry[0] + 1, _round(key, carry[0], trials, ab, shapes)),
         (jnp.int32(1), first),
     )
-    return draw.astype(a.dtype)
+    return draw
+
+
+def _padded(args: tuple[jax.Array, jax.Array, jax.Array], dummy: tuple[np.ndarray, np.ndarray, np.ndarray]):
+    """``args`` (a leading axis of members) with one dummy member appended: a batch that XLA cannot treat as one
+    element (module docstring, "Batches")."""
+    return tuple(jnp.concatenate([x, jnp.asarray(d, x.dtype)[None]]) for x, d in zip(args, dummy))
+
+
+@functools.lru_cache(maxsize=None)
+def _lanes(trials: int, impl: str | None, key_words: int, dtype) -> Callable:
+    """The sampler of one key and pair of shapes as a ``custom_vmap`` function of ``(key words, a, b)`` that always
+    evaluates the vectorised code of a batch of at least two members: alone, with a dummy member appended; under
+    ``vmap``, over the batch (with a dummy member if it has one member or shares an argument)."""
+    draws = jax.vmap(functools.partial(_draw, trials=trials, impl=impl))
+    # Raw key words and shapes of the dummy member; shape 1 with these words is accepted in round 0 (tested).
+    dummy = (np.arange(1, key_words + 1, dtype=np.uint32), np.array(1.0, dtype), np.array(1.0, dtype))
+
+    @jax.custom_batching.custom_vmap
+    def lanes(data, a, b):
+        return draws(*_padded((data[None], a[None], b[None]), dummy))[0]
+
+    @lanes.def_vmap
+    def _batched(axis_size, in_batched, data, a, b):
+        args = tuple(x if batched else jnp.broadcast_to(x, (axis_size, *x.shape))
+                     for x, batched in zip((data, a, b), in_batched))
+        if axis_size == 1 or not all(in_batched):  # (a broadcast member's arithmetic may be hoisted to scalar code)
+            return draws(*_padded(args, dummy))[:axis_size], True
+        return draws(*args), True
+
+    return lanes
+
+
+@functools.partial(jax.jit, static_argnames=("trials", "dtype"))
+def sample_beta_shared(
+    key: jax.Array, a: jax.Array, b: jax.Array, *, trials: int = DEFAULT_TRIALS, dtype=jnp.float32
+) -> jax.Array:
+    """One ``Beta(a, b) = G_a / (G_a + G_b)`` draw for scalar shapes ``a, b > 0`` (``vmap`` for more), exact.
+
+    ``G_a``, ``G_b`` (``Gamma(shape, 1)``, kept as logs so that tiny shapes do not underflow) are the first accepted
+    Marsaglia-Tsang trials of one shared sequence, in rounds of ``trials >= 2`` trials, a round that does not accept
+    both being drawn again (module docstring). Returns the draw in ``dtype`` (float32, or float64 with x64); a member
+    of a ``vmap``-ed batch gets bit for bit its value alone.
+    """
+    if trials < 2:
+        raise ValueError(f"sample_beta_shared: trials must be >= 2 (one trial per Gamma at least), got {trials}")
+    a, b = jnp.asarray(a, dtype), jnp.asarray(b, dtype)
+    if a.shape != () or b.shape != ():
+        raise ValueError(
+            f"sample_beta_shared: a and b must be scalars (vmap for more); got shapes {a.shape}, {b.shape}"
+        )
+    work = jnp.float64 if a.dtype == jnp.float64 else jnp.float32
+    typed = jnp.issubdtype(key.dtype, jax.dtypes.prng_key)
+    data = jax.random.key_data(key) if typed else key
+    impl = str(jax.random.key_impl(key)) if typed else None
+    lanes = _lanes(trials, impl, data.shape[0], np.dtype(work))
+    return lanes(data, a.astype(work), b.astype(work)).astype(a.dtype)

@@ -5,7 +5,7 @@ rolled loop of five iterations (four rounds each): every ``jax.random`` call in 
 own whose state goes through memory, which costs the same whether it hashes one counter per member or several
 (docs/benchmarks/bench_env.md). Unrolled, a hash is about a hundred integer operations inside the fusion of its
 consumers. The values are those of ``threefry2x32_p`` bit for bit (tests/test_beta_rewards.py). Used by the
-candidate reward sampler :mod:`jaxmdp.sampling.beta_shared`.
+step's reward sampler :mod:`jaxmdp.sampling.beta_shared`.
 
 Threefry-2x32 with 20 rounds: Salmon, Moraes, Dror and Shaw, "Parallel random numbers: as easy as 1, 2, 3" (SC 2011).
 """
