@@ -560,7 +560,7 @@ APPENDIX_G: dict[str, dict[str, dict[str, AppendixRow]]] = {
     },
 }
 
-#: App. H, Table 13 (a)-(d), in the paper's order of its sub-tables.
+#: The non-tabular table of the paper's benchmarking appendix (`tab:nt_benchmark_table_e`), sub-tables (a)-(d) in its order.
 NONTABULAR: dict[str, dict[str, dict[str, tuple[float, float]]]] = {
     "episodic communicating": {
         "actor_critic_episodic": {
