@@ -560,7 +560,8 @@ APPENDIX_G: dict[str, dict[str, dict[str, AppendixRow]]] = {
     },
 }
 
-#: The non-tabular table of the paper's benchmarking appendix (`tab:nt_benchmark_table_e`), sub-tables (a)-(d) in its order.
+#: The non-tabular table of the paper's benchmarking appendix (`tab:nt_benchmark_table_e`), sub-tables (a)-(d)
+#: in its order.
 NONTABULAR: dict[str, dict[str, dict[str, tuple[float, float]]]] = {
     "episodic communicating": {
         "actor_critic_episodic": {
