@@ -47,7 +47,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from agents.tabular_common import greedy_action_single_draw, row_max, valid_counts
+from agents.tabular_common import greedy_action_single_draw, read_at, row_max, valid_counts, write_at
 from jaxmdp import dynamic_programming as dp
 from jaxmdp._checks import Variant, check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
@@ -130,7 +130,7 @@ class QLearningEpisodicState(struct.PyTreeNode):
     def value(self, h: jax.Array, s: jax.Array) -> jax.Array:
         """``V_h(s)`` of one unbatched state (0 from the horizon on, so ``h = H`` reads 0)."""
         i = jnp.minimum(h, self.q.shape[0] - 1)
-        v = table_values(self.q[i, s], self.stats[i, s], self.action_mask, self.horizon, self.variant)
+        v = table_values(read_at(self.q, i, s), read_at(self.stats, i, s), self.action_mask, self.horizon, self.variant)
         return jnp.where(h < self.horizon, v, 0.0)
 
 
@@ -201,7 +201,7 @@ def update(state: QLearningEpisodicState, tr: Transition) -> QLearningEpisodicSt
     ``V_h(s) <- min(H, max_a Q_h(s, a))`` is implicit (:func:`table_values` reads ``V`` off the table).
     """
     h, s, a = tr.h, tr.obs, tr.action
-    row = state.stats[h, s, a]
+    row = read_at(state.stats, h, s, a)
     t = row[_N] + 1.0
     H = state.horizon
     alpha = jnp.maximum(state.hparams.min_at, (H + 1.0) / (H + t))
@@ -209,19 +209,19 @@ def update(state: QLearningEpisodicState, tr: Transition) -> QLearningEpisodicSt
     sum_v, sum_v2 = row[_SUM_V] + v_next, row[_SUM_V2] + v_next**2
     b, beta = bonus(state, t, sum_v, sum_v2, row[_BETA], alpha)
     target = tr.reward.astype(t.dtype) + v_next + b
-    q_old = state.q[h, s, a]
+    q_old = read_at(state.q, h, s, a)
     if state.variant == "colosseum":
         q = alpha * q_old + (1.0 - alpha) * target
     else:
         q = (1.0 - alpha) * q_old + alpha * target
     return state.replace(
-        q=state.q.at[h, s, a].set(q), stats=state.stats.at[h, s, a].set(jnp.stack([t, sum_v, sum_v2, beta]))
+        q=write_at(state.q, q, h, s, a), stats=write_at(state.stats, jnp.stack([t, sum_v, sum_v2, beta]), h, s, a)
     )
 
 
 def act(key: jax.Array, state: QLearningEpisodicState, obs: jax.Array, h: jax.Array) -> jax.Array:
     """Greedy in ``Q_h(obs, .)``, exact ties at random (one uniform draw)."""
-    return greedy_action_single_draw(key, state.q[h, obs], state.action_mask)
+    return greedy_action_single_draw(key, read_at(state.q, h, obs), state.action_mask)
 
 
 def policy(state: QLearningEpisodicState) -> jax.Array:
