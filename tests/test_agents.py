@@ -15,7 +15,14 @@ import agents
 import jaxmdp
 from agents import q_learning_continuous as qlc
 from agents import q_learning_episodic as qle
-from agents.tabular_common import discounted_greedy_policy, greedy_action, greedy_action_single_draw, row_max
+from agents.tabular_common import (
+    discounted_greedy_policy,
+    greedy_action,
+    greedy_action_single_draw,
+    read_at,
+    row_max,
+    write_at,
+)
 from jaxmdp.experiment import runner
 from jaxmdp.experiment.agent_interface import Transition, spec_of
 from stat_checks import Checks, failure_rate_bound, key, mostly, seed
@@ -198,6 +205,31 @@ def test_row_max_reduces_the_last_axis(A):
     np.testing.assert_array_equal(row_max(jnp.asarray(x)), x.max(-1))
     np.testing.assert_array_equal(row_max(jnp.asarray(x[1, 2])), x[1, 2].max())
     assert np.isnan(row_max(jnp.asarray(x).at[0, 0, 1].set(jnp.nan))[0, 0])
+
+
+@pytest.mark.parametrize("n_index", [1, 2, 3])
+def test_flat_index_reads_and_writes_equal_numpy_indexing(n_index):
+    """read_at / write_at against numpy's table[index] and its assignment, on every index of a [4, 5, 3, 2] table
+    and vmapped over members with their own indices."""
+    rng = np.random.default_rng(0)
+    table = rng.normal(size=(4, 5, 3, 2)).astype(np.float32)
+    for index in np.ndindex(table.shape[:n_index]):
+        np.testing.assert_array_equal(read_at(jnp.asarray(table), *map(jnp.int32, index)), table[index])
+        value = rng.normal(size=table.shape[n_index:]).astype(np.float32)
+        expected = table.copy()
+        expected[index] = value
+        np.testing.assert_array_equal(write_at(jnp.asarray(table), jnp.asarray(value), *map(jnp.int32, index)), expected)
+    members = rng.normal(size=(6,) + table.shape).astype(np.float32)
+    idx = [rng.integers(0, n, size=6).astype(np.int32) for n in table.shape[:n_index]]
+    values = rng.normal(size=(6,) + table.shape[n_index:]).astype(np.float32)
+    got_read = jax.vmap(read_at)(jnp.asarray(members), *map(jnp.asarray, idx))
+    got_write = jax.vmap(write_at)(jnp.asarray(members), jnp.asarray(values), *map(jnp.asarray, idx))
+    expected = members.copy()
+    for m in range(6):
+        i = tuple(int(x[m]) for x in idx)
+        np.testing.assert_array_equal(got_read[m], members[m][i])
+        expected[m][i] = values[m]
+    np.testing.assert_array_equal(got_write, expected)
 
 
 def test_discounted_greedy_policy_by_enumeration():
