@@ -218,7 +218,8 @@ def test_flat_index_reads_and_writes_equal_numpy_indexing(n_index):
         value = rng.normal(size=table.shape[n_index:]).astype(np.float32)
         expected = table.copy()
         expected[index] = value
-        np.testing.assert_array_equal(write_at(jnp.asarray(table), jnp.asarray(value), *map(jnp.int32, index)), expected)
+        written = write_at(jnp.asarray(table), jnp.asarray(value), *map(jnp.int32, index))
+        np.testing.assert_array_equal(written, expected)
     members = rng.normal(size=(6,) + table.shape).astype(np.float32)
     idx = [rng.integers(0, n, size=6).astype(np.int32) for n in table.shape[:n_index]]
     values = rng.normal(size=(6,) + table.shape[n_index:]).astype(np.float32)
