@@ -98,7 +98,7 @@ from agents.posteriors import (
 )
 from agents.tabular_common import copy_action_zero, discounted_greedy_policy, greedy_action
 from jaxmdp import dynamic_programming as dp
-from jaxmdp._checks import Variant, check_int, check_range
+from jaxmdp._checks import VARIANTS, Variant, check_int, check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
 
 __all__ = [
@@ -558,7 +558,9 @@ def extended_policy_iteration(
     return dp.policy_iteration_by(evaluate, improve, _greedy(d, R_ext, V0, gamma, action_mask)[1])
 
 
-def plan(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "paper") -> PSRLContinuousState:
+def plan(
+    key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "paper", reward_variant: Variant | None = None
+) -> PSRLContinuousState:
     """Start an epoch: draw the extended MDP and solve it (module docstring).
 
     Discounted (default): policy iteration with exact evaluation (:func:`extended_policy_iteration`), started from
@@ -566,11 +568,14 @@ def plan(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "pape
     typically a few linear solves). Average reward (``discount == 1``): relative value iteration with the span
     stopping rule, on the same structured backup. A no-op unless :func:`needs_plan` (the runner keeps the result only
     for members that asked). ``variant="colosseum"``: the reference's candidates (:func:`draws`) and extended rewards
-    (:func:`colosseum_extended_rewards`).
+    (:func:`colosseum_extended_rewards`). ``reward_variant`` (default ``variant``) sets the extended rewards' rule
+    alone, so that an ablation can tell the two differences apart.
     """
+    if reward_variant not in (None, *VARIANTS):
+        raise ValueError(f"reward_variant must be None, 'paper' or 'colosseum'; got {reward_variant!r}")
     hp = state.hparams
     k_r, k_p = jax.random.split(key)
-    R_ext = _extended_rewards(normal_gamma_sample(k_r, state.rewards), state, variant)
+    R_ext = _extended_rewards(normal_gamma_sample(k_r, state.rewards), state, reward_variant or variant)
     d = draws(k_p, state, variant=variant)
     mask = state.action_mask
     gamma = jnp.asarray(hp.discount, R_ext.dtype)

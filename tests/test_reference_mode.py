@@ -426,6 +426,22 @@ def test_psrl_continuous_plan_rewards(variant):
     np.testing.assert_allclose(Q[0], expected, rtol=1e-3)
 
 
+@pytest.mark.parametrize("kernels", ["paper", "colosseum"])
+@pytest.mark.parametrize("rewards", ["paper", "colosseum"])
+def test_psrl_continuous_plan_reward_variant_alone(kernels, rewards):
+    # The one-state MDP of the test above: the extended rewards follow reward_variant whatever the kernels' rule.
+    hp = agents.get("psrl_continuous").default_hparams.replace(max_psi=2)
+    state = psc.init(jax.random.key(0), _spec(1, 2, n_steps=1000), hp)
+    state = state.replace(rewards=state.rewards.replace(
+        mu=jnp.asarray([[0.1, 0.9]]), lam=jnp.full((1, 2), 1e12), alpha=jnp.full((1, 2), 1e6),
+        beta=jnp.full((1, 2), 1e6)))
+    Q = psc.plan(jax.random.key(3), state, variant=kernels, reward_variant=rewards).Q
+    expected = [90.0, 90.0] if rewards == "colosseum" else [0.1 + 0.99 * 90.0, 90.0]
+    np.testing.assert_allclose(Q[0], expected, rtol=1e-3)
+    with pytest.raises(ValueError, match="reward_variant must be"):
+        psc.plan(jax.random.key(3), state, variant=kernels, reward_variant="reference")
+
+
 @pytest.mark.parametrize("variant", ["paper", "colosseum"])
 def test_psrl_continuous_simple_optimistic_sampling(variant):
     agent = agents.get("psrl_continuous", variant)
