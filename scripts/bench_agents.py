@@ -256,13 +256,14 @@ def fmt_rate(x: float) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--steps", type=int, default=20_000, help="steps per seed (the reference timed 20 000)")
+    ap.add_argument("--steps", type=int, default=None,
+                    help="steps per seed (default 20 000, as the reference timed; --quick: 4 000)")
     ap.add_argument("--seeds", default="1,64,1024")
     ap.add_argument("--deep-seeds", default="1,16,64", help="seed counts of the deep agents")
     ap.add_argument("--bsuite-steps", type=int, default=3_000, help="timed steps of bsuite's DQN loop")
     ap.add_argument("--agents", default=",".join(agents.AGENTS))
-    ap.add_argument("--repeats", type=int, default=2)
-    ap.add_argument("--quick", action="store_true", help="4 000 steps, 1 repeat")
+    ap.add_argument("--repeats", type=int, default=None, help="timed runs per measurement (default 2; --quick: 1)")
+    ap.add_argument("--quick", action="store_true", help="4 000 steps and 1 repeat, unless --steps or --repeats say otherwise")
     ap.add_argument("--max-seconds", type=float, default=120.0,
                     help="skip a seed count whose predicted run time exceeds this")
     ap.add_argument("--ratio", action="store_true",
@@ -273,8 +274,10 @@ def main() -> None:
     args = ap.parse_args()
     cache_folder, compile_stats = compilation.setup_compilation(args.no_compile_cache)
     t_script = time.perf_counter()
-    if args.quick:
-        args.steps, args.repeats = 4_000, 1
+    if args.steps is None:  # an explicit --steps stands, with --quick too
+        args.steps = 4_000 if args.quick else 20_000
+    if args.repeats is None:  # an explicit --repeats stands, with --quick too
+        args.repeats = 1 if args.quick else 2
     seed_counts = [int(s) for s in args.seeds.split(",")]
     deep_seed_counts = [int(s) for s in args.deep_seeds.split(",")]
     names = [n for n in args.agents.split(",") if n]
