@@ -5,8 +5,6 @@ from __future__ import annotations
 import gc
 import json
 import os
-import shutil
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +13,6 @@ import pytest
 import jax
 
 import jaxmdp
-from jaxmdp.experiment import compilation
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -36,25 +33,6 @@ def missing_reference_error(environ: dict, shared: Path | None) -> str | None:
         return ("CI=true but the reference data is missing: the parity tests need ../shared/reference/colosseum "
                 "(or $JAXMDP_SHARED pointing to a folder holding reference/colosseum/index.json)")
     return None
-
-
-#: The session's persistent compilation cache folder, made by the controller and shared by the xdist workers.
-TEST_CACHE_VARIABLE = "JAXMDP_TEST_COMPILATION_CACHE"
-
-
-def pytest_configure(config: pytest.Config) -> None:
-    """Give the session one persistent JAX compilation cache, in a fresh temporary folder shared by the xdist
-    workers (``TEST_CACHE_VARIABLE=0`` turns it off). Most of the suite's time is XLA compilation, and
-    :func:`_release_compiled_programs` drops every compiled program after each module, so a module that needs a
-    program an earlier one compiled (on either worker) loads it instead of compiling it again: 55 of 629 compilations
-    of four runner and agent test files (2026-11-27). Nothing is kept between sessions."""
-    if not hasattr(config, "workerinput") and TEST_CACHE_VARIABLE not in os.environ:
-        folder = tempfile.mkdtemp(prefix="jaxmdp-test-compilation-cache-")
-        os.environ[TEST_CACHE_VARIABLE] = folder  # inherited by the workers xdist starts after this hook
-        config.add_cleanup(lambda: shutil.rmtree(folder, ignore_errors=True))
-    folder = os.environ.get(TEST_CACHE_VARIABLE, "0")
-    if folder.strip().lower() not in ("", "0", "off", "false"):
-        compilation.enable_compilation_cache(folder)
 
 
 def pytest_sessionstart(session: pytest.Session) -> None:
