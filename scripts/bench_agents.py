@@ -263,7 +263,8 @@ def main() -> None:
     ap.add_argument("--bsuite-steps", type=int, default=3_000, help="timed steps of bsuite's DQN loop")
     ap.add_argument("--agents", default=",".join(agents.AGENTS))
     ap.add_argument("--repeats", type=int, default=None, help="timed runs per measurement (default 2; --quick: 1)")
-    ap.add_argument("--quick", action="store_true", help="4 000 steps and 1 repeat, unless --steps or --repeats say otherwise")
+    ap.add_argument("--quick", action="store_true",
+                    help="4 000 steps and 1 repeat, unless --steps or --repeats say otherwise")
     ap.add_argument("--max-seconds", type=float, default=120.0,
                     help="skip a seed count whose predicted run time exceeds this")
     ap.add_argument("--ratio", action="store_true",
