@@ -8,6 +8,8 @@ materialise them from the same draws (``candidate_kernels``) and solve the expli
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -54,8 +56,11 @@ def _state(variant, case, discount=0.99, seed=0):
     return agent, state
 
 
+@functools.partial(jax.jit, static_argnames="variant")
 def _dense(k, state, variant):
-    """The explicit extended MDP of the draws that plan(k, state) makes (same key split)."""
+    """The explicit extended MDP of the draws that plan(k, state) makes (same key split). Jitted: called eagerly, the
+    ``lax.map`` loops inside the draws compiled again at every call (their bodies are new closures each time), 180
+    compilations and about half of this file's time."""
     k_r, k_p = jax.random.split(k)
     R = normal_gamma_sample(k_r, state.rewards)
     P = pc.candidate_kernels(k_p, state, variant=variant)
@@ -70,6 +75,13 @@ def _dense_policy_iteration(T, R, mask, u, gamma):
     """The planner before the structured one: dp.policy_iteration on the dense extended MDP, warm-started greedy."""
     start = dp.greedy(dp.q_values(T, u, gamma, R), mask)
     return dp.policy_iteration(T, gamma, rewards=R, policy=start)
+
+
+@jax.jit
+def _optimal_gain(T, R):
+    """The optimal gain of the explicit extended MDP (``dp.optimal_gain``, tight tolerance); jitted, as its loops
+    compiled again at every eager call."""
+    return dp.optimal_gain(T, rewards=R, tol=2e-6, max_iter=1_000_000)
 
 
 def _float64_optimum(T, R, mask, gamma):
@@ -122,7 +134,7 @@ def test_average_reward_plan_is_gain_optimal_in_the_dense_extended_mdp(variant, 
         # Padded states are absorbing in neither model's sense; drop them (no real state reaches them).
         real = np.flatnonzero(STATE_MASK)
         Tr = np.asarray(T)[np.ix_(real, np.arange(T.shape[1]), real)]
-        ref = dp.optimal_gain(jnp.asarray(Tr), rewards=jnp.asarray(np.asarray(R)[real]), tol=2e-6, max_iter=1_000_000)
+        ref = _optimal_gain(jnp.asarray(Tr), jnp.asarray(np.asarray(R)[real]))
         assert bool(ref.converged)
         d = (np.asarray(new.Q).max(-1) - np.asarray(new.u))[real]
         np.testing.assert_allclose(d, float(ref.gain), atol=3e-5)
@@ -146,7 +158,7 @@ def test_more_pairs_at_eta_than_kept(monkeypatch, variant):
 def _check_more_pairs_at_eta_than_kept(variant):
     for discount in (0.99, 1.0):
         agent, state = _state(variant, "some", discount=discount, seed=4)
-        assert bool(pc.draws(jax.random.key(0), state, variant=variant).overflow)
+        assert bool(jax.jit(lambda k, st: pc.draws(k, st, variant=variant).overflow)(jax.random.key(0), state))
         plan = jax.jit(agent.plan)
         for k in jax.random.split(key(24), 2):
             new = plan(k, state)
@@ -157,7 +169,7 @@ def _check_more_pairs_at_eta_than_kept(variant):
             elif bool(new.plan_converged):
                 real = np.flatnonzero(STATE_MASK)
                 Tr = jnp.asarray(np.asarray(T)[np.ix_(real, np.arange(T.shape[1]), real)])
-                ref = dp.optimal_gain(Tr, rewards=jnp.asarray(np.asarray(R)[real]), tol=2e-6, max_iter=1_000_000)
+                ref = _optimal_gain(Tr, jnp.asarray(np.asarray(R)[real]))
                 np.testing.assert_allclose((np.asarray(new.Q).max(-1) - np.asarray(new.u))[real], float(ref.gain),
                                            atol=3e-5)
         other = _state(variant, "none", discount=discount, seed=5)[1]
