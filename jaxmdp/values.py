@@ -19,6 +19,7 @@ Everything is jittable (``variant`` is static) and vmaps over a stacked batch.
 
 from __future__ import annotations
 
+import functools
 
 import jax
 from flax import struct
@@ -99,8 +100,16 @@ def _continuous(mdp: MDP, variant: Variant, gamma: float) -> ReferenceValues:
 
 def reference_values(mdp: MDP, variant: Variant = "paper", gamma: float = 0.99) -> ReferenceValues:
     """Values of the optimal, worst and random policies (see the module docstring; ``gamma`` is used only by the
-    ``colosseum`` variant of continuous MDPs)."""
+    ``colosseum`` variant of continuous MDPs).
+
+    Jitted (``variant`` and ``gamma`` static), so that an eager call compiles once per shape rather than compiling
+    the loops of its solvers again at every call; inside another ``jit`` it is inlined."""
     check_variant(variant)
+    return _reference_values(mdp, variant, float(gamma))
+
+
+@functools.partial(jax.jit, static_argnums=(1, 2))
+def _reference_values(mdp: MDP, variant: Variant, gamma: float) -> ReferenceValues:
     return _episodic(mdp) if mdp.episodic else _continuous(mdp, variant, gamma)
 
 
