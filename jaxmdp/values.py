@@ -98,18 +98,14 @@ def _continuous(mdp: MDP, variant: Variant, gamma: float) -> ReferenceValues:
     )
 
 
+@functools.partial(jax.jit, static_argnames=("variant", "gamma"))
 def reference_values(mdp: MDP, variant: Variant = "paper", gamma: float = 0.99) -> ReferenceValues:
     """Values of the optimal, worst and random policies (see the module docstring; ``gamma`` is used only by the
     ``colosseum`` variant of continuous MDPs).
 
-    Jitted (``variant`` and ``gamma`` static), so that an eager call compiles once per shape rather than compiling
-    the loops of its solvers again at every call; inside another ``jit`` it is inlined."""
+    Jitted (``variant`` and ``gamma`` static, so ``gamma`` is a Python number): an eager call compiles once per shape
+    rather than compiling the loops of its solvers again at every call; inside another ``jit`` it is inlined."""
     check_variant(variant)
-    return _reference_values(mdp, variant, float(gamma))
-
-
-@functools.partial(jax.jit, static_argnums=(1, 2))
-def _reference_values(mdp: MDP, variant: Variant, gamma: float) -> ReferenceValues:
     return _episodic(mdp) if mdp.episodic else _continuous(mdp, variant, gamma)
 
 

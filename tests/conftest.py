@@ -103,11 +103,10 @@ def memory_maps() -> int | None:
 @pytest.fixture(autouse=True, scope="module")
 def _release_compiled_programs():
     """After a test module, drop JAX's compiled programs if the process holds more than :data:`MAP_BUDGET` memory
-    maps (always, where the count cannot be read). Every compiled CPU program keeps memory maps in the process, and
-    a long-lived xdist worker that ran most of the suite neared Linux's limit of 65 530 maps per process (49 222
-    seen); past it XLA crashed while compiling (SIGSEGV or SIGABRT in ``backend_compile_and_load``, three full runs
-    out of three). Below the budget the programs stay: later modules reuse what earlier ones compiled (the runner's
-    programs, and the many small programs of jnp operations that every module would otherwise compile again)."""
+    maps (always, where the count cannot be read). Every compiled CPU program keeps memory maps in the process; past
+    Linux's limit XLA crashed while compiling (SIGSEGV or SIGABRT in ``backend_compile_and_load``, three full runs out
+    of three when every module kept its programs). Below the budget the programs stay, so later modules reuse what
+    earlier ones compiled (the runner's programs, the small programs of ``jnp`` operations)."""
     yield
     maps = memory_maps()
     if maps is None or maps > MAP_BUDGET:

@@ -77,6 +77,12 @@ def _dense_policy_iteration(T, R, mask, u, gamma):
     return dp.policy_iteration(T, gamma, rewards=R, policy=start)
 
 
+@functools.partial(jax.jit, static_argnames="variant")
+def _overflow(k, state, variant):
+    """Whether the draws of ``k`` have more pairs at ``eta`` than they keep (jitted, as :func:`_dense`)."""
+    return pc.draws(k, state, variant=variant).overflow
+
+
 @jax.jit
 def _optimal_gain(T, R):
     """The optimal gain of the explicit extended MDP (``dp.optimal_gain``, tight tolerance); jitted, as its loops
@@ -158,7 +164,7 @@ def test_more_pairs_at_eta_than_kept(monkeypatch, variant):
 def _check_more_pairs_at_eta_than_kept(variant):
     for discount in (0.99, 1.0):
         agent, state = _state(variant, "some", discount=discount, seed=4)
-        assert bool(jax.jit(lambda k, st: pc.draws(k, st, variant=variant).overflow)(jax.random.key(0), state))
+        assert bool(_overflow(jax.random.key(0), state, variant))
         plan = jax.jit(agent.plan)
         for k in jax.random.split(key(24), 2):
             new = plan(k, state)
