@@ -22,6 +22,10 @@ Bellman backup given as a function ``backup(u) -> Q[S, A]``, so the same loop so
 (:func:`value_iteration`), UCRL2's extended MDP (the backup maximises over a confidence set of kernels) and
 optimistic PSRL's extended MDP (the backup maximises over sampled kernels). :func:`optimal_gain` runs the same
 iteration with arithmetic of its own, for its tighter tolerance (see there).
+
+The routines with loops are jitted (:func:`compiled`), so that eager calls compile once per shape; the loops that take
+a backup function (:func:`relative_value_iteration`, :func:`policy_iteration_by`) are meant to be called inside the
+caller's ``jit``.
 """
 
 from __future__ import annotations
@@ -38,6 +42,29 @@ from jaxmdp.jaxlib_workarounds.linalg import solve as linear_solve
 from jaxmdp.mdp import MDP
 
 Model = MDP | jax.Array
+
+def compiled(*static_argnames: str) -> Callable[[Callable], Callable]:
+    """Decorator: the routine jitted (``static_argnames`` static), its :class:`~jaxmdp.MDP` arguments stripped of their
+    static metadata (:meth:`~jaxmdp.MDP.strip`) first.
+
+    An eager call then compiles once per shape, and MDPs of one shape share the program whatever their labels. A
+    routine with a loop called eagerly without ``jit`` compiled its loop again at every call (the loop body is a new
+    closure each time: 0.3-1 s per call on the 2-core CPU, docs/testing.md "Suite time"). Inside another ``jit`` the
+    routine is inlined as before."""
+
+    def wrap(fun: Callable) -> Callable:
+        jitted = jax.jit(fun, static_argnames=static_argnames)
+        strip = lambda x: x.strip() if isinstance(x, MDP) else x  # noqa: E731
+
+        @functools.wraps(fun)
+        def call(*args: Any, **kwargs: Any) -> Any:
+            return jitted(*map(strip, args), **{k: strip(v) for k, v in kwargs.items()})
+
+        call.jitted = jitted  # the jitted routine itself (e.g. ``.lower``)
+        return call
+
+    return wrap
+
 
 # Up to this many actions greedy() unrolls its passes over the action axis (see there).
 _UNROLLED_GREEDY_MAX_ACTIONS = 16
@@ -265,6 +292,7 @@ class ValueIterationResult(struct.PyTreeNode):
     converged: jax.Array
 
 
+@compiled()
 def value_iteration(
     model: Model,
     gamma: float | jax.Array = 0.99,
@@ -354,6 +382,7 @@ def policy_iteration_by(
     return ValueIterationResult(Q=Q, V=V, iterations=it, converged=~changed)
 
 
+@compiled()
 def policy_iteration(
     model: Model,
     gamma: float | jax.Array = 0.99,
@@ -384,6 +413,7 @@ def policy_iteration(
                                rtol=rtol)
 
 
+@compiled()
 def solve_discounted(
     model: Model, gamma: float | jax.Array = 0.99, *, rewards: jax.Array | None = None, vi_tol: float = 1e-3
 ) -> ValueIterationResult:
@@ -412,6 +442,7 @@ def _horizon_args(model: Model, H: int | None, horizon: Any) -> tuple[int, jax.A
     return H, jnp.asarray(horizon)
 
 
+@compiled("H")
 def finite_horizon_value_iteration(
     model: Model, rewards: jax.Array | None = None, H: int | None = None, horizon: Any = None
 ) -> tuple[jax.Array, jax.Array]:
@@ -432,6 +463,7 @@ def finite_horizon_value_iteration(
     return Q, jnp.concatenate([V, V_H[None]], axis=0)
 
 
+@compiled("H")
 def finite_horizon_policy_evaluation(
     model: Model, pi: jax.Array, rewards: jax.Array | None = None, H: int | None = None, horizon: Any = None
 ) -> tuple[jax.Array, jax.Array]:
@@ -454,6 +486,7 @@ def finite_horizon_policy_evaluation(
     return Q, jnp.concatenate([V, V_H[None]], axis=0)
 
 
+@compiled()
 def finite_horizon_deterministic_evaluation(mdp: MDP, actions: jax.Array) -> jax.Array:
     """``V[H + 1, S]`` of the deterministic time-indexed policy ``actions[H, S]`` (action indices) on an MDP's
     successor lists: ``V_h(s) = R(s, a_h(s)) + sum_k p_k V_{h+1}(s'_k)`` over the successors of ``(s, a_h(s))``,
@@ -501,6 +534,7 @@ def _classes_from_reach(reach: jax.Array) -> tuple[jax.Array, jax.Array]:
     return recurrent, same_class
 
 
+@compiled()
 def recurrent_classes(P: jax.Array, reach: jax.Array | None = None) -> tuple[jax.Array, jax.Array]:
     """Recurrent states of a stochastic matrix and its closed classes.
 
@@ -517,6 +551,7 @@ def recurrent_classes(P: jax.Array, reach: jax.Array | None = None) -> tuple[jax
     return _classes_from_reach(reach)
 
 
+@compiled()
 def successor_reachability(succ: jax.Array, edge: jax.Array) -> jax.Array:
     """``reach[s, t]``: whether ``t`` is reachable from ``s`` in zero or more steps along the successor slots
     ``s -> succ[s, ...]`` whose ``edge[s, ...]`` is true (e.g. ``pi(a|s) p(s, a, k) > 0``); ``[S, S]`` bool.
@@ -621,6 +656,7 @@ def _gth_eliminate(M: jax.Array, block: int = GTH_BLOCK, stages: int = _GTH_STAG
     return M[:S, :S], scale[:S]
 
 
+@compiled("block")
 def chain_gain(P: jax.Array, r: jax.Array, reach: jax.Array | None = None, block: int = GTH_BLOCK) -> jax.Array:
     """Long-run average reward ``g = P* r`` of a Markov chain from every state (``P*`` the Cesàro limit).
 
@@ -661,6 +697,7 @@ def chain_gain(P: jax.Array, r: jax.Array, reach: jax.Array | None = None, block
     return jnp.zeros((S,), dtype).at[perm].set(g)
 
 
+@compiled("n_squarings")
 def chain_bias(P: jax.Array, r: jax.Array, n_squarings: int = 48) -> jax.Array:
     """Exact bias ``h = (I - P + P*)^{-1} (r - P* r)`` of a Markov chain ``P`` with rewards ``r``; ``P* h = 0``.
 
@@ -674,6 +711,7 @@ def chain_bias(P: jax.Array, r: jax.Array, n_squarings: int = 48) -> jax.Array:
     return linear_solve(eye - P + Pstar, r - g)
 
 
+@compiled("n_squarings")
 def cesaro_limit(P: jax.Array, n_squarings: int = 48) -> jax.Array:
     """``P* = lim_n (1/n) sum_{t<n} P^t``, taken as ``((I + P) / 2)^(2^n_squarings)`` (the lazy chain is aperiodic with
     the same limit; Puterman 1994 App. A.4), each square renormalised to stay stochastic. Dense ``O(S^3 n)``;
@@ -695,14 +733,11 @@ def successor_policy_matrix(succ: jax.Array, succ_p: jax.Array, pi: jax.Array) -
     return jnp.zeros((S, S), succ_p.dtype).at[jnp.arange(S)[:, None], succ.reshape(S, -1)].add(w)
 
 
-@jax.jit
+@compiled()
 def gain_vector(model: Model, pi: jax.Array, rewards: jax.Array | None = None) -> jax.Array:
     """Long-run average reward of ``pi`` from every state: ``g = P*_pi r_pi`` (an ``[S]`` array). An
     :class:`~jaxmdp.MDP`'s reachability comes from its successor lists (:func:`successor_reachability`: the same edges
-    ``pi(a|s) P(s'|s,a) > 0`` as the dense ``P_pi``, without its ``O(S^3 log S)`` squarings).
-
-    Jitted, so that an eager call compiles once per shape: unjitted, every eager call compiled its loops again (new
-    closures each time), about 1 s on the 2-core CPU; inside another ``jit`` it is inlined."""
+    ``pi(a|s) P(s'|s,a) > 0`` as the dense ``P_pi``, without its ``O(S^3 log S)`` squarings)."""
     P = policy_matrix(model, pi)
     reach = None
     if isinstance(model, MDP):
@@ -733,6 +768,7 @@ def policy_successor_lists(mdp: MDP, pi: jax.Array) -> tuple[jax.Array, jax.Arra
     return mdp.succ.reshape(S, -1), w.reshape(S, -1), jnp.sum(pi * mdp.R, axis=-1)
 
 
+@compiled("inner_sweeps", "refine_sweeps")
 def successor_gain_bounds(
     mdp: MDP,
     pi: jax.Array,
@@ -813,6 +849,7 @@ def successor_gain_bounds(
     return GainBounds(lower=lo, upper=hi, certified=ok, sweeps=n)
 
 
+@compiled()
 def policy_gain(
     model: Model, pi: jax.Array, start: jax.Array | None = None, rewards: jax.Array | None = None
 ) -> jax.Array:
@@ -838,6 +875,7 @@ class GainResult(struct.PyTreeNode):
     converged: jax.Array
 
 
+@compiled()
 def optimal_gain(
     model: Model,
     *,

@@ -19,7 +19,6 @@ Everything is jittable (``variant`` is static) and vmaps over a stacked batch.
 
 from __future__ import annotations
 
-import functools
 
 import jax
 from flax import struct
@@ -98,13 +97,13 @@ def _continuous(mdp: MDP, variant: Variant, gamma: float) -> ReferenceValues:
     )
 
 
-@functools.partial(jax.jit, static_argnames=("variant", "gamma"))
+@dp.compiled("variant", "gamma")
 def reference_values(mdp: MDP, variant: Variant = "paper", gamma: float = 0.99) -> ReferenceValues:
     """Values of the optimal, worst and random policies (see the module docstring; ``gamma`` is used only by the
     ``colosseum`` variant of continuous MDPs).
 
-    Jitted (``variant`` and ``gamma`` static, so ``gamma`` is a Python number): an eager call compiles once per shape
-    rather than compiling the loops of its solvers again at every call; inside another ``jit`` it is inlined."""
+    Jitted (:func:`~jaxmdp.dynamic_programming.compiled`; ``variant`` and ``gamma`` static, so ``gamma`` is a Python
+    number): an eager call compiles once per shape, whatever the MDP's labels."""
     check_variant(variant)
     return _episodic(mdp) if mdp.episodic else _continuous(mdp, variant, gamma)
 

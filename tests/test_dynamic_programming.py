@@ -4,6 +4,7 @@ Independent references: brute force over all deterministic stationary policies (
 plain numpy backward induction, numpy linear solves, and Cesàro averages of matrix powers in float64.
 """
 
+import dataclasses
 import itertools
 import logging
 
@@ -329,18 +330,52 @@ def test_gain_vector_from_successor_reachability_equals_the_dense_route():
         np.testing.assert_array_equal(gain(mdp, pi), dense(mdp, pi))
 
 
-def test_eager_calls_compile_once_per_shape(caplog):
-    """``gain_vector`` and ``reference_values`` are jitted: a second eager call with the same shapes compiles nothing
-    (unjitted, their loops compiled again at every call, about 1 s each on the 2-core CPU)."""
-    mdp = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=4)
+def _eager_calls(mdp: jaxmdp.MDP, episodic: jaxmdp.MDP) -> list:
+    """One eager call of every routine that loops (dynamic_programming.compiled), on ``mdp`` (continuous) and
+    ``episodic``."""
     pi = dp.uniform_policy(mdp)
-    calls = [lambda: dp.gain_vector(mdp, pi), lambda: jaxmdp.reference_values(mdp, "colosseum")]
-    for call in calls:
-        jax.block_until_ready(call())  # first call: compiles
+    P, r = dp.policy_matrix(mdp, pi), dp.policy_rewards(mdp, pi)
+    actions = jnp.zeros((episodic.H, episodic.n_states), jnp.int32)
+    return [
+        lambda: dp.value_iteration(mdp, 0.9),
+        lambda: dp.policy_iteration(mdp, 0.9),
+        lambda: dp.solve_discounted(mdp, 0.9),
+        lambda: dp.finite_horizon_value_iteration(episodic),
+        lambda: dp.finite_horizon_value_iteration(mdp.T, mdp.R, H=3),
+        lambda: dp.finite_horizon_policy_evaluation(episodic, dp.uniform_policy(episodic)),
+        lambda: dp.finite_horizon_deterministic_evaluation(episodic, actions),
+        lambda: dp.recurrent_classes(P),
+        lambda: dp.successor_reachability(mdp.succ, mdp.succ_p > 0),
+        lambda: dp.chain_gain(P, r),
+        lambda: dp.chain_bias(P, r),
+        lambda: dp.cesaro_limit(P),
+        lambda: dp.gain_vector(mdp, pi),
+        lambda: dp.successor_gain_bounds(mdp, pi),
+        lambda: dp.policy_gain(mdp, pi),
+        lambda: dp.optimal_gain(mdp),
+        lambda: jaxmdp.reference_values(mdp, "colosseum"),
+        lambda: jaxmdp.reference_values(episodic),
+    ]
+
+
+def _compilations(caplog, calls) -> list[str]:
+    caplog.clear()
     with jax.log_compiles(True), caplog.at_level(logging.WARNING):
         for call in calls:
             jax.block_until_ready(call())
-    assert not [r for r in caplog.records if "Compiling" in r.getMessage()]
-    with jax.log_compiles(True), caplog.at_level(logging.WARNING):  # the check can see a compilation
-        jax.jit(lambda x: x + 1)(jnp.ones(3))
-    assert [r for r in caplog.records if "Compiling" in r.getMessage()]
+    return [r.getMessage() for r in caplog.records if "Compiling" in r.getMessage()]
+
+
+def test_eager_calls_compile_once_per_shape(caplog):
+    """The routines with loops are jitted with their MDPs' labels stripped (dynamic_programming.compiled): a second
+    eager call with the same shapes compiles nothing, also on another MDP of those shapes with other labels (without
+    the jit their loops compiled again at every call, about 1 s each on the 2-core CPU)."""
+    def relabelled(m):
+        return m.replace(info=dataclasses.replace(m.info, node_labels=tuple(f"other {i}" for i in range(m.n_states))))
+
+    continuous = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=4)
+    episodic = jaxmdp.make("RiverSwim", episodic=True, seed=0, size=4)
+    assert relabelled(continuous).info != continuous.info
+    assert _compilations(caplog, _eager_calls(continuous, episodic))  # the first calls compile
+    assert _compilations(caplog, _eager_calls(continuous, episodic)) == []
+    assert _compilations(caplog, _eager_calls(relabelled(continuous), relabelled(episodic))) == []
