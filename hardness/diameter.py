@@ -51,6 +51,7 @@ import jax.numpy as jnp
 from hardness.reference_vi import uses_jacobi
 from hardness.result import MeasureResult
 from jaxmdp._checks import Variant, check_int, check_range, check_variant
+from jaxmdp.dynamic_programming import compiled
 from jaxmdp.episodic import reachable_pairs
 from jaxmdp.mdp import MDP
 
@@ -85,9 +86,11 @@ def _hitting_backup(mdp: MDP, V: jax.Array, is_target: jax.Array, active: jax.Ar
     return jnp.where(is_target | ~active, 0.0, jnp.min(Q, axis=1))
 
 
+@compiled()
 def strongly_connected(mdp: MDP) -> jax.Array:
     """Whether every valid state can reach every other one (the MDP is communicating), by forward and backward
-    reachability from state 0 through the successor lists (``O(S A K)`` per step, at most ``S`` steps)."""
+    reachability from state 0 through the successor lists (``O(S A K)`` per step, at most ``S`` steps). Jitted
+    (:func:`jaxmdp.dynamic_programming.compiled`)."""
     S = mdp.n_states
     edge = (mdp.succ_p > 0) & mdp.action_mask[None, :, None] & mdp.state_mask[:, None, None]
     start = jnp.arange(S) == 0

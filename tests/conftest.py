@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gc
 import json
+import logging
 import os
 from pathlib import Path
 
@@ -71,6 +72,15 @@ def reference_params():
     if not entries:
         return [pytest.param(None, marks=pytest.mark.skip(reason="../shared/reference is not available"))]
     return [pytest.param(e, id=e["id"]) for e in entries]
+
+
+def compilations(caplog: pytest.LogCaptureFixture, calls) -> list[str]:
+    """The XLA compilations logged while the zero-argument ``calls`` run (eagerly, in order; results waited for)."""
+    caplog.clear()
+    with jax.log_compiles(True), caplog.at_level(logging.WARNING):
+        for call in calls:
+            jax.block_until_ready(call())
+    return [r.getMessage() for r in caplog.records if "Compiling" in r.getMessage()]
 
 
 def random_mdp(

@@ -6,7 +6,6 @@ plain numpy backward induction, numpy linear solves, and Cesàro averages of mat
 
 import dataclasses
 import itertools
-import logging
 
 import jax
 import jax.numpy as jnp
@@ -17,7 +16,7 @@ import scipy.linalg
 import jaxmdp
 from jaxmdp import dynamic_programming as dp
 
-from conftest import random_mdp
+from conftest import compilations, random_mdp
 
 GAMMA = 0.9
 
@@ -358,14 +357,6 @@ def _eager_calls(mdp: jaxmdp.MDP, episodic: jaxmdp.MDP) -> list:
     ]
 
 
-def _compilations(caplog, calls) -> list[str]:
-    caplog.clear()
-    with jax.log_compiles(True), caplog.at_level(logging.WARNING):
-        for call in calls:
-            jax.block_until_ready(call())
-    return [r.getMessage() for r in caplog.records if "Compiling" in r.getMessage()]
-
-
 def test_eager_calls_compile_once_per_shape(caplog):
     """The routines with loops are jitted with their MDPs' labels stripped (dynamic_programming.compiled): a second
     eager call with the same shapes compiles nothing, also on another MDP of those shapes with other labels (without
@@ -376,6 +367,6 @@ def test_eager_calls_compile_once_per_shape(caplog):
     continuous = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=4)
     episodic = jaxmdp.make("RiverSwim", episodic=True, seed=0, size=4)
     assert relabelled(continuous).info != continuous.info
-    assert _compilations(caplog, _eager_calls(continuous, episodic))  # the first calls compile
-    assert _compilations(caplog, _eager_calls(continuous, episodic)) == []
-    assert _compilations(caplog, _eager_calls(relabelled(continuous), relabelled(episodic))) == []
+    assert compilations(caplog, _eager_calls(continuous, episodic))  # the first calls compile
+    assert compilations(caplog, _eager_calls(continuous, episodic)) == []
+    assert compilations(caplog, _eager_calls(relabelled(continuous), relabelled(episodic))) == []

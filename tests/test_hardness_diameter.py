@@ -7,6 +7,8 @@
 * documented answers: not strongly connected -> inf (converged), budget exhausted -> inf (not converged).
 """
 
+import dataclasses
+
 import jax
 import numpy as np
 import pytest
@@ -14,7 +16,7 @@ import pytest
 import hardness
 import jaxmdp
 
-from conftest import random_mdp
+from conftest import compilations, random_mdp
 from hardness_helpers import brute_force_diameter, deep_sea, time_augmented
 
 
@@ -84,6 +86,20 @@ def test_not_strongly_connected_is_certified_infinite():
     for variant in ("paper", "colosseum"):
         res = hardness.diameter(m, variant=variant)
         assert float(res.value) == np.inf and bool(res.converged) and not bool(res.finite)
+
+
+def test_eager_calls_compile_once_per_shape(caplog):
+    """The measures' entry points compile once per shape, whatever the MDP's labels (each strips them before its
+    jitted core; ``strongly_connected`` through ``dynamic_programming.compiled``)."""
+    m = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=5)
+    other = m.replace(info=dataclasses.replace(m.info, node_labels=tuple(f"other {i}" for i in range(5))))
+
+    def calls(mdp):
+        return [lambda: hardness.strongly_connected(mdp), lambda: hardness.measures(mdp),
+                lambda: hardness.diameter(mdp, variant="colosseum")]
+
+    assert compilations(caplog, calls(m))
+    assert compilations(caplog, calls(other)) == []
 
 
 def test_slow_convergence_exhausts_budget_explicitly():
