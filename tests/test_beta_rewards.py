@@ -216,6 +216,27 @@ def test_step_batch_member_equals_single_step_bitwise(size):
         assert np.sum((alone > 0) & (alone < 1)) > 30  # mostly Beta draws, not point masses
 
 
+@pytest.mark.parametrize("trials", [4, 2])  # 2 trials: about 9% of the rounds fail, so rounds 1-3 decide many draws
+def test_rounds_before_the_loop_change_no_value(trials):
+    # unrolled_rounds moves rounds out of the loop, never the round a member's value comes from: the same bits for
+    # every member, batched (1024 members, 512 of them at the worst shapes a = b = 1) and alone.
+    a = BITWISE_A.at[:512].set(1.0)
+    b = BITWISE_B.at[:512].set(1.0)
+    draws = {k: np.asarray(jax.jit(jax.vmap(functools.partial(sample_beta, trials=trials, unrolled_rounds=k)))(
+        BITWISE_KEYS, a, b)).view(np.uint32) for k in (1, 2, 3)}
+    np.testing.assert_array_equal(draws[2], draws[1])
+    np.testing.assert_array_equal(draws[3], draws[1])
+    fails = np.asarray(jax.jit(jax.vmap(lambda k, x, y: beta_module._round(
+        k, jnp.int32(0), trials, jnp.stack([x, y]), (shape_terms(x), shape_terms(y))) < 0))(BITWISE_KEYS, a, b))
+    if trials == 2:  # rounds 1, 2, ... decide these members' values (1 and 2 both fail for about 1 in 100)
+        assert fails.sum() >= 40
+    alone = jax.jit(functools.partial(sample_beta, trials=trials, unrolled_rounds=3))
+    for i in np.flatnonzero(fails)[:8]:
+        assert np.asarray(alone(BITWISE_KEYS[i], a[i], b[i])).view(np.uint32) == draws[1][i]
+    with pytest.raises(ValueError, match="unrolled_rounds"):
+        sample_beta(BITWISE_KEYS[0], 1.0, 1.0, unrolled_rounds=0)
+
+
 def test_dummy_member_is_accepted_in_round_zero():
     # The member appended to unbatched calls (shape 1, fixed key words) finishes in round 0, so it never makes a
     # batch run a second round (module docstring, "Batches").

@@ -52,6 +52,15 @@ Under ``vmap`` the loop over further rounds runs at a step as soon as one member
 trials were the fastest at 1024 environments on the families (docs/benchmarks/bench_env.md). Trial 0 can only be
 ``G_a``'s and the last trial is only useful to ``G_b``, so a round evaluates ``2 n - 2`` trial tests.
 
+**Rounds before the loop.** Round 0 runs for every member before the ``while_loop``; ``unrolled_rounds = k`` runs
+rounds ``0 .. k-1`` there (each member keeps its first successful one) and the loop starts at round ``k``. The value is
+the same, the first successful round's, whatever ``k`` (tested bit for bit): only the cost moves. On a CPU the loop
+is cheap and an extra round costs the whole batch another round of arithmetic, so the step uses ``k = 1``. On a GPU
+each trip of a ``while_loop`` is its own kernel launches with its predicate read back, and with 1 024 members some
+member needs round 1 at about a third of the steps (above): ``k = 2`` would leave the loop a single predicate check
+at nearly every step. ``scripts/bench_beta_rounds.py`` measures both on the device at hand (the first GPU lease found
+Beta rewards costing 3-4x a step there, docs/benchmarks/gpu_h100.md).
+
 **Random numbers.** Threefry-2x32 of the key (the function ``jax.random`` uses;
 :func:`jaxmdp.sampling.threefry.threefry2x32`) on the counters ``(T, j)``, ``T = 0x62657461`` ("beta"): trial ``j``
 (counted over rounds) uses both 32-bit words of the hash of counter ``j``, the first for ``u_j`` and the second for
@@ -148,9 +157,12 @@ def _round(key: jax.Array, r: jax.Array, n: int, ab: jax.Array, shapes: tuple[Sh
     return jnp.where(has_a & has_b, ea / (ea + eb), -1.0)
 
 
-def _draw(data: jax.Array, a: jax.Array, b: jax.Array, *, trials: int, impl: str | None) -> jax.Array:
+def _draw(
+    data: jax.Array, a: jax.Array, b: jax.Array, *, trials: int, impl: str | None, unrolled: int = 1
+) -> jax.Array:
     """The draw of one key (its raw words ``data``; ``impl`` the name of a typed key's implementation, None for a raw
-    key) and one pair of shapes (scalars of the working dtype): scalar code, meant to run under ``vmap``."""
+    key) and one pair of shapes (scalars of the working dtype): scalar code, meant to run under ``vmap``. Rounds ``0
+    .. unrolled - 1`` run before the loop (module docstring, "Rounds before the loop")."""
     key = data if impl is None else jax.random.wrap_key_data(data, impl=impl)
     ab = jnp.stack([a, b])
     ok = jnp.where((ab > 0) & (ab < jnp.inf), ab, 1.0)  # improper shapes are drawn as 1, then replaced
@@ -158,10 +170,12 @@ def _draw(data: jax.Array, a: jax.Array, b: jax.Array, *, trials: int, impl: str
     # Round 0 outside the loop: under vmap the loop then runs only at the steps where some member needs it. The loop
     # carries one value per member (the draw, -1 while missing), which lets XLA fuse round 0 into a single loop.
     first = _round(key, jnp.int32(0), trials, ab, shapes)
+    for r in range(1, unrolled):
+        first = jnp.where(first < 0, _round(key, jnp.int32(r), trials, ab, shapes), first)
     _, draw = jax.lax.while_loop(
         lambda carry: carry[1] < 0,
         lambda carry: (carry[0] + 1, _round(key, carry[0], trials, ab, shapes)),
-        (jnp.int32(1), first),
+        (jnp.int32(unrolled), first),
     )
     return draw
 
@@ -173,11 +187,11 @@ def _padded(args: tuple[jax.Array, jax.Array, jax.Array], dummy: tuple[np.ndarra
 
 
 @functools.lru_cache(maxsize=None)
-def _lanes(trials: int, impl: str | None, key_words: int, dtype) -> Callable:
+def _lanes(trials: int, impl: str | None, key_words: int, dtype, unrolled: int = 1) -> Callable:
     """The sampler of one key and pair of shapes as a ``custom_vmap`` function of ``(key words, a, b)`` that always
     evaluates the vectorised code of a batch of at least two members: alone, with a dummy member appended; under
     ``vmap``, over the batch (with a dummy member if it has one member or shares an argument)."""
-    draws = jax.vmap(functools.partial(_draw, trials=trials, impl=impl))
+    draws = jax.vmap(functools.partial(_draw, trials=trials, impl=impl, unrolled=unrolled))
     # Raw key words and shapes of the dummy member; shape 1 with these words is accepted in round 0 (tested).
     dummy = (np.arange(1, key_words + 1, dtype=np.uint32), np.array(1.0, dtype), np.array(1.0, dtype))
 
@@ -196,17 +210,28 @@ def _lanes(trials: int, impl: str | None, key_words: int, dtype) -> Callable:
     return lanes
 
 
-@functools.partial(jax.jit, static_argnames=("trials", "dtype"))
+@functools.partial(jax.jit, static_argnames=("trials", "dtype", "unrolled_rounds"))
 def sample_beta_shared(
-    key: jax.Array, a: jax.Array, b: jax.Array, *, trials: int = DEFAULT_TRIALS, dtype=jnp.float32
+    key: jax.Array,
+    a: jax.Array,
+    b: jax.Array,
+    *,
+    trials: int = DEFAULT_TRIALS,
+    dtype=jnp.float32,
+    unrolled_rounds: int = 1,
 ) -> jax.Array:
     """One ``Beta(a, b) = G_a / (G_a + G_b)`` draw for scalar shapes ``a, b > 0`` (``vmap`` for more), exact.
 
     ``G_a``, ``G_b`` (``Gamma(shape, 1)``, kept as logs so that tiny shapes do not underflow) are the first accepted
     Marsaglia-Tsang trials of one shared sequence, in rounds of ``trials >= 2`` trials, a round that does not accept
     both being drawn again (module docstring). Returns the draw in ``dtype`` (float32, or float64 with x64); a member
-    of a ``vmap``-ed batch gets bit for bit its value alone.
+    of a ``vmap``-ed batch gets bit for bit its value alone. ``unrolled_rounds``: rounds computed for every member
+    before the loop over further rounds (module docstring, "Rounds before the loop"); the value does not depend on it.
     """
+    if unrolled_rounds < 1:
+        raise ValueError(
+            f"sample_beta_shared: unrolled_rounds must be >= 1 (round 0 always runs), got {unrolled_rounds}"
+        )
     if trials < 2:
         raise ValueError(f"sample_beta_shared: trials must be >= 2 (one trial per Gamma at least), got {trials}")
     a, b = jnp.asarray(a, dtype), jnp.asarray(b, dtype)
@@ -218,5 +243,5 @@ def sample_beta_shared(
     typed = jnp.issubdtype(key.dtype, jax.dtypes.prng_key)
     data = jax.random.key_data(key) if typed else key
     impl = str(jax.random.key_impl(key)) if typed else None
-    lanes = _lanes(trials, impl, data.shape[0], np.dtype(work))
+    lanes = _lanes(trials, impl, data.shape[0], np.dtype(work), unrolled_rounds)
     return lanes(data, a.astype(work), b.astype(work)).astype(a.dtype)
