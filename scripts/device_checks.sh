@@ -7,7 +7,7 @@
 #   SMALL=1 PY=.venv/bin/python OUT=/tmp/dc bash scripts/device_checks.sh   # a few-minute dry run on a CPU
 #   PARTS="env agents" bash scripts/device_checks.sh   # only some parts (after info, which always runs)
 #
-# Parts (PARTS, default "split buckets deep"; the first lease ran "env agents hardness wall", see
+# Parts (PARTS, default "beta split buckets deep"; the first lease ran "env agents hardness wall", see
 # docs/benchmarks/gpu_h100.md, whose "What to do with the next GPU lease" the default follows):
 #   env, agents, hardness: bench_env, bench_agents --ratio, bench_hardness;
 #   wall: the largest bucket of every tabular agent of the two ergodic settings, 500 steps (benchmark_wall_time.py);
@@ -15,9 +15,11 @@
 #     and 2 000 steps) on their largest buckets: the difference is the cost per step without the fixed cost of a call;
 #   buckets: episodic Q-learning on all 20 episodic ergodic MDPs in one batch (--buckets 1, 400 members) against the
 #     default 4 buckets, 5 000 steps: whether padding everything to 400 states costs less than three more batches;
+#   beta: the step's Beta draw with 1, 2 or 3 rounds before its loop (bench_beta_rounds.py), 1 024 to 262 144 members;
 #   deep: DQN on two continuous ergodic MDPs (RiverSwim (1), SimpleGrid (1)) through StateInfo, 2 000 steps, 20 seeds
 #     (a batch per observation shape): the deep agents' cost per step on the GPU.
-# The default parts' limits add up to 570 s (the device's per-call limit is 600 s): run it with timeout_s=595.
+# The default parts' limits add up to 580 s (the device's per-call limit is 600 s): run it with timeout_s=600; the
+# last part (deep) is the one a slow start would cut.
 #
 # Packages missing there (distrax, flashbax, gymnax and what they need) travel as Python 3.12 wheels in .whl/ (ignored
 # by git), installed into /tmp/site; the dry run (SMALL=1) uses the local environment instead.
@@ -34,11 +36,12 @@ fi
 # Sizes: the GPU's, or a small dry run.
 if [ -n "${SMALL:-}" ]; then
     ENVS="64 1024"; SEEDS=64; WALL_SEEDS=2; WALL_STEPS=200; LIMIT_SCALE=${LIMIT_SCALE:-1}
-    SPLIT_STEPS="100 300"; SPLIT_STEPS_UCRL2="100 300"; BUCKET_SEEDS=1; BUCKET_STEPS=200; DEEP_SEEDS=1; DEEP_STEPS=200
+    SPLIT_STEPS="100 300"; SPLIT_STEPS_UCRL2="100 300"; BETA_MEMBERS="64 1024"
+    BUCKET_SEEDS=1; BUCKET_STEPS=200; DEEP_SEEDS=1; DEEP_STEPS=200
 else
     ENVS="1024 16384 262144"; SEEDS=16384; WALL_SEEDS=20; WALL_STEPS=500; LIMIT_SCALE=1
-    SPLIT_STEPS="500 5000"; SPLIT_STEPS_UCRL2="500 2000"; BUCKET_SEEDS=20; BUCKET_STEPS=5000; DEEP_SEEDS=20
-    DEEP_STEPS=2000
+    SPLIT_STEPS="500 5000"; SPLIT_STEPS_UCRL2="500 2000"; BETA_MEMBERS="1024 16384 262144"
+    BUCKET_SEEDS=20; BUCKET_STEPS=5000; DEEP_SEEDS=20; DEEP_STEPS=2000
     export JAXMDP_NO_XLA_GUARD=1  # the guard's flag is for jaxlib 0.10.2's CPU backend; leave a GPU jaxlib's flags alone
 fi
 
@@ -64,7 +67,10 @@ print(\"smoke run ok\", r.column(\"normalized_cumulative_regret\")[-1])
 '" || { echo "smoke failed"; exit 1; }
 grep -q "smoke run ok" "$OUT/info.log" || { echo "smoke failed: see info.log"; exit 1; }
 
-want() { [[ " ${PARTS:-split buckets deep} " == *" $1 "* ]]; }
+want() { [[ " ${PARTS:-beta split buckets deep} " == *" $1 "* ]]; }
+
+want beta && part beta 60 $PY scripts/bench_beta_rounds.py --members $BETA_MEMBERS --repeats 3 \
+    --doc results/device/bench_beta_rounds.md
 
 want env && part env 90 $PY scripts/bench_env.py --quick --envs $ENVS --out results/device/env \
     --doc results/device/env/bench_env.md
@@ -76,22 +82,22 @@ want wall && part wall 190 $PY scripts/benchmark_wall_time.py --out results/devi
 if want split; then
     # The second step count of each pair reuses the first's programs (persistent compilation cache).
     for steps in $SPLIT_STEPS; do
-        part "split_episodic_$steps" 60 $PY scripts/benchmark_wall_time.py --out "results/device/split_e$steps" \
+        part "split_episodic_$steps" 55 $PY scripts/benchmark_wall_time.py --out "results/device/split_e$steps" \
             --which largest --seeds $WALL_SEEDS --steps "$steps" --measure "episodic ergodic" \
             --agents q_learning_episodic random_episodic
     done
     for steps in $SPLIT_STEPS_UCRL2; do
-        part "split_ucrl2_$steps" 80 $PY scripts/benchmark_wall_time.py --out "results/device/split_c$steps" \
+        part "split_ucrl2_$steps" 70 $PY scripts/benchmark_wall_time.py --out "results/device/split_c$steps" \
             --which largest --seeds $WALL_SEEDS --steps "$steps" --measure "continuous ergodic" --agents ucrl2
     done
 fi
 if want buckets; then
     for b in 1 4; do
-        part "buckets_$b" 65 $PY scripts/run_benchmark.py --settings "episodic ergodic" --agents q_learning_episodic \
+        part "buckets_$b" 55 $PY scripts/run_benchmark.py --settings "episodic ergodic" --agents q_learning_episodic \
             --seeds $BUCKET_SEEDS --steps $BUCKET_STEPS --buckets $b --quiet --out "results/device/buckets_$b"
     done
 fi
-want deep && part deep 120 $PY scripts/run_benchmark.py --settings "continuous ergodic" --emission state_info \
+want deep && part deep 110 $PY scripts/run_benchmark.py --settings "continuous ergodic" --emission state_info \
     --agents dqn_continuous --mdps RiverSwim/prms_0 SimpleGrid/prms_0 --seeds $DEEP_SEEDS --steps $DEEP_STEPS \
     --quiet --out results/device/deep
 
