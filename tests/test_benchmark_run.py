@@ -246,10 +246,12 @@ def test_paper_columns_of_the_deep_agents_need_the_papers_emission(tmp_path):
     appendix = report._appendix_rows(report.summarize(tmp_path), "episodic communicating", latex=False)[1]
     assert [r[5] for r in appendix[:3]] == ["0.05 ± 0.09", "0.17 ± 0.24", ""]  # regret (paper); none for random
     assert [r[8] for r in appendix[:3]] == ["", "", ""]  # no completed counts for the deep agents
+    assert "App. G's non-tabular table" in report._paper_source("state_info")  # the report's header names it
     # Another emission: the paper has no numbers for it, so no paper column.
     _fake_run(tmp_path, rows, agents, setting="episodic communicating", emission="one_hot")
     header = report.markdown_table(report.summarize(tmp_path), "episodic communicating").splitlines()[0]
     assert "(paper)" not in header
+    assert "no numbers" in report._paper_source("one_hot") and "Table 2" in report._paper_source(None)
 
 
 def test_average_row_of_a_whole_set_of_a_deep_agent_is_the_papers(tmp_path):

@@ -355,6 +355,16 @@ def hardness_figure(s: Summary, set_name: str) -> Any:
     return fig
 
 
+def _paper_source(emission: str | None) -> str:
+    """What the *(paper)* columns hold for a run of ``emission`` (``None``: the agents observed the states)."""
+    if emission is None:
+        return "; *(paper)*: the paper's Table 2 (500 000 steps, 20 seeds, runs cut off after 10 minutes)."
+    if emission == published.NONTABULAR_EMISSION:
+        return ("; *(paper)*: App. G's non-tabular table (the `StateInfo` emission, 500 000 steps, 20 seeds, runs cut "
+                "off after 40 minutes).")
+    return f"; the paper has no numbers for agents observing the `{emission}` emission."
+
+
 def write_report(out: str | os.PathLike) -> list[Path]:
     """Write ``report.md``, ``report.tex`` and the figures into the run folder ``out`` (module docstring); returns
     the files written."""
@@ -368,7 +378,7 @@ def write_report(out: str | os.PathLike) -> list[Path]:
         f"{s.settings['hparams_source']}, agent rules: {s.settings.get('agent_variant', 'paper')} (colosseum: "
         "reference mode). Every run completed its steps (no wall-clock cut-off). Score: final "
         "`normalized_cumulative_regret` / steps (App. E), mean ± std over seeds; bold: the lowest learning agent per "
-        "row; *(paper)*: the paper's Table 2 (500 000 steps, 20 seeds, runs cut off after 10 minutes).",
+        f"row{_paper_source(s.settings.get('emission'))}",
         "",
     ]
     tex = []
