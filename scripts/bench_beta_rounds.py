@@ -19,9 +19,6 @@ from __future__ import annotations
 
 import argparse
 import functools
-import os
-import platform
-import sys
 import time
 from pathlib import Path
 
@@ -29,6 +26,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from bench_doc import append_section  # scripts/ is on the path of a script run as python scripts/NAME.py
 from jaxmdp.sampling.beta_shared import sample_beta_shared
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -83,28 +81,15 @@ def main(argv: list[str] | None = None) -> None:
                         + " | " + (" / ".join(f"{compiled[k][1]:.1f}" for k in ROUNDS) if mix == "worst"
                                    else "(the programs above)") + " |")
             print(rows[-1], flush=True)
-    command = "python scripts/bench_beta_rounds.py " + " ".join(sys.argv[1:] if argv is None else argv)
-    device = jax.devices()[0]
-    text = "\n".join([
-        f"## {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {device.platform} ({device.device_kind}), "
-        f"{platform.machine()}",
-        "",
-        "    " + command.strip(),
-        "",
-        f"{args.steps} steps, best of {args.repeats} interleaved runs; load average at the end "
-        f"{os.getloadavg()[0]:.1f} ({os.cpu_count()} cores): the ratios hold under load, the rates do not.",
-        "",
-        "| members | shapes | M draws/s, 1 round before the loop | 2 rounds | 3 rounds | 2 / 1 | 3 / 1 | compile s |",
-        "|---|---|---|---|---|---|---|---|",
-        *rows,
-        "",
-    ])
     if args.doc:
-        doc = Path(args.doc)
-        head = "# The step's Beta draw: rounds before the loop (`unrolled_rounds`)\n\n"
-        old = doc.read_text() if doc.exists() else head
-        doc.write_text(old.rstrip("\n") + "\n\n" + text)
-
+        append_section(args.doc, "The step's Beta draw: rounds before the loop (`unrolled_rounds`)", argv, [
+            f"{args.steps} steps, best of {args.repeats} interleaved runs.",
+            "",
+            "| members | shapes | M draws/s, 1 round before the loop | 2 rounds | 3 rounds | 2 / 1 | 3 / 1 "
+            "| compile s |",
+            "|---|---|---|---|---|---|---|---|",
+            *rows,
+        ])
 
 if __name__ == "__main__":
     main()

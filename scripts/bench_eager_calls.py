@@ -20,15 +20,13 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import os
-import platform
-import sys
 import time
 from pathlib import Path
 
 import jax
 import numpy as np
 
+from bench_doc import append_section  # scripts/ is on the path of a script run as python scripts/NAME.py
 import jaxmdp
 from jaxmdp import dynamic_programming as dp
 from jaxmdp import values
@@ -93,27 +91,15 @@ def main(argv: list[str] | None = None) -> None:
         u, j = times["unjitted"], times["jitted"]
         rows.append(f"| `{name}` | {u[0]:.2f} / {u[1]:.3f} | {j[0]:.2f} / {j[1]:.4f} | {u[1] / j[1]:.0f}x |")
         print(rows[-1], flush=True)
-    command = "python scripts/bench_eager_calls.py " + " ".join(sys.argv[1:] if argv is None else argv)
-    text = "\n".join([
-        f"## {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {platform.machine()}, {jax.devices()[0].platform}",
-        "",
-        "    " + command.strip(),
-        "",
-        f"RiverSwim, {args.size} states, {args.mdps} MDPs of one shape (`p_lazy` from 0.05 to 0.3); seconds of the "
-        f"first call / mean of the others. Load average at the end: {os.getloadavg()[0]:.1f} "
-        f"({os.cpu_count()} cores): the ratios hold under load, the seconds do not.",
-        "",
-        "| routine | unjitted | jitted | later calls, unjitted / jitted |",
-        "|---|---|---|---|",
-        *rows,
-        "",
-    ])
     if args.doc:
-        doc = Path(args.doc)
-        head = "# Eager calls of the dynamic-programming routines: jitted against unjitted\n\n"
-        old = doc.read_text() if doc.exists() else head
-        doc.write_text(old.rstrip("\n") + "\n\n" + text)
-
+        append_section(args.doc, "Eager calls of the dynamic-programming routines: jitted against unjitted", argv, [
+            f"RiverSwim, {args.size} states, {args.mdps} MDPs of one shape (`p_lazy` from 0.05 to 0.3); seconds of "
+            "the first call / mean of the others.",
+            "",
+            "| routine | unjitted | jitted | later calls, unjitted / jitted |",
+            "|---|---|---|---|",
+            *rows,
+        ])
 
 if __name__ == "__main__":
     main()
