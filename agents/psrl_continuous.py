@@ -295,11 +295,11 @@ def _posterior_alpha(state: PSRLContinuousState) -> jax.Array:
     return dirichlet_concentration(1.0 / S, state.counts, state.state_mask)
 
 
-# The posterior rows that a plan keeps: those of the first M pairs at eta, M = min(S A, _KEEP_LIMIT / (max_psi S))
+# The posterior rows that a plan keeps: those of the first M pairs at eta, M = min(S A, KEEP_LIMIT / (max_psi S))
 # (``max_psi M S`` floats, 16 MiB a member). Above M pairs at eta, the plan uses a draw of all pairs' rows instead,
 # drawn again from the same keys at every backup. For T = 500 000 at most T / eta pairs reach eta: 52 at S = 948
 # (eta 9 480, M = 73), 125 at S = 400 (M = 174); Taxi (108 x 6, psi 17) keeps all its 648 pairs.
-_KEEP_LIMIT = 1 << 22
+KEEP_LIMIT = 1 << 22
 
 
 class Draws(struct.PyTreeNode):
@@ -347,15 +347,18 @@ class Draws(struct.PyTreeNode):
         return jnp.where(self.overflow, self.draw(k), kept.reshape(self.alpha.shape))
 
 
-def draws(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "paper") -> Draws:
+def draws(
+    key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "paper", keep_limit: int = KEEP_LIMIT
+) -> Draws:
     """The candidates of one plan (module docstring) without their dense kernels.
 
     The state receiving the missing mass is one ``randint`` over the real states (``state_mask``, in index order,
     wherever the padding lies) per pair and slot (``variant="colosseum"``: per slot, shared by all pairs). The
     colosseum variant's deviation divides by ``max(1, N(s, a, s'))`` and its posterior draws are normalised by ``sum +
-    1e-5``. The posterior draws of the first ``M`` pairs at ``eta`` are kept (:data:`_KEEP_LIMIT`), drawn only if some
-    pair (of any member of a ``vmap``) is at ``eta``; with more pairs at ``eta``, every backup draws all rows again
-    from the same keys (:meth:`Draws.draw`)."""
+    1e-5``. The posterior draws of the first ``M = min(S A, keep_limit / (max_psi S))`` (at least one) pairs at
+    ``eta`` are kept (``keep_limit`` floats, static; default :data:`KEEP_LIMIT`), drawn only if some pair (of any
+    member of a ``vmap``) is at ``eta``; with more pairs at ``eta``, every backup draws all rows again from the same
+    keys (:meth:`Draws.draw`)."""
     colosseum = variant == "colosseum"
     hp, c = state.hparams, state.constants
     dtype = state.Q.dtype
@@ -379,7 +382,7 @@ def draws(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "pap
     index = jax.random.randint(k_z, (K,) if colosseum else (K, S, A), 0, jnp.sum(mask))
     z = jnp.broadcast_to(real_states[index].reshape((K, 1, 1) if colosseum else (K, S, A)), (K, S, A))
     posterior = N >= c.eta
-    M = min(S * A, max(1, _KEEP_LIMIT // (K * S)))
+    M = min(S * A, max(1, keep_limit // (K * S)))
     (pairs,) = jnp.nonzero(posterior.reshape(-1), size=M, fill_value=S * A)
     out = Draws(p_minus=p_minus, missing=missing, z=z.astype(jnp.int32), posterior=posterior, alpha=alpha,
                 key=k_dir, active=jnp.arange(K) < c.psi, pairs=pairs.astype(jnp.int32),
@@ -390,15 +393,17 @@ def draws(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "pap
     return out.replace(kept=kept)
 
 
-def candidate_kernels(key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "paper") -> jax.Array:
+def candidate_kernels(
+    key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "paper", keep_limit: int = KEEP_LIMIT
+) -> jax.Array:
     """The dense ``[max_psi, S, A, S]`` candidate kernels of :func:`draws` (the same draws a plan with this key
     uses; for tests and inspection, a plan never builds them). Slots ``k >= psi`` repeat candidate 0, so they never
     change a maximum over candidates.
 
     ``variant="colosseum"``: the reference's simple optimistic sampling, whose deviation divides by the per-next-state
     count ``max(1, N(s, a, s'))`` and whose candidate ``k`` hands the missing mass of every pair to one shared state
-    ``z_k``; posterior draws are normalised by ``sum + 1e-5``."""
-    d = draws(key, state, variant=variant)
+    ``z_k``; posterior draws are normalised by ``sum + 1e-5``. ``keep_limit``: as for :func:`draws`."""
+    d = draws(key, state, variant=variant, keep_limit=keep_limit)
     S = state.Q.shape[0]
     zeros = jnp.zeros(d.alpha.shape, d.alpha.dtype)
 
@@ -559,7 +564,12 @@ def extended_policy_iteration(
 
 
 def plan(
-    key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "paper", reward_variant: Variant | None = None
+    key: jax.Array,
+    state: PSRLContinuousState,
+    *,
+    variant: Variant = "paper",
+    reward_variant: Variant | None = None,
+    keep_limit: int = KEEP_LIMIT,
 ) -> PSRLContinuousState:
     """Start an epoch: draw the extended MDP and solve it (module docstring).
 
@@ -569,14 +579,16 @@ def plan(
     stopping rule, on the same structured backup. A no-op unless :func:`needs_plan` (the runner keeps the result only
     for members that asked). ``variant="colosseum"``: the reference's candidates (:func:`draws`) and extended rewards
     (:func:`colosseum_extended_rewards`). ``reward_variant`` (default ``variant``) sets the extended rewards' rule
-    alone, so that an ablation can tell the two differences apart.
+    alone, so that an ablation can tell the two differences apart. ``keep_limit``: the posterior rows a plan keeps
+    (:func:`draws`; the plan is the same, only its memory and the redrawing change: tests force the redrawing path
+    with 0).
     """
     if reward_variant not in (None, *VARIANTS):
         raise ValueError(f"reward_variant must be None, 'paper' or 'colosseum'; got {reward_variant!r}")
     hp = state.hparams
     k_r, k_p = jax.random.split(key)
     R_ext = _extended_rewards(normal_gamma_sample(k_r, state.rewards), state, reward_variant or variant)
-    d = draws(k_p, state, variant=variant)
+    d = draws(k_p, state, variant=variant, keep_limit=keep_limit)
     mask = state.action_mask
     gamma = jnp.asarray(hp.discount, R_ext.dtype)
 

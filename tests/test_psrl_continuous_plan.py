@@ -56,14 +56,14 @@ def _state(variant, case, discount=0.99, seed=0):
     return agent, state
 
 
-@functools.partial(jax.jit, static_argnames="variant")
-def _dense(k, state, variant):
+@functools.partial(jax.jit, static_argnames=("variant", "keep_limit"))
+def _dense(k, state, variant, keep_limit=pc.KEEP_LIMIT):
     """The explicit extended MDP of the draws that plan(k, state) makes (same key split). Jitted: called eagerly, the
     ``lax.map`` loops inside the draws compiled again at every call (their bodies are new closures each time), 180
     compilations and about half of this file's time."""
     k_r, k_p = jax.random.split(k)
     R = normal_gamma_sample(k_r, state.rewards)
-    P = pc.candidate_kernels(k_p, state, variant=variant)
+    P = pc.candidate_kernels(k_p, state, variant=variant, keep_limit=keep_limit)
     T, Rx, mask = pc.extended_mdp(R, P, state.action_mask)
     if variant == "colosseum":
         Rx = pc.colosseum_extended_rewards(R, state.constants.psi, state.hparams.max_psi, state.action_mask)
@@ -77,10 +77,10 @@ def _dense_policy_iteration(T, R, mask, u, gamma):
     return dp.policy_iteration(T, gamma, rewards=R, policy=start)
 
 
-@functools.partial(jax.jit, static_argnames="variant")
-def _overflow(k, state, variant):
+@functools.partial(jax.jit, static_argnames=("variant", "keep_limit"))
+def _overflow(k, state, variant, keep_limit=pc.KEEP_LIMIT):
     """Whether the draws of ``k`` have more pairs at ``eta`` than they keep (jitted, as :func:`_dense`)."""
-    return pc.draws(k, state, variant=variant).overflow
+    return pc.draws(k, state, variant=variant, keep_limit=keep_limit).overflow
 
 
 @jax.jit
@@ -148,27 +148,20 @@ def test_average_reward_plan_is_gain_optimal_in_the_dense_extended_mdp(variant, 
 
 @pytest.mark.statistical(p=0.0)
 @pytest.mark.parametrize("variant", ["paper", "colosseum"])
-def test_more_pairs_at_eta_than_kept(monkeypatch, variant):
-    """M = 1 kept pair, fewer than the pairs at eta: the plan uses the draws of every pair (redrawn at each backup),
-    and still solves the dense extended MDP of its draws (discounted: dp.policy_iteration; average reward: the optimal
-    gain), for every key (p = 0). Batched with a member without pairs at eta (kept path), each member plans as alone."""
-    monkeypatch.setattr(pc, "_KEEP_LIMIT", 0)
-    jax.clear_caches()  # jitted plans of other tests were traced with the default M
-    try:
-        _check_more_pairs_at_eta_than_kept(variant)
-    finally:
-        monkeypatch.undo()
-        jax.clear_caches()
-
-
-def _check_more_pairs_at_eta_than_kept(variant):
+def test_more_pairs_at_eta_than_kept(variant):
+    """M = 1 kept pair (``keep_limit=0``), fewer than the pairs at eta: the plan uses the draws of every pair (redrawn
+    at each backup), and still solves the dense extended MDP of its draws (discounted: dp.policy_iteration; average
+    reward: the optimal gain), for every key (p = 0). Batched with a member without pairs at eta (kept path), each
+    member plans as alone."""
+    agent = get("psrl_continuous", variant)
+    plan = jax.jit(functools.partial(agent.plan, keep_limit=0))  # one program for both discounts (a traced hparam)
+    plan_both = jax.jit(jax.vmap(plan))
     for discount in (0.99, 1.0):
-        agent, state = _state(variant, "some", discount=discount, seed=4)
-        assert bool(_overflow(jax.random.key(0), state, variant))
-        plan = jax.jit(agent.plan)
+        state = _state(variant, "some", discount=discount, seed=4)[1]
+        assert bool(_overflow(jax.random.key(0), state, variant, keep_limit=0))
         for k in jax.random.split(key(24), 2):
             new = plan(k, state)
-            T, R, mask = _dense(k, state, variant)
+            T, R, mask = _dense(k, state, variant, keep_limit=0)
             if discount < 1:
                 ref = _dense_policy_iteration(T, R, mask, state.u, discount)
                 np.testing.assert_allclose(new.u, ref.V, rtol=0, atol=2e-6 * (1 + float(np.abs(ref.V).max())))
@@ -181,7 +174,7 @@ def _check_more_pairs_at_eta_than_kept(variant):
         other = _state(variant, "none", discount=discount, seed=5)[1]
         keys = jax.random.split(key(25), 2)
         batch = jax.tree.map(lambda *x: jnp.stack(x), state, other)
-        both = jax.jit(jax.vmap(agent.plan))(keys, batch)
+        both = plan_both(keys, batch)
         for i, member in enumerate((state, other)):
             alone = plan(keys[i], member)
             np.testing.assert_allclose(both.u[i], alone.u, rtol=1e-6, atol=1e-6)
