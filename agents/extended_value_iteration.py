@@ -118,6 +118,7 @@ def optimistic_kernel(lo: jax.Array, hi: jax.Array, u: jax.Array) -> jax.Array:
     return lo + _extra_mass(lo, hi, u)
 
 
+@jax.jit  # an eager call compiles its loop once per shape, not at every call
 def extended_value_iteration(
     p_hat: jax.Array,
     width: jax.Array,
@@ -198,6 +199,7 @@ def colosseum_optimistic_kernel(p_hat: jax.Array, width: jax.Array, u: jax.Array
     return jnp.where((m >= 1.0)[..., None], on_best.astype(p_hat.dtype), shifted)
 
 
+@jax.jit  # as extended_value_iteration
 def colosseum_extended_value_iteration(
     p_hat: jax.Array,
     width: jax.Array,

@@ -28,6 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from jaxmdp.dynamic_programming import compiled
 from jaxmdp.mdp import MDP
 
 __all__ = [
@@ -48,11 +49,13 @@ def _require_episodic(mdp: MDP) -> int:
     return mdp.H
 
 
+@compiled()
 def reachable_pairs(mdp: MDP) -> jax.Array:
     """Boolean ``[H, S]`` mask of the pairs ``(h, s)`` reachable within an episode (docs/families.md §1.8).
 
     ``Reach_0 = supp(P0)`` (valid states only) and ``Reach_{h+1} = {s' : P(s'|s,a) > 0, s in Reach_h, a valid}`` for
-    ``h + 1 < horizon``; rows ``h >= horizon`` are False. Jittable; vmaps over a stacked batch.
+    ``h + 1 < horizon``; rows ``h >= horizon`` are False. Jitted (:func:`jaxmdp.dynamic_programming.compiled`); vmaps
+    over a stacked batch.
     """
     H = _require_episodic(mdp)
     S = mdp.n_states

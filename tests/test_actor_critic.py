@@ -20,6 +20,7 @@ from agents.deep import actor_critic as ac
 from agents.deep import policy_gradient as pg
 from agents.search_spaces import CHOICE_SPACES, sample_candidate_groups
 from jaxmdp.experiment.agent_interface import Transition
+from conftest import compilations
 from stat_checks import Checks, failure_rate_bound, key
 
 AC_NAMES = ("actor_critic_episodic", "actor_critic_continuous")
@@ -349,3 +350,11 @@ class TestProbeLearning(probes.ProbeLearning):
     def outputs(state, kind, episodic):
         del kind, episodic
         return probes.evaluate_grid(ac.evaluate, state)
+
+
+def test_lambda_returns_compile_once_per_shape(caplog):
+    # Jitted: a second eager call with other numbers (and another valid length) compiles nothing.
+    r, d, v, r2, v2 = (jnp.asarray(np.full(n, x, np.float32)) for n, x in ((5, 1.0), (5, 0.9), (6, 0.0), (5, 2.0),
+                                                                          (6, 1.0)))
+    assert compilations(caplog, [lambda: pg.lambda_returns(r, d, v, 0.5, 3)])
+    assert compilations(caplog, [lambda: pg.lambda_returns(r2, d, v2, 0.7, 4)]) == []

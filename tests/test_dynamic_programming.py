@@ -15,6 +15,7 @@ import scipy.linalg
 
 import jaxmdp
 from jaxmdp import dynamic_programming as dp
+from jaxmdp.episodic import reachable_pairs
 
 from conftest import compilations, random_mdp
 
@@ -354,6 +355,7 @@ def _eager_calls(mdp: jaxmdp.MDP, episodic: jaxmdp.MDP) -> list:
         lambda: dp.optimal_gain(mdp),
         lambda: jaxmdp.reference_values(mdp, "colosseum"),
         lambda: jaxmdp.reference_values(episodic),
+        lambda: reachable_pairs(episodic),
     ]
 
 

@@ -19,6 +19,8 @@ from agents.extended_value_iteration import (
 from jaxmdp import dynamic_programming as dp
 from jaxmdp.dynamic_programming import relative_value_iteration
 
+from conftest import compilations
+
 
 @pytest.mark.parametrize("seed", range(6))
 def test_inner_maximisation_matches_linprog(seed):
@@ -237,3 +239,19 @@ def test_sorted_evi_plans_as_the_dense_one(monkeypatch, rng=np.random.default_rn
     np.testing.assert_allclose(fast.gain_upper, dense.gain_upper, atol=1e-5)
     np.testing.assert_allclose(fast.Q, dense.Q, atol=1e-4)
     np.testing.assert_array_equal(np.argmax(fast.Q, -1)[mask], np.argmax(dense.Q, -1)[mask])
+
+
+def test_eager_calls_compile_once_per_shape(caplog):
+    # Both planners are jitted: a second eager call with other numbers of the same shapes compiles nothing.
+    rng = np.random.default_rng(3)
+
+    def calls():
+        p_hat = jnp.asarray(rng.dirichlet(np.ones(3), size=(3, 2)), jnp.float32)
+        r = jnp.asarray(rng.uniform(size=(3, 2)), jnp.float32)
+        width, radius = jnp.full((3, 2, 3), 0.05), jnp.full((3, 2), 0.1)  # per next state; the reference's L1 radius
+        masks = (jnp.ones(3, bool), jnp.ones(2, bool))
+        return [lambda: extended_value_iteration(p_hat, width, r, *masks),
+                lambda: evi.colosseum_extended_value_iteration(p_hat, radius, r, *masks)]
+
+    assert compilations(caplog, calls())
+    assert compilations(caplog, calls()) == []

@@ -108,6 +108,7 @@ def append(buffer: Trajectory, tr: Transition, episodic: bool) -> Trajectory:
     )
 
 
+@jax.jit  # an eager call compiles its scan once per shape, not at every call
 def lambda_returns(
     rewards: jax.Array,
     discounts: jax.Array,
