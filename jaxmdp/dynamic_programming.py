@@ -43,6 +43,7 @@ from jaxmdp.mdp import MDP
 
 Model = MDP | jax.Array
 
+
 def compiled(*static_argnames: str) -> Callable[[Callable], Callable]:
     """Decorator: the routine jitted (``static_argnames`` static), its :class:`~jaxmdp.MDP` arguments stripped of their
     static metadata (:meth:`~jaxmdp.MDP.strip`) first.

@@ -19,7 +19,6 @@ Everything is jittable (``variant`` is static) and vmaps over a stacked batch.
 
 from __future__ import annotations
 
-
 import jax
 from flax import struct
 

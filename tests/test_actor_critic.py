@@ -354,7 +354,7 @@ class TestProbeLearning(probes.ProbeLearning):
 
 def test_lambda_returns_compile_once_per_shape(caplog):
     # Jitted: a second eager call with other numbers (and another valid length) compiles nothing.
-    r, d, v, r2, v2 = (jnp.asarray(np.full(n, x, np.float32)) for n, x in ((5, 1.0), (5, 0.9), (6, 0.0), (5, 2.0),
-                                                                          (6, 1.0)))
+    full = lambda n, x: jnp.asarray(np.full(n, x, np.float32))  # noqa: E731  (not weakly typed, as jnp.full)
+    r, d, v, r2, v2 = full(5, 1.0), full(5, 0.9), full(6, 0.0), full(5, 2.0), full(6, 1.0)
     assert compilations(caplog, [lambda: pg.lambda_returns(r, d, v, 0.5, 3)])
     assert compilations(caplog, [lambda: pg.lambda_returns(r2, d, v2, 0.7, 4)]) == []

@@ -69,10 +69,14 @@ def test_acceptance_matches_the_documented_worst_case():
 
 @functools.partial(jax.jit, static_argnames="n")
 def failed_rounds(keys, a, b, n):
-    """Per key: whether round 0 of ``n`` trials did not accept both Gammas."""
-    shapes = (shape_terms(a), shape_terms(b))
-    ab = jnp.stack([a, b])  # (the scalar round of beta_shared)
-    return jax.vmap(lambda k: beta_module._round(k, jnp.int32(0), n, ab, shapes) < 0)(keys)
+    """Per key: whether round 0 of ``n`` trials did not accept both Gammas (shapes ``a``, ``b``: scalars, or one pair
+    per key)."""
+    a, b = (jnp.broadcast_to(x, keys.shape) for x in (a, b))
+
+    def failed(k, x, y):  # (the scalar round of beta_shared)
+        return beta_module._round(k, jnp.int32(0), n, jnp.stack([x, y]), (shape_terms(x), shape_terms(y))) < 0
+
+    return jax.vmap(failed)(keys, a, b)
 
 
 @pytest.mark.statistical(p=1e-7)
@@ -226,8 +230,7 @@ def test_rounds_before_the_loop_change_no_value(trials):
         BITWISE_KEYS, a, b)).view(np.uint32) for k in (1, 2, 3)}
     np.testing.assert_array_equal(draws[2], draws[1])
     np.testing.assert_array_equal(draws[3], draws[1])
-    fails = np.asarray(jax.jit(jax.vmap(lambda k, x, y: beta_module._round(
-        k, jnp.int32(0), trials, jnp.stack([x, y]), (shape_terms(x), shape_terms(y))) < 0))(BITWISE_KEYS, a, b))
+    fails = np.asarray(failed_rounds(BITWISE_KEYS, a, b, trials))
     if trials == 2:  # rounds 1, 2, ... decide these members' values (1 and 2 both fail for about 1 in 100)
         assert fails.sum() >= 40
     alone = jax.jit(functools.partial(sample_beta, trials=trials, unrolled_rounds=3))
