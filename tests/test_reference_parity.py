@@ -8,19 +8,27 @@ import pytest
 
 import jaxmdp
 
-from conftest import build_reference_mdp, load_reference, reference_params
+from conftest import build_reference_mdp, load_reference, reference_index, reference_params
 
-# The values are computed on the MDP padded to a few shapes (the 41 fixtures have 41 shapes; one program per shape
-# took 163 s of compilation): padding changes no value (padded states and actions are masked out, steps from the
-# horizon on are worth zero), which the runner relies on for its stacked batches, so this also checks that.
-_STATE_BUCKETS = (32, 64, 128, 256, 512)
+# The values are computed on each MDP padded to the shape of its size bucket (jaxmdp.size_buckets, as the runner and
+# the benchmark stack MDPs; the 41 fixtures have 41 shapes, one compiled program each took 163 s): padding changes no
+# value (padded states and actions are masked out, steps from the horizon on are worth zero), which the stacked
+# batches rely on, so this also checks that.
+N_BUCKETS = 6
 
 
-def _padded(m: jaxmdp.MDP) -> jaxmdp.MDP:
-    """``m`` padded to the next of :data:`_STATE_BUCKETS` states, 6 actions, 9 successors, 32 steps, 4 or 256 starts."""
-    S = next(b for b in _STATE_BUCKETS if b >= m.n_states)
-    assert m.n_actions <= 6 and m.succ.shape[-1] <= 9 and (m.H or 0) <= 32 and m.max_starts <= 256, "a new bucket"
-    return jaxmdp.pad(m.strip(), S, 6, 9, 32 if m.episodic else None, 4 if m.max_starts <= 4 else 256)
+def _padded_shapes(entries: list[dict], build) -> dict[str, tuple]:
+    """Entry id -> the ``jaxmdp.pad`` arguments of the stack of its size bucket (per setting)."""
+    shapes = {}
+    for setting in ("episodic", "continuous"):
+        group = [e for e in entries if e["setting"] == setting]
+        mdps = [build(e) for e in group]
+        for bucket in jaxmdp.size_buckets(mdps, N_BUCKETS):
+            stacked = jaxmdp.stack([mdps[i] for i in bucket])
+            _, S, A, K = stacked.succ.shape
+            for i in bucket:
+                shapes[group[i]["id"]] = (S, A, K, stacked.H, stacked.max_starts)
+    return shapes
 
 
 @pytest.fixture(scope="module")
@@ -33,6 +41,11 @@ def built():
         return cache[entry["id"]]
 
     return get
+
+
+@pytest.fixture(scope="module")
+def padded_shapes(built):
+    return _padded_shapes(reference_index(), built)
 
 
 @pytest.mark.parametrize("entry", reference_params())
@@ -51,9 +64,9 @@ def test_arrays_and_state_order(entry, built):
 
 
 @pytest.mark.parametrize("entry", reference_params())
-def test_reference_values_and_class(entry, built):
+def test_reference_values_and_class(entry, built, padded_shapes):
     m = built(entry)
-    values = jaxmdp.reference_values(_padded(m), "colosseum")
+    values = jaxmdp.reference_values(jaxmdp.pad(m.strip(), *padded_shapes[entry["id"]]), "colosseum")
     for name in ("optimal", "worst", "random"):
         np.testing.assert_allclose(
             float(getattr(values, name)), entry[f"{name}_value"], rtol=1e-4, atol=1e-6, err_msg=name
