@@ -101,5 +101,6 @@ def main(argv: list[str] | None = None) -> None:
             *rows,
         ])
 
+
 if __name__ == "__main__":
     main()
