@@ -270,6 +270,28 @@ def test_deterministic_evaluation_matches_numpy_and_the_one_hot_policy():
     V_short = dp.finite_horizon_deterministic_evaluation(short, jnp.asarray(actions, jnp.int32))
     np.testing.assert_array_equal(np.asarray(V_short), np.asarray(dp.finite_horizon_policy_evaluation(short, one_hot)[1]))
     np.testing.assert_array_equal(V_short[3:], 0.0)
+    # V_0 alone (what the indicators read): the very numbers of the full backward pass, either horizon.
+    for mdp, V_full in ((m, V_det), (short, V_short)):
+        V_0 = dp.finite_horizon_deterministic_start_values(mdp, jnp.asarray(actions, jnp.int32))
+        np.testing.assert_array_equal(np.asarray(V_0), np.asarray(V_full[0]))
+
+
+def test_start_values_are_the_first_step_of_policy_evaluation():
+    # Stochastic policies, time-indexed and stationary, a traced horizon below H: V_0 bit for bit, and against an
+    # independent float64 backward induction.
+    rng = np.random.default_rng(4)
+    m = random_mdp(rng, S=7, A=3, H=6)
+    T, R = np.asarray(m.T, np.float64), np.asarray(m.R, np.float64)
+    for pi in (rng.dirichlet(np.ones(3), size=(m.H, m.n_states)), rng.dirichlet(np.ones(3), size=m.n_states)):
+        pi = jnp.asarray(pi, jnp.float32)
+        for horizon in (m.H, 4):
+            mdp = m.replace(horizon=jnp.asarray(horizon, m.horizon.dtype))
+            V_0 = dp.finite_horizon_start_values(mdp, pi)
+            np.testing.assert_array_equal(np.asarray(V_0), np.asarray(dp.finite_horizon_policy_evaluation(mdp, pi)[1][0]))
+            pis, V = np.broadcast_to(np.asarray(pi, np.float64), (m.H, m.n_states, 3)), np.zeros(m.n_states)
+            for h in reversed(range(horizon)):
+                V = np.sum(pis[h] * (R + T @ V), axis=-1)
+            np.testing.assert_allclose(V_0, V, rtol=1e-5)
 
 
 def test_greedy_actions_is_the_index_of_greedy():
@@ -344,6 +366,8 @@ def _eager_calls(mdp: jaxmdp.MDP, episodic: jaxmdp.MDP) -> list:
         lambda: dp.finite_horizon_value_iteration(mdp.T, mdp.R, H=3),
         lambda: dp.finite_horizon_policy_evaluation(episodic, dp.uniform_policy(episodic)),
         lambda: dp.finite_horizon_deterministic_evaluation(episodic, actions),
+        lambda: dp.finite_horizon_start_values(episodic, dp.uniform_policy(episodic)),
+        lambda: dp.finite_horizon_deterministic_start_values(episodic, actions),
         lambda: dp.recurrent_classes(P),
         lambda: dp.successor_reachability(mdp.succ, mdp.succ_p > 0),
         lambda: dp.chain_gain(P, r),

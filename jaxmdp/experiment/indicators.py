@@ -161,15 +161,15 @@ def policy_values(mdp: MDP, policy: jax.Array, iterative_sweeps: int = 0) -> jax
 
     ``policy`` may also be a deterministic policy given by its action indices (an integer ``[H, S]`` or ``[S]``
     array, an agent's ``greedy_actions``): episodic, only the chosen actions' successor lists are read
-    (:func:`~jaxmdp.dynamic_programming.finite_horizon_deterministic_evaluation`, the same numbers as its one-hot
+    (:func:`~jaxmdp.dynamic_programming.finite_horizon_deterministic_start_values`, the same numbers as its one-hot
     policy); continuous, the certified bounds sweep the chosen actions' successor slots only (``K`` a state instead
     of ``A K``) and the dense fallback takes its one-hot policy."""
     integer = jnp.issubdtype(policy.dtype, jnp.integer)
     if integer and mdp.episodic:
         actions = policy if policy.ndim == 2 else jnp.broadcast_to(policy, (mdp.H, *policy.shape))
-        return dp.finite_horizon_deterministic_evaluation(mdp, actions)[0]
+        return dp.finite_horizon_deterministic_start_values(mdp, actions)
     if mdp.episodic:
-        return dp.finite_horizon_policy_evaluation(mdp, policy)[1][0]
+        return dp.finite_horizon_start_values(mdp, policy)
 
     def dense() -> jax.Array:
         return dp.gain_vector(mdp, jax.nn.one_hot(policy, mdp.n_actions, dtype=mdp.R.dtype) if integer else policy)
