@@ -2,7 +2,8 @@
 
 It acts uniformly over the valid actions and its policy estimate is the uniform policy (``[S, A]`` continuous,
 ``[H, S, A]`` episodic), so its expected regret is exactly the "random" baseline of docs/measures.md §6.3 (episodic: the
-paper's ``P0``-averaged indicator; continuous: when the uniform policy's chain has one recurrent class).
+paper's ``P0``-averaged indicator; continuous: when the uniform policy's chain has one recurrent class). The policy
+never changes (``fixed_policy``), so the runner evaluates it once per run.
 
 Difference from the reference: the reference's class is abstract (its per-step update is missing, [quirk]) and
 pre-draws blocks of actions from a ``RandomState``; here the update is a no-op and every action comes from the
@@ -67,6 +68,7 @@ def _make(episodic: bool) -> Agent:
         update=update,
         policy=policy,
         observation="any",
+        fixed_policy=True,
     )
 
 

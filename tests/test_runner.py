@@ -488,6 +488,40 @@ def test_greedy_action_indices_give_the_same_records_as_the_one_hot_policy(name)
     assert np.all(indices.values[-1, :, 0] > 0)  # some regret: the policies were evaluated, not all optimal
 
 
+@pytest.mark.parametrize("name", ["random_episodic", "random_continuous"])
+def test_a_fixed_policy_gives_the_same_records_evaluated_once(name, tmp_path):
+    # The random agent declares its policy fixed: the runner evaluates it at the first log and never extracts or
+    # compares it again. Every record is bit-identical to the comparing runner's, on a stacked grid of two MDPs of
+    # different sizes, also when the run stops after two chunks and resumes from its checkpoint.
+    agent = agents.get(name)
+    assert agent.fixed_policy
+    rng = np.random.default_rng(12)
+    H = (4, 6) if agent.episodic else (None, None)
+    mdps = [random_mdp(rng, S=5, A=3, H=H[0]), random_mdp(rng, S=3, A=2, H=H[1])]
+    g = runner.product(mdps, [agent.default_hparams], seeds=[0, 1])
+    comparing = runner.run(dataclasses.replace(agent, fixed_policy=False), g, 300, log_period=7, n_records=6)
+    ckpt = tmp_path / "run.npz"
+    part = runner.run(agent, g, 300, log_period=7, n_records=6, chunk_steps=50, checkpoint_path=ckpt,
+                      stop_after_chunks=2)
+    assert part.steps[-1] < 300 and ckpt.exists()
+    fixed = runner.run(agent, g, 300, log_period=7, n_records=6, chunk_steps=50, checkpoint_path=ckpt)
+    np.testing.assert_array_equal(fixed.steps, comparing.steps)
+    np.testing.assert_array_equal(fixed.values, comparing.values)
+    assert np.all(fixed.values[-1, :, 0] > 0)
+
+
+def test_a_policy_declared_fixed_is_evaluated_at_the_first_log_only():
+    # Q-learning's policy changes, but declared fixed it is evaluated once: every log adds the first log's regret
+    # per step, so the cumulative regret grows linearly from the first log on (the comparing runner's does not).
+    base = agents.get("q_learning_continuous")
+    g = runner.product([river_swim(False, p_rand=0.1)], [base.default_hparams], seeds=[0])
+    fixed = runner.run(dataclasses.replace(base, fixed_policy=True), g, 1000, log_period=10, n_records=10)
+    changing = runner.run(base, g, 1000, log_period=10, n_records=10)
+    for res, linear in ((fixed, True), (changing, False)):
+        rate = res.values[:, 0, 0] / res.steps
+        assert np.allclose(rate, rate[0], rtol=1e-5) == linear
+
+
 def test_greedy_actions_of_the_wrong_shape_are_refused():
     base = agents.get("q_learning_continuous")
     wrong = dataclasses.replace(base, greedy_actions=lambda state: jnp.zeros((2,), jnp.int32))

@@ -135,6 +135,9 @@ class Agent:
     greedy_actions: Callable[[Any], jax.Array] | None = None
     #: Optional ``state -> {name: int scalar}``: counters the runner records and warns about (module docstring).
     diagnostics: Callable[[Any], dict[str, jax.Array]] | None = None
+    #: True when ``policy`` is the same at every step of a run (it depends on no learnt quantity, as the random
+    #: agent's): the runner then evaluates it at the first log only and never extracts or compares it again.
+    fixed_policy: bool = False
 
 
 def where_due(due: jax.Array, new: Any, old: Any) -> Any:

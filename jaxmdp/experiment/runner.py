@@ -113,7 +113,8 @@ class Carry(struct.PyTreeNode):
     agent_state: Any
     reward: Sums  # [B] cumulative sampled reward, summed every step
     logged: Sums  # [B, 3] cumulative regret, expected reward and normalised regret, summed at logs
-    policy_cache: jax.Array  # [B, ...] the policy evaluated at the previous log (NaN or -1 before the first)
+    # [B, ...] the policy evaluated at the previous log (NaN or -1 before the first); [B, 0] for a fixed policy
+    policy_cache: jax.Array
     value_cache: jax.Array  # [B, S] its values (V_0 or the gain from every state)
     visits: jax.Array  # [B, S] int32 count of the states acted in (record_visits), else [B, 0]
 
@@ -223,9 +224,10 @@ def _init_program(agent: Agent, record_visits: bool = False) -> Callable:
             agent_state=state,
             reward=Sums.zeros((B,), dyn.dtype),
             logged=Sums.zeros((B, 3), dyn.dtype),
-            # Before the first log: a value no policy takes (NaN probabilities, action index -1).
-            policy_cache=jnp.full(policy.shape, -1 if jnp.issubdtype(policy.dtype, jnp.integer) else jnp.nan,
-                                  policy.dtype),
+            # Before the first log: a value no policy takes (NaN probabilities, action index -1). A fixed policy is
+            # never compared, so it keeps no copy.
+            policy_cache=jnp.zeros((B, 0), policy.dtype) if agent.fixed_policy
+            else jnp.full(policy.shape, -1 if jnp.issubdtype(policy.dtype, jnp.integer) else jnp.nan, policy.dtype),
             value_cache=jnp.zeros((B, dyn.n_states), dyn.dtype),
             visits=jnp.zeros((B, dyn.n_states if record_visits else 0), jnp.int32),
         )
@@ -302,10 +304,10 @@ def _chunk_program(
                 reward=c.reward.add(reward.astype(dtype)),
             )
 
-        def log(c: Carry) -> tuple:
-            # The fields a log writes (logged_fields' order). Policy evaluation is the expensive half of an
-            # indicator; a member whose policy is unchanged since the previous log reuses its values (exactly: they
-            # cover every state), and the evaluation is skipped altogether when no member's policy changed.
+        def changed_policy(c: Carry) -> tuple[jax.Array, jax.Array]:
+            """The policy to cache and which members' policies changed since the previous log."""
+            if agent.fixed_policy:  # evaluated at the first log (the previous log at step 0), never again
+                return c.policy_cache, jnp.broadcast_to(c.last_log == 0, (B,))
             policy = jax.vmap(_policy_of(agent))(c.agent_state)
             # max over uint8, not any over bool: XLA's CPU reduction of a predicate is about 9x slower (a float
             # [B, H, S, A] policy of Taxi at 512 members: 1.0 us against 0.11 us per agent-step). Reduced over the
@@ -313,12 +315,19 @@ def _chunk_program(
             # extraction ran 14 times slower (episodic Q-learning, MiniGridEmpty, 512 members: 15.4 ms a log
             # against 1.1 ms, CPU time).
             changed = jnp.max((policy != c.policy_cache).astype(jnp.uint8), axis=tuple(range(1, policy.ndim))) > 0
-            values = jax.lax.cond(
-                jnp.any(changed),
-                lambda cache: _evaluate_changed(dyn, mdp_index, policy, changed, cache),
-                lambda cache: cache,
-                c.value_cache,
-            )
+            return policy, changed
+
+        def log(c: Carry) -> tuple:
+            # The fields a log writes (logged_fields' order). Policy evaluation is the expensive half of an
+            # indicator; a member whose policy is unchanged since the previous log reuses its values (exactly: they
+            # cover every state), and the evaluation is skipped altogether when no member's policy changed.
+            policy, changed = changed_policy(c)
+
+            def evaluate(cache: jax.Array) -> jax.Array:
+                current = jax.vmap(_policy_of(agent))(c.agent_state) if agent.fixed_policy else policy
+                return _evaluate_changed(dyn, mdp_index, current, changed, cache)
+
+            values = jax.lax.cond(jnp.any(changed), evaluate, lambda cache: cache, c.value_cache)
             inst = jax.vmap(lambda i, k, v, s, s0: instant_from_values(_member(dyn, i), k, v, s, s0, variant))(
                 mdp_index, consts, values, c.env_state.state, c.last_start
             )
