@@ -1,6 +1,8 @@
 """Benchmark: the episodic indicator's policy evaluation, the whole backward pass (every step's ``V``, then ``V_0``
 taken) against ``V_0`` alone (:func:`jaxmdp.dynamic_programming.finite_horizon_deterministic_start_values`, the same
 numbers), as the runner calls it at a log: ``vmap`` over ``--members`` greedy policies of one MDP, one device.
+``--stack``: the same on a stack of two MDPs, each member reading its own packed rows or the stack's
+(:func:`jaxmdp.dynamic_programming.successor_rows`).
 
 With ``--runner`` it also times episodic Q-learning in the lockstep runner (1 024 seeds, 4 000 steps, indicators
 every 100 steps, 2 host devices) with either evaluation, in one process, interleaved, best of ``--runner-repeats`` (``--log-period 10`` makes the
@@ -8,6 +10,7 @@ logs ten times as frequent, so that their cost stands out of the run-to-run spre
 benchmark replaces ``jaxmdp.experiment.runner.policy_values`` for the "whole pass" runs and puts it back after.
 
     python scripts/bench_episodic_evaluation.py --runner
+    python scripts/bench_episodic_evaluation.py --stack
     python scripts/bench_episodic_evaluation.py --runner --log-period 10 --runner-repeats 3
 
 Writes a section to ``docs/benchmarks/bench_episodic_evaluation.md`` (with the command) unless ``--doc ''``.
@@ -69,6 +72,26 @@ def evaluation_rows(members: int, repeats: int) -> list[str]:
     return rows
 
 
+def stack_rows(members: int, repeats: int) -> list[str]:
+    """Two Taxi MDPs stacked (members alternate between them): each member's own packed rows against the rows read
+    from the stack by (MDP, state, action), ``V_0`` alone both ways."""
+    kw = BENCH_MDPS[("Taxi", True)]
+    stack = jaxmdp.stack([jaxmdp.make("Taxi", episodic=True, seed=s, **kw) for s in (0, 1)]).strip()
+    rows = dp.successor_rows(stack)
+    member = lambda i: jax.tree.map(lambda x: x[i], stack)  # noqa: E731
+    actions = jax.random.randint(jax.random.key(0), (members, stack.H, stack.n_states), 0, stack.n_actions)
+    index = jnp.arange(members, dtype=jnp.int32) % 2
+    own = jax.jit(jax.vmap(lambda i, a: dp.finite_horizon_deterministic_start_values(member(i), a)))
+    shared = jax.jit(jax.vmap(lambda i, a: dp.finite_horizon_deterministic_start_values(member(i), a, rows, i)))
+    same = bool(jnp.all(own(index, actions) == shared(index, actions)))
+    t_own, t_shared = (_best(lambda f=f: f(index, actions), repeats) for f in (own, shared))
+    return [
+        "| two Taxi MDPs stacked | each member's own rows, ms | rows from the stack, ms | ratio | same values |",
+        "|---|---|---|---|---|",
+        f"| {members} members | {1e3 * t_own:.2f} | {1e3 * t_shared:.2f} | {t_shared / t_own:.2f}x | {same} |",
+    ]
+
+
 def runner_rows(repeats: int, log_period: int, seeds: int = 1024, steps: int = 4000) -> list[str]:
     agent = agents.get("q_learning_episodic")
     new = runner.policy_values
@@ -107,12 +130,16 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--members", type=int, default=512, help="policies evaluated at once (a shard of 1 024 seeds)")
     p.add_argument("--repeats", type=int, default=10, help="timed calls per evaluation (best is reported)")
     p.add_argument("--runner", action="store_true", help="also time episodic Q-learning in the runner")
+    p.add_argument("--stack", action="store_true", help="also time the evaluation on a stack of two MDPs")
     p.add_argument("--runner-repeats", type=int, default=6, help="interleaved timed runs per evaluation")
     p.add_argument("--log-period", type=int, default=100, help="the runner's log period (10 magnifies the logs)")
     p.add_argument("--doc", default=str(ROOT / "docs" / "benchmarks" / "bench_episodic_evaluation.md"))
     args = p.parse_args(argv)
     body = [f"The evaluation at a log, {args.members} greedy policies vmapped on one device, best of {args.repeats}:", ""]
     body += evaluation_rows(args.members, args.repeats)
+    if args.stack:
+        body += ["", "A grid of several MDPs (the benchmark's size buckets):", ""] + stack_rows(args.members, args.repeats)
+        print("\n".join(body[-3:]), flush=True)
     if args.runner:
         body += ["", f"Episodic Q-learning in the runner, indicators every {args.log_period} steps, best of "
                  f"{args.runner_repeats} interleaved runs:", ""]

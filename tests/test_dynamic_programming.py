@@ -276,6 +276,22 @@ def test_deterministic_evaluation_matches_numpy_and_the_one_hot_policy():
         np.testing.assert_array_equal(np.asarray(V_0), np.asarray(V_full[0]))
 
 
+def test_start_values_read_from_a_stack_of_mdps():
+    # Rows read from a stacked MDP's packed table by (member, s, a), vmapped over members as the runner does: the
+    # very numbers of each member's own evaluation, also for the smaller, padded MDP of the stack.
+    rng = np.random.default_rng(5)
+    mdps = [random_mdp(rng, S=6, A=3, H=5), random_mdp(rng, S=4, A=2, H=3)]
+    stack = jaxmdp.stack(mdps).strip()
+    rows = dp.successor_rows(stack)
+    assert rows.shape == (2, 6, 3, 2 * stack.succ.shape[-1] + 1)
+    index = jnp.asarray([0, 1, 1, 0])
+    actions = jnp.asarray(rng.integers(0, 2, size=(4, stack.H, 6)), jnp.int32)
+    member = lambda i: jax.tree.map(lambda x: x[i], stack)  # noqa: E731
+    from_stack = jax.jit(jax.vmap(lambda i, a: dp.finite_horizon_deterministic_start_values(member(i), a, rows, i)))
+    own = [dp.finite_horizon_deterministic_start_values(member(i), actions[b]) for b, i in enumerate(index)]
+    np.testing.assert_array_equal(np.asarray(from_stack(index, actions)), np.stack(own))
+
+
 def test_start_values_are_the_first_step_of_policy_evaluation():
     # Stochastic policies, time-indexed and stationary, a traced horizon below H: V_0 bit for bit, and against an
     # independent float64 backward induction.

@@ -50,6 +50,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from jaxmdp import dynamic_programming as dp
 from jaxmdp import env
 from jaxmdp._checks import VARIANTS, Variant, check_int, check_variant
 from jaxmdp.experiment.agent_interface import Agent, Transition, spec_of, where_due
@@ -167,7 +168,14 @@ def _evaluate_changed(
     if jax.default_backend() != "cpu" or dyn.episodic:
         # Episodic evaluations are O(H S A K) vectorised passes, like the policy extraction that every member pays
         # anyway; member by member, the loop's per-iteration overhead dominated (H iterations per member and log).
-        values = jax.vmap(lambda i, p: policy_values(_member(dyn, i), p))(mdp_index, policy)
+        if dyn.episodic and policy.ndim == 3 and jnp.issubdtype(policy.dtype, jnp.integer) and dyn.T.shape[0] > 1:
+            # Action indices on a grid of several MDPs: every member reads its rows from the stack's packed table
+            # by (MDP, state, action), an unbatched gather (dp.finite_horizon_deterministic_start_values).
+            rows = dp.successor_rows(dyn)
+            evaluate = lambda i, p: dp.finite_horizon_deterministic_start_values(_member(dyn, i), p, rows, i)  # noqa: E731
+        else:
+            evaluate = lambda i, p: policy_values(_member(dyn, i), p)  # noqa: E731
+        values = jax.vmap(evaluate)(mdp_index, policy)
         return jnp.where(changed[:, None], values.astype(dtype), cache)
 
     def one(args):
