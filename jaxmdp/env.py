@@ -34,7 +34,7 @@ from jaxmdp.blockmdp.block_mdp import BlockMDP, noise_key, observe
 from jaxmdp.mdp import MDP
 from jaxmdp.sampling.beta_shared import sample_beta_shared
 
-__all__ = ["EnvState", "reset", "step", "sample_action", "sample_next_state", "sample_reward"]
+__all__ = ["EnvState", "reset", "step", "step_member", "sample_action", "sample_next_state", "sample_reward"]
 
 
 class EnvState(struct.PyTreeNode):
@@ -49,21 +49,29 @@ class EnvState(struct.PyTreeNode):
 _COMPARE_ALL_STARTS = 32
 
 
-def _start_from_uniform(u: jax.Array, mdp: MDP) -> jax.Array:
+def _read(x: jax.Array, member: jax.Array | None, *index: Any) -> jax.Array:
+    """``x[index]`` of an MDP's table, or with ``member`` of member ``member``'s table in a stacked MDP: one gather
+    from the stack."""
+    return x[index] if member is None else x[(member, *index)]
+
+
+def _start_from_uniform(u: jax.Array, mdp: MDP, member: jax.Array | None = None) -> jax.Array:
     """Inverse CDF over the sparse start list: ``start[j]`` for the first ``j`` with ``u * total < start_cdf[j]``."""
     if mdp.max_starts == 1:  # static: one start state, nothing to draw
-        return mdp.start[0]
-    cdf = mdp.start_cdf
+        return _read(mdp.start, member, 0)
+    cdf = _read(mdp.start_cdf, member)
     method = "compare_all" if mdp.max_starts <= _COMPARE_ALL_STARTS else "scan_unrolled"
     j = jnp.searchsorted(cdf, u * cdf[-1], side="right", method=method)
-    return mdp.start[jnp.minimum(j, mdp.max_starts - 1)]
+    return _read(mdp.start, member, jnp.minimum(j, mdp.max_starts - 1))
 
 
-def _slot_from_uniform(u: jax.Array, mdp: MDP, state: jax.Array, action: jax.Array) -> jax.Array:
+def _slot_from_uniform(
+    u: jax.Array, mdp: MDP, state: jax.Array, action: jax.Array, member: jax.Array | None = None
+) -> jax.Array:
     """Inverse CDF over the successor list of ``(state, action)``: the slot ``k`` of the next state."""
     if mdp.max_successors == 1:  # static: deterministic dynamics, nothing to draw (the inverse CDF would give 0)
         return jnp.zeros((), jnp.int32)
-    cdf = jnp.cumsum(mdp.succ_p[state, action])
+    cdf = jnp.cumsum(_read(mdp.succ_p, member, state, action))
     return jnp.minimum(jnp.sum(cdf <= u * cdf[-1]), cdf.shape[-1] - 1)
 
 
@@ -177,20 +185,41 @@ def step(
         info = {**info, "final_observation": final, "final_state": info["final_observation"], "state": new_state.state}
         return obs, new_state, reward, terminated, truncated, info
     _check_action(action, mdp)
+    return _step(key, state, action, mdp, None)
+
+
+def step_member(
+    key: jax.Array, state: EnvState, action: jax.Array, mdps: MDP, member: jax.Array
+) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, jax.Array, dict[str, Any]]:
+    """:func:`step` of member ``member`` of the stacked MDP ``mdps`` (a leading MDP axis on every array): the same
+    result bit for bit as ``step`` on that member's MDP, with every table read one gather from the stack.
+
+    What a lockstep grid of several MDPs should call under ``vmap``: ``step`` on each member's own MDP (a
+    ``tree.map(lambda x: x[member], mdps)``) made XLA copy every member's tables, the ``[S, A, S]`` reward tables
+    included, out of the stack (hoisted out of the step loop, then read per member; docs/benchmarks/bench_env.md).
+    """
+    return _step(key, state, action, mdps, member)
+
+
+def _step(
+    key: jax.Array, state: EnvState, action: jax.Array, mdp: MDP, member: jax.Array | None
+) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, jax.Array, dict[str, Any]]:
+    """The body of :func:`step` (``member`` None) and :func:`step_member`."""
     # One key for the reward and two uniforms for the next and reset states: fewer PRNG calls than three splits.
     k_reward, k_uniform = jax.random.split(key)
     u_next, u_reset = jax.random.uniform(k_uniform, (2,), dtype=mdp.dtype)
     action = jnp.asarray(action, jnp.int32)
     a = jnp.clip(action, 0, mdp.n_actions - 1)
-    valid = (action == a) & mdp.action_mask[a]
-    k = _slot_from_uniform(u_next, mdp, state.state, a)
-    s_next = mdp.succ[state.state, a, k].astype(jnp.int32)
+    valid = (action == a) & _read(mdp.action_mask, member, a)
+    k = _slot_from_uniform(u_next, mdp, state.state, a, member)
+    s_next = _read(mdp.succ, member, state.state, a, k).astype(jnp.int32)
     reward = _reward_draw(
-        k_reward, mdp, mdp.reward_mean[state.state, a, s_next], mdp.reward_conc[state.state, a, s_next]
+        k_reward, mdp, _read(mdp.reward_mean, member, state.state, a, s_next),
+        _read(mdp.reward_conc, member, state.state, a, s_next),
     )
     h_next = state.h + 1
-    terminated = ((h_next >= mdp.horizon) & valid) if mdp.episodic else jnp.zeros((), bool)
-    s_reset = _start_from_uniform(u_reset, mdp) if mdp.episodic else state.state
+    terminated = ((h_next >= _read(mdp.horizon, member)) & valid) if mdp.episodic else jnp.zeros((), bool)
+    s_reset = _start_from_uniform(u_reset, mdp, member) if mdp.episodic else state.state
     s_next = jnp.where(valid, s_next, state.state)
     new_state = EnvState(
         state=jnp.where(terminated, s_reset, s_next),

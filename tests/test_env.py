@@ -109,6 +109,38 @@ def test_batched_trajectories_equal_single_runs(episodic):
         assert int(jnp.max(out[0][i])) < m.n_states and int(jnp.max(out[1][i])) < m.n_actions
 
 
+@pytest.mark.parametrize("episodic", [False, True])
+def test_step_member_reads_the_stack_with_the_results_of_step(episodic):
+    # step_member on a stack of MDPs of different sizes (padded states and actions, several start states, Beta
+    # rewards): bit for bit what step gives on each member's own MDP, vmapped over members as the runner steps them,
+    # with invalid (padded) actions and episode resets among the steps.
+    rng = np.random.default_rng(8)
+    mdps = [random_mdp(rng, S, A, H=(S + 1 if episodic else None)) for S, A in [(5, 3), (3, 2), (4, 3)]]
+    stack = jaxmdp.stack(mdps).strip()
+    member = lambda i: jax.tree.map(lambda x: x[i], stack)  # noqa: E731
+    index = jnp.asarray([0, 1, 2, 1, 0, 2, 1, 1], jnp.int32)
+
+    def run(step):
+        def body(carry, k):
+            _, state = carry
+            k_act, k_step = jax.random.split(k)
+            action = jax.random.randint(k_act, (index.shape[0],), 0, 3)  # action 2 is padding for member 1
+            keys = jax.random.split(k_step, index.shape[0])
+            out = jax.vmap(step)(keys, state, action, index)
+            return (out[0], out[1]), out
+
+        _, state = jax.vmap(lambda k, i: jaxmdp.reset(k, member(i)))(jax.random.split(jax.random.key(1), 8), index)
+        return jax.lax.scan(body, (state.state, state), jax.random.split(jax.random.key(2), 20))[1]
+
+    own = jax.jit(lambda: run(lambda k, s, a, i: jaxmdp.step(k, s, a, member(i))))()
+    shared = jax.jit(lambda: run(lambda k, s, a, i: jaxmdp.env.step_member(k, s, a, stack, i)))()
+    for got, want in zip(jax.tree.leaves(shared), jax.tree.leaves(own)):
+        np.testing.assert_array_equal(got, want)
+    rewards, terminated = own[2], own[3]
+    assert np.any(np.isnan(rewards)) and np.any(~np.isnan(rewards))  # invalid actions were among the steps
+    assert np.any(terminated) == episodic
+
+
 def test_stochastic_rewards_flag_is_static_and_exact():
     det = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=4)
     sto = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=4, make_reward_stochastic=True)

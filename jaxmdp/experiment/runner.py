@@ -281,16 +281,22 @@ def _chunk_program(
                 do_plan = lambda state: plan_due(agent.plan, slots, needs, keys(), state)  # noqa: E731
             return c.replace(agent_state=jax.lax.cond(jnp.any(needs), do_plan, lambda s: s, c.agent_state))
 
+        # A grid of several plain MDPs steps each member on the stack itself; a BlockMDP grid, or a single MDP (no
+        # gather at all), on the member's own MDP.
+        stacked = isinstance(mdps, MDP) and mdps.T.shape[0] > 1
+
         def interact(c: Carry) -> Carry:
             k_env, k_act = _keys(c.key_data, 0, c.t), _keys(c.key_data, 1, c.t)
 
             def one(i, ke, ka, env_state, obs, state):
                 # obs: the state index, or for a BlockMDP the observation sample that step() returned last (so
                 # the transition's next_obs is the very sample the agent acts on next, not a second noise draw).
-                m = _member(mdps, i)
                 h = env_state.h
                 action = agent.act(ka, state, obs, h)
-                obs2, env_state2, reward, terminated, _, info = env.step(ke, env_state, action, m)
+                if stacked:  # one gather from the stack per table read (env.step_member)
+                    obs2, env_state2, reward, terminated, _, info = env.step_member(ke, env_state, action, mdps, i)
+                else:
+                    obs2, env_state2, reward, terminated, _, info = env.step(ke, env_state, action, _member(mdps, i))
                 tr = Transition(
                     obs=obs, action=action, reward=reward, next_obs=info["final_observation"], h=h,
                     terminated=terminated,
