@@ -196,7 +196,8 @@ def step_member(
 
     What a lockstep grid of several MDPs should call under ``vmap``: ``step`` on each member's own MDP (a
     ``tree.map(lambda x: x[member], mdps)``) made XLA copy every member's tables, the ``[S, A, S]`` reward tables
-    included, out of the stack (hoisted out of the step loop, then read per member; docs/benchmarks/bench_env.md).
+    included, out of the stack (hoisted out of the step loop, then read per member): 1.8x slower steps on two Taxi
+    MDPs (docs/benchmarks/bench_stacked_grid.md).
     """
     return _step(key, state, action, mdps, member)
 
