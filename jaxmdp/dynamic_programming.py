@@ -534,9 +534,13 @@ def successor_rows(mdp: MDP) -> jax.Array:
     per step instead of three (vmapped over 512 members on a CPU, one core: 5.4 -> 3.6 ms on MiniGridEmpty, 12.1 ->
     9.0 ms on Taxi, 1.7 -> 1.0 ms on RiverSwim; the same numbers)."""
     dtype = mdp.R.dtype
-    as_int = {4: jnp.int32, 8: jnp.int64}[jnp.dtype(dtype).itemsize]
-    succ = jax.lax.bitcast_convert_type(mdp.succ.astype(as_int), dtype)
+    succ = jax.lax.bitcast_convert_type(mdp.succ.astype(_same_width_int(dtype)), dtype)
     return jnp.concatenate([mdp.succ_p.astype(dtype), mdp.R[..., None], succ], axis=-1)
+
+
+def _same_width_int(dtype: Any) -> Any:
+    """The integer dtype that a float ``dtype`` bit-casts to (the successor columns of :func:`successor_rows`)."""
+    return {4: jnp.int32, 8: jnp.int64}[jnp.dtype(dtype).itemsize]
 
 
 def _deterministic_backup(mdp: MDP, rows: jax.Array | None, member: jax.Array | None) -> Callable:
@@ -545,16 +549,13 @@ def _deterministic_backup(mdp: MDP, rows: jax.Array | None, member: jax.Array | 
     _, horizon = _horizon_args(mdp, None, None)
     S, K = mdp.n_states, mdp.succ.shape[-1]
     states = jnp.arange(S)
-    as_int = {4: jnp.int32, 8: jnp.int64}[jnp.dtype(mdp.R.dtype).itemsize]
-    if rows is None:
-        table = successor_rows(mdp)
-        chosen = lambda a_h: table[states, a_h]  # noqa: E731
-    else:
-        chosen = lambda a_h: rows[member, states, a_h]  # noqa: E731
+    as_int = _same_width_int(mdp.R.dtype)
+    table = successor_rows(mdp) if rows is None else rows
+    index = (states,) if rows is None else (member, states)
 
     def step(V_next, x):
         h, a_h = x
-        rows_h = chosen(a_h)
+        rows_h = table[(*index, a_h)]
         nxt = jax.lax.bitcast_convert_type(rows_h[:, K + 1:], as_int).reshape(-1)
         expected = jnp.sum(rows_h[:, :K] * jnp.take(V_next, nxt, mode="clip").reshape(S, K), axis=-1)
         return jnp.where(h < horizon, rows_h[:, K] + 1.0 * expected, 0.0), ()
@@ -588,6 +589,9 @@ def finite_horizon_deterministic_start_values(
     the unbatched stack by ``(member, s, a)``; from each member's own packed table (a batched operand) XLA's CPU
     gather took about 10x as long (two Taxi MDPs, 512 members, one core: 155 against 14 ms a log,
     docs/benchmarks/bench_episodic_evaluation.md)."""
+    if (rows is None) != (member is None):
+        raise ValueError("rows and member go together: a stacked MDP's successor_rows and this MDP's index in it; "
+                         f"got rows={'None' if rows is None else rows.shape} and member={member!r}")
     V_H = jnp.zeros((mdp.n_states,), mdp.R.dtype)
     backup = _deterministic_backup(mdp, rows, member)
     return _backward(backup, V_H, (jnp.arange(mdp.H), actions[: mdp.H]), False)

@@ -198,7 +198,18 @@ def step_member(
     ``tree.map(lambda x: x[member], mdps)``) made XLA copy every member's tables, the ``[S, A, S]`` reward tables
     included, out of the stack (hoisted out of the step loop, then read per member): 1.8x slower steps on two Taxi
     MDPs (docs/benchmarks/bench_stacked_grid.md).
+
+    A concrete ``member`` outside ``[0, M)`` or ``action`` outside ``[0, A)`` raises ``ValueError``; a traced invalid
+    action is the flagged no-op of :func:`step`. BlockMDPs are not supported (``TypeError``).
     """
+    if not isinstance(mdps, MDP) or mdps.T.ndim != 4:
+        raise TypeError(f"mdps must be a stacked MDP (jaxmdp.stack: T of shape [M, S, A, S]); got {type(mdps).__name__}"
+                        + (f" with T of shape {mdps.T.shape}" if isinstance(mdps, MDP) else ""))
+    i = _concrete(member)
+    M = mdps.T.shape[0]
+    if i is not None and np.any((i < 0) | (i >= M)):
+        raise ValueError(f"member must be an index in [0, {M}) (the stack holds {M} MDPs); got {i.tolist()}")
+    _check_action(action, mdps)
     return _step(key, state, action, mdps, member)
 
 

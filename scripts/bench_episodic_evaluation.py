@@ -19,6 +19,7 @@ Writes a section to ``docs/benchmarks/bench_episodic_evaluation.md`` (with the c
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import time
 from collections.abc import Callable
@@ -36,6 +37,7 @@ import jaxmdp  # noqa: E402
 from bench_agents import BENCH_MDPS  # noqa: E402
 from bench_doc import append_section  # noqa: E402
 from jaxmdp import dynamic_programming as dp  # noqa: E402
+from jaxmdp.experiment.members import member_mdp  # noqa: E402
 from jaxmdp.experiment import indicators, runner  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -78,7 +80,7 @@ def stack_rows(members: int, repeats: int) -> list[str]:
     kw = BENCH_MDPS[("Taxi", True)]
     stack = jaxmdp.stack([jaxmdp.make("Taxi", episodic=True, seed=s, **kw) for s in (0, 1)]).strip()
     rows = dp.successor_rows(stack)
-    member = lambda i: jax.tree.map(lambda x: x[i], stack)  # noqa: E731
+    member = functools.partial(member_mdp, stack)
     actions = jax.random.randint(jax.random.key(0), (members, stack.H, stack.n_states), 0, stack.n_actions)
     index = jnp.arange(members, dtype=jnp.int32) % 2
     own = jax.jit(jax.vmap(lambda i, a: dp.finite_horizon_deterministic_start_values(member(i), a)))
@@ -96,7 +98,7 @@ def runner_rows(repeats: int, log_period: int, seeds: int = 1024, steps: int = 4
     agent = agents.get("q_learning_episodic")
     new = runner.policy_values
 
-    def old(mdp, policy, iterative_sweeps=0):
+    def old(mdp, policy, iterative_sweeps=0, rows=None, member=None):  # grids of one MDP: rows is None
         if mdp.episodic and jnp.issubdtype(policy.dtype, jnp.integer):
             return whole_pass(mdp, policy)
         return indicators.policy_values(mdp, policy, iterative_sweeps)

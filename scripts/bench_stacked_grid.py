@@ -15,6 +15,7 @@ Writes a section to ``docs/benchmarks/bench_stacked_grid.md`` (with the command)
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import time
 from pathlib import Path
@@ -31,6 +32,7 @@ import jaxmdp  # noqa: E402
 from bench_agents import BENCH_MDPS, NO_INDICATORS  # noqa: E402
 from bench_doc import append_section  # noqa: E402
 from jaxmdp import env  # noqa: E402
+from jaxmdp.experiment.members import member_mdp  # noqa: E402
 from jaxmdp.experiment import runner  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -44,7 +46,7 @@ def step_rows(members: int, n_mdps: int, steps: int, repeats: int) -> list[str]:
     stack = jaxmdp.stack(taxis(n_mdps)).strip()
     single = jax.tree.map(lambda x: x[0], stack)
     index = jnp.arange(members, dtype=jnp.int32) % n_mdps
-    member = lambda i: jax.tree.map(lambda x: x[i], stack)  # noqa: E731
+    member = functools.partial(member_mdp, stack)
     kinds = {
         "own MDP (env.step)": lambda k, s, a, i: env.step(k, s, a, member(i)),
         "stack (env.step_member)": lambda k, s, a, i: env.step_member(k, s, a, stack, i),

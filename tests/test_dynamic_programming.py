@@ -5,6 +5,7 @@ plain numpy backward induction, numpy linear solves, and Cesàro averages of mat
 """
 
 import dataclasses
+import functools
 import itertools
 
 import jax
@@ -16,6 +17,7 @@ import scipy.linalg
 import jaxmdp
 from jaxmdp import dynamic_programming as dp
 from jaxmdp.episodic import reachable_pairs
+from jaxmdp.experiment.members import member_mdp
 
 from conftest import compilations, random_mdp
 
@@ -286,10 +288,12 @@ def test_start_values_read_from_a_stack_of_mdps():
     assert rows.shape == (2, 6, 3, 2 * stack.succ.shape[-1] + 1)
     index = jnp.asarray([0, 1, 1, 0])
     actions = jnp.asarray(rng.integers(0, 2, size=(4, stack.H, 6)), jnp.int32)
-    member = lambda i: jax.tree.map(lambda x: x[i], stack)  # noqa: E731
+    member = functools.partial(member_mdp, stack)
     from_stack = jax.jit(jax.vmap(lambda i, a: dp.finite_horizon_deterministic_start_values(member(i), a, rows, i)))
     own = [dp.finite_horizon_deterministic_start_values(member(i), actions[b]) for b, i in enumerate(index)]
     np.testing.assert_array_equal(np.asarray(from_stack(index, actions)), np.stack(own))
+    with pytest.raises(ValueError, match="rows and member go together"):
+        dp.finite_horizon_deterministic_start_values(member(0), actions[0], rows)
 
 
 def test_start_values_are_the_first_step_of_policy_evaluation():

@@ -1,5 +1,7 @@
 """Environment API: sampling frequencies, episode semantics, auto-reset, and lockstep batching."""
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -7,6 +9,7 @@ import pytest
 from scipy import stats
 
 import jaxmdp
+from jaxmdp.experiment.members import member_mdp
 
 from conftest import random_mdp
 from stat_checks import Checks, key
@@ -117,7 +120,7 @@ def test_step_member_reads_the_stack_with_the_results_of_step(episodic):
     rng = np.random.default_rng(8)
     mdps = [random_mdp(rng, S, A, H=(S + 1 if episodic else None)) for S, A in [(5, 3), (3, 2), (4, 3)]]
     stack = jaxmdp.stack(mdps).strip()
-    member = lambda i: jax.tree.map(lambda x: x[i], stack)  # noqa: E731
+    member = functools.partial(member_mdp, stack)
     index = jnp.asarray([0, 1, 2, 1, 0, 2, 1, 1], jnp.int32)
 
     def run(step):
@@ -139,6 +142,18 @@ def test_step_member_reads_the_stack_with_the_results_of_step(episodic):
     rewards, terminated = own[2], own[3]
     assert np.any(np.isnan(rewards)) and np.any(~np.isnan(rewards))  # invalid actions were among the steps
     assert np.any(terminated) == episodic
+
+
+def test_step_member_refuses_what_it_cannot_step():
+    rng = np.random.default_rng(9)
+    stack = jaxmdp.stack([random_mdp(rng, 4, 2), random_mdp(rng, 3, 2)]).strip()
+    _, state = jaxmdp.reset(jax.random.key(0), member_mdp(stack, 0))
+    with pytest.raises(ValueError, match=r"member must be an index in \[0, 2\)"):
+        jaxmdp.env.step_member(jax.random.key(1), state, 0, stack, 2)
+    with pytest.raises(ValueError, match="action must be an integer"):
+        jaxmdp.env.step_member(jax.random.key(1), state, 5, stack, 1)
+    with pytest.raises(TypeError, match="stacked MDP"):
+        jaxmdp.env.step_member(jax.random.key(1), state, 0, member_mdp(stack, 0), 0)
 
 
 def test_stochastic_rewards_flag_is_static_and_exact():

@@ -149,7 +149,13 @@ def _safe_ratio(num: jax.Array, den: jax.Array, scale: jax.Array) -> jax.Array:
 ITERATIVE_GAIN_SWEEPS = 128
 
 
-def policy_values(mdp: MDP, policy: jax.Array, iterative_sweeps: int = 0) -> jax.Array:
+def policy_values(
+    mdp: MDP,
+    policy: jax.Array,
+    iterative_sweeps: int = 0,
+    rows: jax.Array | None = None,
+    member: jax.Array | None = None,
+) -> jax.Array:
     """The expensive half of an indicator: ``V^pi_0(s)`` for every state (episodic, finite-horizon evaluation on the
     successor lists) or the gain ``rho^pi(s)`` from every state (continuous), ``[S]``.
 
@@ -163,11 +169,13 @@ def policy_values(mdp: MDP, policy: jax.Array, iterative_sweeps: int = 0) -> jax
     array, an agent's ``greedy_actions``): episodic, only the chosen actions' successor lists are read
     (:func:`~jaxmdp.dynamic_programming.finite_horizon_deterministic_start_values`, the same numbers as its one-hot
     policy); continuous, the certified bounds sweep the chosen actions' successor slots only (``K`` a state instead
-    of ``A K``) and the dense fallback takes its one-hot policy."""
+    of ``A K``) and the dense fallback takes its one-hot policy. ``rows`` and ``member`` (episodic action indices
+    only, else ignored): a stacked MDP's :func:`~jaxmdp.dynamic_programming.successor_rows` and this MDP's index in
+    it, read instead of the MDP's own rows (see that function)."""
     integer = jnp.issubdtype(policy.dtype, jnp.integer)
     if integer and mdp.episodic:
         actions = policy if policy.ndim == 2 else jnp.broadcast_to(policy, (mdp.H, *policy.shape))
-        return dp.finite_horizon_deterministic_start_values(mdp, actions)
+        return dp.finite_horizon_deterministic_start_values(mdp, actions, rows, None if rows is None else member)
     if mdp.episodic:
         return dp.finite_horizon_start_values(mdp, policy)
 

@@ -20,7 +20,7 @@ from jaxmdp.batching import stack
 from jaxmdp.blockmdp.block_mdp import BlockMDP
 from jaxmdp.mdp import MDP
 
-__all__ = ["Grid", "grid", "product", "seed_keys", "stack_hparams"]
+__all__ = ["Grid", "grid", "product", "seed_keys", "stack_hparams", "dynamics", "n_distinct", "member_mdp"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -85,6 +85,19 @@ def dynamics(mdps: MDP | BlockMDP) -> MDP:
     return mdps.mdp if isinstance(mdps, BlockMDP) else mdps
 
 
+def n_distinct(mdps: MDP | BlockMDP) -> int:
+    """The number ``M`` of stacked MDPs (the leading axis of a :class:`Grid`'s ``mdps``)."""
+    return dynamics(mdps).T.shape[0]
+
+
+def member_mdp(mdps: MDP | BlockMDP, i: jax.Array) -> MDP | BlockMDP:
+    """MDP ``i`` of a stack (traceable; ``i`` may be batched under ``vmap``). A stack of one MDP gives it unbatched,
+    whatever ``i``, so that a grid of a single MDP gathers nothing."""
+    if n_distinct(mdps) == 1:
+        return jax.tree.map(lambda x: x[0], mdps)
+    return jax.tree.map(lambda x: x[i], mdps)
+
+
 def _label(info: Any) -> str:
     info = getattr(info, "info", info)
     params = ",".join(f"{k}={v}" for k, v in info.params if not str(k).endswith("distribution"))
@@ -132,7 +145,7 @@ def grid(
       hparams_index, seeds: labels written to the output (default ``arange(B)`` and ``-1``).
     """
     stacked, labels = _as_stacked(mdps)
-    M = dynamics(stacked).T.shape[0]
+    M = n_distinct(stacked)
     leaves = jax.tree.leaves(hparams)
     sizes = {np.shape(x)[0] if np.ndim(x) else None for x in leaves}
     if None in sizes or len(sizes) > 1:
@@ -178,7 +191,7 @@ def product(
     hyperparameters share their random numbers (common random numbers make comparisons sharper).
     """
     stacked, labels = _as_stacked(mdps)
-    M = dynamics(stacked).T.shape[0]
+    M = n_distinct(stacked)
     hparams = list(hparams)
     seeds = [int(s) for s in seeds]
     if not hparams:

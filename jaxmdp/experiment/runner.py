@@ -66,7 +66,7 @@ from jaxmdp.experiment.indicators import (
 )
 from jaxmdp.blockmdp.block_mdp import BlockMDP
 from jaxmdp.experiment.planning import default_plan_slots, plan_due
-from jaxmdp.experiment.members import Grid, dynamics, grid, product, seed_keys, stack_hparams
+from jaxmdp.experiment.members import Grid, dynamics, grid, member_mdp, n_distinct, product, seed_keys, stack_hparams
 from jaxmdp.experiment.records import MEMBER_COLUMNS, RunResult, append_rows, csv_rows, record_steps, truncate_csv
 from jaxmdp.mdp import MDP
 
@@ -128,14 +128,6 @@ class Schedule(struct.PyTreeNode):
     record_period: jax.Array
 
 
-def _member(mdps: MDP | BlockMDP, i: jax.Array) -> MDP | BlockMDP:
-    """Member ``i``'s MDP (or BlockMDP). A grid of a single distinct MDP skips the gather (an unbatched MDP under
-    ``vmap``)."""
-    if dynamics(mdps).T.shape[0] == 1:
-        return jax.tree.map(lambda x: x[0], mdps)
-    return jax.tree.map(lambda x: x[i], mdps)
-
-
 def _keys(key_data: jax.Array, which: int, t: jax.Array) -> jax.Array:
     """Per-member key ``which`` of a member for step ``t`` (vectorised over members)."""
     base = jax.random.wrap_key_data(key_data[:, which])
@@ -143,9 +135,13 @@ def _keys(key_data: jax.Array, which: int, t: jax.Array) -> jax.Array:
 
 
 def _evaluate_changed(
-    dyn: MDP, mdp_index: jax.Array, policy: jax.Array, changed: jax.Array, cache: jax.Array
+    dyn: MDP, mdp_index: jax.Array, policy: jax.Array, changed: jax.Array, cache: jax.Array,
+    rows: jax.Array | None = None,
 ) -> jax.Array:
     """:func:`policy_values` of the members whose policy ``changed``, ``cache`` for the others.
+
+    ``rows``: the stack's :func:`~jaxmdp.dynamic_programming.successor_rows` (episodic grids of several MDPs), from
+    which an episodic evaluation of action indices reads each member's rows by (MDP, state, action).
 
     On a CPU the members are taken one at a time (``lax.map``) and an unchanged member costs nothing: under ``vmap``
     every member paid for the evaluation (a dense ``O(S^3)`` one when continuous) as soon as one member's policy
@@ -168,19 +164,12 @@ def _evaluate_changed(
     if jax.default_backend() != "cpu" or dyn.episodic:
         # Episodic evaluations are O(H S A K) vectorised passes, like the policy extraction that every member pays
         # anyway; member by member, the loop's per-iteration overhead dominated (H iterations per member and log).
-        if dyn.episodic and policy.ndim == 3 and jnp.issubdtype(policy.dtype, jnp.integer) and dyn.T.shape[0] > 1:
-            # Action indices on a grid of several MDPs: every member reads its rows from the stack's packed table
-            # by (MDP, state, action), an unbatched gather (dp.finite_horizon_deterministic_start_values).
-            rows = dp.successor_rows(dyn)
-            evaluate = lambda i, p: dp.finite_horizon_deterministic_start_values(_member(dyn, i), p, rows, i)  # noqa: E731
-        else:
-            evaluate = lambda i, p: policy_values(_member(dyn, i), p)  # noqa: E731
-        values = jax.vmap(evaluate)(mdp_index, policy)
+        values = jax.vmap(lambda i, p: policy_values(member_mdp(dyn, i), p, rows=rows, member=i))(mdp_index, policy)
         return jnp.where(changed[:, None], values.astype(dtype), cache)
 
     def one(args):
         i, p, ch, old = args
-        evaluate = lambda: policy_values(_member(dyn, i), p, ITERATIVE_GAIN_SWEEPS).astype(dtype)  # noqa: E731
+        evaluate = lambda: policy_values(member_mdp(dyn, i), p, ITERATIVE_GAIN_SWEEPS).astype(dtype)  # noqa: E731
         return jax.lax.cond(ch, evaluate, lambda: old)
 
     return jax.lax.map(one, (mdp_index, policy, changed, cache))
@@ -211,7 +200,7 @@ def _init_program(agent: Agent, record_visits: bool = False) -> Callable:
         )(sub)
 
         def one(i, hp, k_reset, k_init, k_plan):
-            m = _member(mdps, i)
+            m = member_mdp(mdps, i)
             obs, env_state = env.reset(k_reset, m)
             state = agent.init(k_init, spec_of(m, n_steps), hp)
             state = agent.plan(k_plan, state)
@@ -283,7 +272,9 @@ def _chunk_program(
 
         # A grid of several plain MDPs steps each member on the stack itself; a BlockMDP grid, or a single MDP (no
         # gather at all), on the member's own MDP.
-        stacked = isinstance(mdps, MDP) and mdps.T.shape[0] > 1
+        stacked = isinstance(mdps, MDP) and n_distinct(mdps) > 1
+        # Episodic evaluations on several MDPs read the stack's packed successor rows, built once per chunk.
+        rows = dp.successor_rows(dyn) if dyn.episodic and n_distinct(dyn) > 1 else None
 
         def interact(c: Carry) -> Carry:
             k_env, k_act = _keys(c.key_data, 0, c.t), _keys(c.key_data, 1, c.t)
@@ -296,7 +287,7 @@ def _chunk_program(
                 if stacked:  # one gather from the stack per table read (env.step_member)
                     obs2, env_state2, reward, terminated, _, info = env.step_member(ke, env_state, action, mdps, i)
                 else:
-                    obs2, env_state2, reward, terminated, _, info = env.step(ke, env_state, action, _member(mdps, i))
+                    obs2, env_state2, reward, terminated, _, info = env.step(ke, env_state, action, member_mdp(mdps, i))
                 tr = Transition(
                     obs=obs, action=action, reward=reward, next_obs=info["final_observation"], h=h,
                     terminated=terminated,
@@ -339,10 +330,10 @@ def _chunk_program(
 
             def evaluate(cache: jax.Array) -> jax.Array:
                 current = jax.vmap(_policy_of(agent))(c.agent_state) if agent.fixed_policy else policy
-                return _evaluate_changed(dyn, mdp_index, current, changed, cache)
+                return _evaluate_changed(dyn, mdp_index, current, changed, cache, rows)
 
             values = jax.lax.cond(jnp.any(changed), evaluate, lambda cache: cache, c.value_cache)
-            inst = jax.vmap(lambda i, k, v, s, s0: instant_from_values(_member(dyn, i), k, v, s, s0, variant))(
+            inst = jax.vmap(lambda i, k, v, s, s0: instant_from_values(member_mdp(dyn, i), k, v, s, s0, variant))(
                 mdp_index, consts, values, c.env_state.state, c.last_start
             )
             k = (c.t - c.last_log).astype(dtype)
@@ -482,13 +473,13 @@ def _check_shapes(agent: Agent, g: Grid, n_steps: int) -> None:
 
     def first_member(mdps, hparams):
         # Everything, member 0 included, under eval_shape: an eager slice would compile a program per array.
-        m, hp, key = _member(mdps, 0), jax.tree.map(lambda x: x[0], hparams), jax.random.key(0)
+        m, hp, key = member_mdp(mdps, 0), jax.tree.map(lambda x: x[0], hparams), jax.random.key(0)
         state = agent.init(key, spec_of(m, n_steps), hp)
         obs, _ = env.reset(key, m)
         greedy = agent.greedy_actions(state) if agent.greedy_actions is not None else None
         return agent.policy(state), agent.act(key, state, obs, jnp.zeros((), jnp.int32)), greedy
 
-    m = jax.eval_shape(lambda mdps: _member(mdps, 0), g.mdps)
+    m = jax.eval_shape(lambda mdps: member_mdp(mdps, 0), g.mdps)
     S, A, H = m.n_states, m.n_actions, m.H
     try:
         policy, action, greedy = jax.eval_shape(first_member, g.mdps, g.hparams)
