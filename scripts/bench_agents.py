@@ -23,8 +23,12 @@ benchmark MDP at the largest seed count, the random agent and the agent, each wi
 without, the four runs interleaved ``--repeats`` times after a compiling run, best of each. It reports the cost ratio
 and the wall ns per agent-step of environment, agent and indicators (``results/bench_agents_ratio.md``, ``.csv``).
 
+``--mdps N`` spreads the tabular agents' members over N MDPs of each benchmark MDP's family and parameters (seeds
+``0 .. N-1``): a stack of MDPs, as every batch of the benchmark is (one per size bucket), where one MDP (the default)
+lets every member read the same tables.
+
 Usage: ``python scripts/bench_agents.py [--quick] [--steps N] [--seeds 1,64,1024] [--deep-seeds 1,16,64]
-[--agents a,b] [--repeats R] [--ratio]``; the issue's 1.5x check:
+[--agents a,b] [--mdps N] [--repeats R] [--ratio]``; the issue's 1.5x check:
 
     python scripts/bench_agents.py --quick --ratio --seeds 1024 --repeats 3 --agents q_learning_episodic,q_learning_continuous
 """
@@ -85,9 +89,23 @@ REFERENCE = {
 NO_INDICATORS = 2**30  # a log period longer than any run: only the final log happens
 
 
-def measure(agent, mdp, seeds: int, steps: int, repeats: int, log_period: int = 100, shards=None) -> dict:
-    """Best-of-``repeats`` wall and CPU time per agent-step; the first call's compile time."""
-    g = runner.product([mdp], [agent.default_hparams], seeds=range(seeds))
+def bench_mdps(family: str, episodic: bool, n_mdps: int) -> list:
+    """``n_mdps`` MDPs of the benchmark MDP's family and parameters (:data:`BENCH_MDPS`), seeds ``0 .. n_mdps - 1``:
+    with more than one, a grid is a stack of MDPs, as every batch of the benchmark is (one per size bucket)."""
+    return [jaxmdp.make(family, episodic=episodic, seed=i, **BENCH_MDPS[(family, episodic)]) for i in range(n_mdps)]
+
+
+def grid_of(agent, mdps: list, members: int):
+    """``members`` members spread evenly over ``mdps`` (``members / len(mdps)`` seeds each)."""
+    if members % len(mdps):
+        raise ValueError(f"--seeds ({members}) must be a multiple of --mdps ({len(mdps)})")
+    return runner.product(mdps, [agent.default_hparams], seeds=range(members // len(mdps)))
+
+
+def measure(agent, mdps: list, seeds: int, steps: int, repeats: int, log_period: int = 100, shards=None) -> dict:
+    """Best-of-``repeats`` wall and CPU time per agent-step of ``seeds`` members over ``mdps``; the first call's
+    compile time."""
+    g = grid_of(agent, mdps, seeds)
     first = runner.run(agent, g, steps, log_period=log_period, n_records=10, shards=shards)
     walls, cpus = [first.run_s], []
     for _ in range(repeats):
@@ -184,7 +202,7 @@ def bsuite_dqn_steps_per_s(mdp, table, hparams, steps: int, seed: int = 0) -> di
     return {"steps_per_s": steps / (time.perf_counter() - t0)}
 
 
-def measure_ratio(agent, random_agent, mdp, seeds: int, steps: int, repeats: int) -> dict:
+def measure_ratio(agent, random_agent, mdps: list, seeds: int, steps: int, repeats: int) -> dict:
     """The agent's and the random agent's wall seconds per agent-step, with indicators every 100 steps and without,
     measured back to back in one process: the four runs interleaved ``repeats`` times after a compiling run each,
     best of each (a shared machine's load then weighs on all four alike)."""
@@ -192,7 +210,7 @@ def measure_ratio(agent, random_agent, mdp, seeds: int, steps: int, repeats: int
         "random_env": (random_agent, NO_INDICATORS), "random": (random_agent, 100),
         "agent_bare": (agent, NO_INDICATORS), "agent": (agent, 100),
     }
-    grids = {k: runner.product([mdp], [a.default_hparams], seeds=range(seeds)) for k, (a, _) in runs.items()}
+    grids = {k: grid_of(a, mdps, seeds) for k, (a, _) in runs.items()}
     go = lambda k: runner.run(runs[k][0], grids[k], steps, log_period=runs[k][1], n_records=10).run_s  # noqa: E731
     for k in runs:
         go(k)  # compiles
@@ -219,9 +237,9 @@ def main_ratio(args, names: list[str], families: list[str]) -> None:
             continue
         random_agent = agents.get("random_episodic" if agent.episodic else "random_continuous")
         for family in families:
-            mdp = jaxmdp.make(family, episodic=agent.episodic, seed=0, **BENCH_MDPS[(family, agent.episodic)])
-            m = measure_ratio(agent, random_agent, mdp, seeds, args.steps, max(args.repeats, 1))
-            rows.append(dict(agent=name, mdp=family, S=mdp.n_states, seeds=seeds, **m))
+            mdps = bench_mdps(family, agent.episodic, args.mdps)
+            m = measure_ratio(agent, random_agent, mdps, seeds, args.steps, max(args.repeats, 1))
+            rows.append(dict(agent=name, mdp=family, S=mdps[0].n_states, mdps=len(mdps), seeds=seeds, **m))
             print(f"{name:24s} {family:14s} seeds={seeds}: random {fmt_rate(m['random_steps_per_s'])}, agent "
                   f"{fmt_rate(m['agent_steps_per_s'])} agent-steps/s, cost ratio {m['ratio']:.2f}x; ns env "
                   f"{m['env_ns']:.0f}, agent {m['agent_ns']:.0f}, indicators {m['indicators_ns']:.0f} (random's "
@@ -235,7 +253,8 @@ def main_ratio(args, names: list[str], families: list[str]) -> None:
     lines = [
         "# Cost per step against the random agent (same process)",
         "",
-        f"{args.steps} steps per seed, {seeds} seeds, {jax.local_device_count()} host devices; the random agent and "
+        f"{args.steps} steps per seed, {seeds} members on {args.mdps} MDP(s), {jax.local_device_count()} host devices; "
+        "the random agent and "
         f"the agent, each with indicators every 100 steps and without, interleaved {max(args.repeats, 1)} times, "
         f"best of each. Load average before/after: {load0[0]:.1f} / {os.getloadavg()[0]:.1f}.",
         "",
@@ -262,6 +281,10 @@ def main() -> None:
     ap.add_argument("--deep-seeds", default="1,16,64", help="seed counts of the deep agents")
     ap.add_argument("--bsuite-steps", type=int, default=3_000, help="timed steps of bsuite's DQN loop")
     ap.add_argument("--agents", default=",".join(agents.AGENTS))
+    ap.add_argument("--mdps", type=int, default=1,
+                    help="tabular agents: spread each seed count's members over this many MDPs of the benchmark MDP's "
+                         "family and parameters (seeds 0 .. N-1), a stack of MDPs as in every batch of the benchmark; "
+                         "each seed count must be a multiple of it (default 1: one MDP)")
     ap.add_argument("--repeats", type=int, default=None, help="timed runs per measurement (default 2; --quick: 1)")
     ap.add_argument("--quick", action="store_true",
                     help="4 000 steps and 1 repeat, unless --steps or --repeats say otherwise")
@@ -280,6 +303,8 @@ def main() -> None:
     if args.repeats is None:  # an explicit --repeats stands, with --quick too
         args.repeats = 1 if args.quick else 2
     seed_counts = [int(s) for s in args.seeds.split(",")]
+    if args.mdps < 1 or any(n % args.mdps for n in seed_counts):
+        ap.error(f"--mdps must be a positive divisor of every seed count (--seeds {args.seeds}); got {args.mdps}")
     deep_seed_counts = [int(s) for s in args.deep_seeds.split(",")]
     names = [n for n in args.agents.split(",") if n]
     families = [f for f in ("RiverSwim", "Taxi", "MiniGridEmpty") if f in jaxmdp.families()]
@@ -295,9 +320,11 @@ def main() -> None:
         agent = agents.get(name)
         deep = agent.observation == "emission"
         for family in ("RiverSwim",) if deep else families:
-            mdp = jaxmdp.make(family, episodic=agent.episodic, seed=0, **BENCH_MDPS[(family, agent.episodic)])
+            mdps = bench_mdps(family, agent.episodic, 1 if deep else args.mdps)
+            mdp = mdps[0]
             if deep:
                 mdp = jaxmdp.block_mdp(mdp, "state_info")
+                mdps = [mdp]
                 if name.startswith("dqn"):
                     base = bsuite_dqn_steps_per_s(mdp.mdp, mdp.emissions, agent.default_hparams, args.bsuite_steps)
                     print(f"bsuite JAX DQN {family}: " + ("not installed" if base is None else
@@ -313,7 +340,7 @@ def main() -> None:
                           flush=True)
                     rows.append(dict(agent=name, mdp=family, S=mdp.n_states, seeds=seeds, skipped=True))
                     continue
-                m = measure(agent, mdp, seeds, args.steps, args.repeats)
+                m = measure(agent, mdps, seeds, args.steps, args.repeats)
                 predicted = args.steps / m["steps_per_s"]  # seconds per seed at this rate (optimistic)
                 rows.append(dict(agent=name, mdp=family, S=mdp.n_states, seeds=seeds, skipped=False, **m))
                 print(f"{name:24s} {family:14s} seeds={seeds:5d} {fmt_rate(m['steps_per_s'])} agent-steps/s "
@@ -322,12 +349,12 @@ def main() -> None:
         seeds = seed_counts[-1]
         if deep or not any(r["agent"] == name and r["seeds"] == seeds and not r["skipped"] for r in rows):
             continue
-        mdp = jaxmdp.make("RiverSwim", episodic=agent.episodic, seed=0, **BENCH_MDPS[("RiverSwim", agent.episodic)])
+        mdps = bench_mdps("RiverSwim", agent.episodic, args.mdps)
         random_agent = agents.get("random_episodic" if agent.episodic else "random_continuous")
-        env = measure(random_agent, mdp, seeds, args.steps, args.repeats, log_period=NO_INDICATORS)
-        bare = measure(agent, mdp, seeds, args.steps, args.repeats, log_period=NO_INDICATORS)
-        full = measure(agent, mdp, seeds, args.steps, args.repeats)
-        one_core = measure(agent, mdp, seeds, args.steps, args.repeats, shards=1)
+        env = measure(random_agent, mdps, seeds, args.steps, args.repeats, log_period=NO_INDICATORS)
+        bare = measure(agent, mdps, seeds, args.steps, args.repeats, log_period=NO_INDICATORS)
+        full = measure(agent, mdps, seeds, args.steps, args.repeats)
+        one_core = measure(agent, mdps, seeds, args.steps, args.repeats, shards=1)
         ns = lambda m: 1e9 / m["steps_per_s"]  # noqa: E731
         profile.append(dict(
             agent=name, seeds=seeds, env_ns=ns(env), agent_ns=ns(bare) - ns(env), indicators_ns=ns(full) - ns(bare),
@@ -364,7 +391,9 @@ def write(out: Path, rows: list[dict], profile: list[dict], args, load0, elapsed
         f"{args.steps} steps per seed, exact indicators every 100 steps, {jax.local_device_count()} host devices "
         f"(one per core) on {os.cpu_count()} cores ({cpu}); jax {jax.__version__}. Best of {args.repeats + 1} runs. "
         f"Load average before/after: {load0[0]:.1f} / {os.getloadavg()[0]:.1f} (other processes share the "
-        f"machine; treat absolute numbers as lower bounds). Total {elapsed:.0f} s.",
+        f"machine; treat absolute numbers as lower bounds). Total {elapsed:.0f} s."
+        + (f" Tabular agents: each seed count's members spread over {args.mdps} MDPs of the family (--mdps)."
+           if args.mdps > 1 else ""),
         "",
         "Agent-steps per second summed over seeds (compile time in brackets); the reference runs one seed per "
         "process (docs/benchmark.md §10).",
