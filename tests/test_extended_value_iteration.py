@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -222,25 +223,6 @@ def test_sorted_inner_maximisation_matches_dense_and_linprog(seed):
         np.testing.assert_allclose(value[s, a], -res.fun, atol=2e-6)
 
 
-def test_sorted_evi_plans_as_the_dense_one(monkeypatch, rng=np.random.default_rng(8)):
-    """Same gain bounds, iterations and greedy policy within rounding (the sorted sweep differs in the last bits)."""
-    S, A = evi.SORTED_FROM + 5, 3
-    lo, hi, mask = _random_boxes(rng, S, A, n_padded=2)
-    p_hat = np.asarray((lo + hi) / 2)  # any kernel inside the box; widths from the box
-    width = np.asarray((hi - lo) / 2)
-    r = jnp.asarray(rng.uniform(size=(S, A)), jnp.float32)
-    args = (jnp.asarray(p_hat), jnp.asarray(width), r, jnp.asarray(mask), jnp.ones(A, bool))
-    fast = extended_value_iteration(*args, tol=1e-4)
-    monkeypatch.setattr(evi, "SORTED_FROM", 10**9)
-    dense = extended_value_iteration(*args, tol=1e-4)
-    assert bool(fast.converged) and bool(dense.converged)
-    assert int(fast.iterations) == int(dense.iterations)
-    np.testing.assert_allclose(fast.gain_lower, dense.gain_lower, atol=1e-5)
-    np.testing.assert_allclose(fast.gain_upper, dense.gain_upper, atol=1e-5)
-    np.testing.assert_allclose(fast.Q, dense.Q, atol=1e-4)
-    np.testing.assert_array_equal(np.argmax(fast.Q, -1)[mask], np.argmax(dense.Q, -1)[mask])
-
-
 def test_eager_calls_compile_once_per_shape(caplog):
     # Both planners are jitted: a second eager call with other numbers of the same shapes compiles nothing.
     rng = np.random.default_rng(3)
@@ -255,3 +237,28 @@ def test_eager_calls_compile_once_per_shape(caplog):
 
     assert compilations(caplog, calls())
     assert compilations(caplog, calls()) == []
+
+
+def test_sorted_evi_plans_as_the_dense_one(monkeypatch, caplog, rng=np.random.default_rng(8)):
+    """Same gain bounds, iterations and greedy policy within rounding (the sorted sweep differs in the last bits)."""
+    S, A = evi.SORTED_FROM + 5, 3
+    lo, hi, mask = _random_boxes(rng, S, A, n_padded=2)
+    p_hat = np.asarray((lo + hi) / 2)  # any kernel inside the box; widths from the box
+    width = np.asarray((hi - lo) / 2)
+    r = jnp.asarray(rng.uniform(size=(S, A)), jnp.float32)
+    args = (jnp.asarray(p_hat), jnp.asarray(width), r, jnp.asarray(mask), jnp.ones(A, bool))
+    fast = extended_value_iteration(*args, tol=1e-4)
+    monkeypatch.setattr(evi, "SORTED_FROM", 10**9)
+    # The planner is jitted: without this the second call reuses the sorted program. (This test is the module's
+    # last: clearing drops the programs the other tests compiled.)
+    jax.clear_caches()
+    rerun = []
+    assert compilations(caplog, [lambda: rerun.append(extended_value_iteration(*args, tol=1e-4))])
+    dense = rerun[0]
+    assert not np.array_equal(fast.Q, dense.Q)  # the dense sweep ran: its last bits differ here
+    assert bool(fast.converged) and bool(dense.converged)
+    assert int(fast.iterations) == int(dense.iterations)
+    np.testing.assert_allclose(fast.gain_lower, dense.gain_lower, atol=1e-5)
+    np.testing.assert_allclose(fast.gain_upper, dense.gain_upper, atol=1e-5)
+    np.testing.assert_allclose(fast.Q, dense.Q, atol=1e-4)
+    np.testing.assert_array_equal(np.argmax(fast.Q, -1)[mask], np.argmax(dense.Q, -1)[mask])

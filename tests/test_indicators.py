@@ -12,6 +12,7 @@ import pytest
 
 import jaxmdp
 from jaxmdp.experiment import indicators
+from jaxmdp.experiment.members import member_mdp
 from conftest import random_mdp
 from numpy_reference import finite_horizon_eval as np_finite_horizon_eval
 from numpy_reference import gain_ergodic as np_gain
@@ -230,8 +231,11 @@ def test_gain_bounds_of_action_indices_are_those_of_the_one_hot_policy():
     T[4, 1, [4, 5]] = [0.5, 0.5]
     T[5, :, [4, 5]] = [[0.6, 0.6], [0.4, 0.4]]
     cases = [(jaxmdp.custom_mdp(T, R=rng.random((6, 2))), rng.integers(0, 2, 6))]
-    for trial in range(8):
-        cases.append((random_mdp(rng, S=9, A=3, sparsity=(0.08, 0.3)[trial % 2]), rng.integers(0, 3, 9)))
+    randoms = [random_mdp(rng, S=9, A=3, sparsity=(0.08, 0.3)[trial % 2]) for trial in range(8)]
+    # Stacked, so that they share one successor width (padded slots; one compilation instead of one per width).
+    stack = jaxmdp.stack(randoms)
+    assert len({m.max_successors for m in randoms}) > 1
+    cases += [(member_mdp(stack, i), rng.integers(0, 3, 9)) for i in range(len(randoms))]
     bounds = jax.jit(lambda m, pi: dp.successor_gain_bounds(m, pi, max_sweeps=256))
     values = jax.jit(lambda m, pi: indicators.policy_values(m, pi, indicators.ITERATIVE_GAIN_SWEEPS))
     for mdp, actions in cases:
