@@ -415,7 +415,8 @@ def test_only_if_skips_under_vmap_and_keeps_each_members_result():
 @pytest.mark.parametrize("variant", ["paper", "colosseum"])
 def test_candidates_skipping_unused_draws_are_the_same_bits(monkeypatch, caplog, variant):
     """Members with no pair at ``eta`` (no posterior row), some, and all pairs (no optimistic row), alone and
-    batched: the kernels equal those of drawing both kinds for every candidate slot."""
+    batched: the kernels equal those of drawing both kinds for every candidate slot (skipping alone == skipping
+    batched == drawing everything batched)."""
     import agents.psrl_continuous as pc
 
     rng = np.random.default_rng(11)
@@ -428,20 +429,15 @@ def test_candidates_skipping_unused_draws_are_the_same_bits(monkeypatch, caplog,
     batch = jax.tree.map(lambda *x: jnp.stack(x), *states)
     keys = jax.random.split(jax.random.key(4), 3)
     draw = lambda k, s: candidate_kernels(k, s, variant=variant)  # noqa: E731
+    batched_run = lambda: np.asarray(jax.jit(jax.vmap(draw))(keys, batch))  # noqa: E731
 
-    def run():
-        alone = [np.asarray(jax.jit(draw)(k, s)) for k, s in zip(keys, states)]
-        return alone, np.asarray(jax.jit(jax.vmap(draw))(keys, batch))
-
-    alone, batched = run()
+    alone = [np.asarray(jax.jit(draw)(k, s)) for k, s in zip(keys, states)]
+    batched = batched_run()
+    np.testing.assert_array_equal(batched, np.stack(alone))
     monkeypatch.setattr(pc, "only_if", lambda pred, compute, default, *ops: compute(*ops))
-    # Else jit reuses the traces made with the real only_if and compares them with themselves. (This test is the
-    # module's last: clearing drops the programs the other tests compiled.)
+    # Else jit reuses the trace made with the real only_if and compares it with itself. (This test is the module's
+    # last: clearing drops the programs the other tests compiled.)
     jax.clear_caches()
     rerun = []
-    assert compilations(caplog, [lambda: rerun.append(run())]), "the draws without skipping were not retraced"
-    alone_all, batched_all = rerun[0]
-    for a, b in zip(alone, alone_all):
-        np.testing.assert_array_equal(a, b)
-    np.testing.assert_array_equal(batched, batched_all)
-    np.testing.assert_array_equal(batched, np.stack(alone))
+    assert compilations(caplog, [lambda: rerun.append(batched_run())]), "the draws without skipping were not retraced"
+    np.testing.assert_array_equal(batched, rerun[0])
