@@ -1,8 +1,8 @@
 """The reference's cached seed-0 diameter and value norm of the benchmark entries (printed with 4 decimals) against
-ours: one stacked call per setting and size class (one compilation each), mapped so that each member stops at its
-own convergence. The small entries are checked in tests/test_benchmark_suite.py, the larger ones (all 40
-continuous entries up to 948 states took ~2 min) in the slow tests of test_benchmark_suite_large_*.py, one file per
-setting type so that ``--dist loadfile`` can give them to different workers; CI runs them all."""
+ours: per setting and size class, a few stacked calls over size buckets (one compilation each), mapped so that each
+member stops at its own convergence. The small entries are checked in tests/test_benchmark_suite.py, the larger ones
+in the slow tests of test_benchmark_suite_large_*.py, one file per setting type so that ``--dist loadfile`` can give
+them to different workers; CI runs them all."""
 
 import jax
 import numpy as np
@@ -23,11 +23,11 @@ def cached_entries(setting: str, large: bool) -> list:
             and e.cached_diameter is not None]
 
 
-def check_cached(chosen: list) -> None:
-    """Assert that the colosseum diameter and value norm of the seed-0 MDPs of ``chosen`` match the cache."""
+def check_cached(chosen: list, n_buckets: int = 3) -> None:
+    """Assert that the colosseum diameter and value norm of the seed-0 MDPs of ``chosen`` match the cache, computed
+    per :func:`jaxmdp.size_buckets` group (one compiled ``lax.map`` per group: one stack padded to the largest member
+    cost the large episodic entries 2-3x the time)."""
     mdps = [bs.build(e, seed=0) for e in chosen]
-    batch = jaxmdp.stack(mdps)
-    forms = episodic.stack_continuous_forms([episodic.continuous_form(m) for m in mdps]) if mdps[0].episodic else None
 
     def both(m, cf):
         return (
@@ -35,7 +35,14 @@ def check_cached(chosen: list) -> None:
             hardness.value_norm(m, variant="colosseum", continuous_form=cf).value,
         )
 
-    d, vn = jax.jit(lambda b, f: jax.lax.map(lambda x: both(*x), (b, f)))(batch, forms)
+    run = jax.jit(lambda b, f: jax.lax.map(lambda x: both(*x), (b, f)))
+    d, vn = np.full(len(mdps), np.nan), np.full(len(mdps), np.nan)
+    for group in jaxmdp.size_buckets(mdps, n_buckets):
+        members = [mdps[i] for i in group]
+        forms = None
+        if members[0].episodic:
+            forms = episodic.stack_continuous_forms([episodic.continuous_form(m) for m in members])
+        d[group], vn[group] = run(jaxmdp.stack(members), forms)
     # The cache prints 4 decimals.
     np.testing.assert_allclose(d, [e.cached_diameter for e in chosen], rtol=1e-4, atol=6e-5)
     np.testing.assert_allclose(vn, [e.cached_value_norm for e in chosen], rtol=1e-3, atol=6e-5)
