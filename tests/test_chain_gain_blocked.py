@@ -123,6 +123,11 @@ def test_chain_gain_matches_float64_reference(kind, S, seed):
         np.testing.assert_allclose(chain_gain(Pj, rj, block=block), expected, rtol=TOL, err_msg=f"block {block}")
 
 
+#: (block, stages) of the blocked elimination checked here and on the drifting chain: blocks that pad (32 and 64 at
+#: S = 37) or not, one or several stages.
+BLOCKS_STAGES = ((1, 1), (4, 8), (16, 2), (32, 1), (32, 4), (64, 4))
+
+
 @pytest.mark.parametrize("kind,S", [(kind, S) for kind in KINDS for S in (37, 130)])
 def test_blocked_elimination_matches_float64_scalar_elimination(kind, S):
     # Every stored entry (normalised columns, rows at elimination, the sums s_k) to a relative 1e-6, and exactly the
@@ -130,7 +135,7 @@ def test_blocked_elimination_matches_float64_scalar_elimination(kind, S):
     # stages of shrinking windows.
     P, _ = chain(kind, S, 0)
     M, s = ref.gth_elimination(P)
-    for block, stages in ((1, 1), (4, 8), (16, 2), (32, 1), (32, 4), (64, 4)):
+    for block, stages in BLOCKS_STAGES:
         Mj, sj = (np.asarray(x, np.float64) for x in eliminate(jnp.asarray(P, jnp.float32), block=block, stages=stages))
         np.testing.assert_array_equal(Mj == 0, M == 0)
         np.testing.assert_array_equal(sj == 0, s == 0)
@@ -188,17 +193,20 @@ def drifting_chain(S: int, up: float = 0.6, down: float = 0.02) -> tuple[np.ndar
     return P, r
 
 
-@pytest.mark.parametrize("S", [20, 80, 130])
+@pytest.mark.parametrize("S", [37, 130])
 def test_a_chain_drifting_upwards_stays_finite_and_exact(S):
     # Regression: the first blocked version carried b x b coefficient matrices, products of 1 / s_k factors; on this
     # chain (and the benchmark's RiverSwim/prms_3 optimal policy, 80 states) they overflowed to inf, and the gain came
-    # out 0 or NaN for block 32. The panels now hold the scalar algorithm's bounded numbers.
+    # out 0 or NaN for block 32. The panels now hold the scalar algorithm's bounded numbers. (Factors near 1 / 0.02
+    # exceed float32 after about 23 of them; the sizes, blocks and stages are those of the tests above, so their
+    # compiled programs are reused.)
     P, r = drifting_chain(S)
     expected = ref.chain_gain(P, r)
     M, s = ref.gth_elimination(P)
     Pj, rj = jnp.asarray(P, jnp.float32), jnp.asarray(r, jnp.float32)
-    for block in (1, 4, 20, 32, 64):
+    for block in (1, 4, 32, 64):
         np.testing.assert_allclose(chain_gain(Pj, rj, block=block), expected, rtol=TOL, err_msg=f"block {block}")
-        Mj, sj = (np.asarray(x, np.float64) for x in eliminate(Pj, block=block, stages=4))
+    for block, stages in BLOCKS_STAGES:
+        Mj, sj = (np.asarray(x, np.float64) for x in eliminate(Pj, block=block, stages=stages))
         assert np.all(np.isfinite(Mj)) and np.all(np.isfinite(sj))
-        np.testing.assert_allclose(sj, s, rtol=TOL, atol=0, err_msg=f"block {block}")
+        np.testing.assert_allclose(sj, s, rtol=TOL, atol=0, err_msg=f"block {block}, stages {stages}")
