@@ -421,11 +421,14 @@ def test_candidates_skipping_unused_draws_are_the_same_bits(monkeypatch, caplog,
 
     rng = np.random.default_rng(11)
     hp = PSRLContinuousHParams(max_psi=4)
-    S, A = 30, 3
-    some = rng.poisson(1, (S, A, S)) * (rng.random((S, A, 1)) < 0.2)
+    # Small enough that the Dirichlet draws run the sampler's whole-array rounds (fewer than 1024 entries), which
+    # compile in a fraction of the time of its compacted path; skipping does not depend on the sampler's path.
+    S, A = 10, 3
+    some = rng.poisson(4, (S, A, S)) * (rng.random((S, A, 1)) < 0.3)
     counts = [np.zeros((S, A, S)), some, rng.poisson(50, (S, A, S))]
     states = [_state_with_counts(c, hp) for c in counts]
-    assert [int(jnp.sum(s.schedule.visits >= s.constants.eta)) for s in states][::2] == [0, S * A]
+    at_eta = [int(jnp.sum(s.schedule.visits >= s.constants.eta)) for s in states]
+    assert at_eta[0] == 0 and 0 < at_eta[1] < S * A and at_eta[2] == S * A, at_eta
     batch = jax.tree.map(lambda *x: jnp.stack(x), *states)
     keys = jax.random.split(jax.random.key(4), 3)
     draw = lambda k, s: candidate_kernels(k, s, variant=variant)  # noqa: E731
