@@ -40,7 +40,6 @@ Differences from the reference (Colosseum), each a return to the published algor
 from __future__ import annotations
 
 import dataclasses
-from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -94,9 +93,14 @@ class QLearningEpisodicState(struct.PyTreeNode):
     2^24 in float32), the Bernstein statistics (running sums of the next values and their squares) and the last
     ``beta``, in the MDP's dtype, and the member's constants (horizon ``H``, ``iota``, ``S A``).
     ``V_h(s) = min(H, max_a Q_h(s, a))`` (0 from the horizon on) is read from ``q`` rather than stored
-    (:func:`table_values`): the same numbers, as ``V_h(s)`` is refreshed exactly when ``Q_h(s, .)`` changes."""
+    (:func:`table_values`): the same numbers, as ``V_h(s)`` is refreshed exactly when ``Q_h(s, .)`` changes.
 
-    variant: ClassVar[Variant] = "paper"  # how V is read off the table (table_values)
+    ``variant`` (static): ``"paper"``, or ``"colosseum"`` for the reference's state (:func:`init_colosseum`: counts
+    from 1, and the reference's rules in :func:`bonus`, :func:`update` and :func:`table_values`). It is a static
+    field, not a class attribute of a subclass, so that the two states have unequal tree structures: JAX's
+    ``PyTreeDef`` equality ignored the class of a dataclass node (``jax.tree.structure`` of the two states compared
+    equal with different hashes), so a jitted ``update`` could, on a rare hash-bucket collision in JAX's cache, run
+    the trace of the other variant (a reference-mode test failed once that way in a full-suite run)."""
 
     q: jax.Array
     stats: jax.Array
@@ -105,6 +109,7 @@ class QLearningEpisodicState(struct.PyTreeNode):
     n_pairs: jax.Array
     action_mask: jax.Array
     hparams: QLearningEpisodicHParams
+    variant: Variant = struct.field(pytree_node=False, default="paper")
 
     @property
     def Q(self) -> jax.Array:
@@ -177,7 +182,7 @@ def bonus(
     ``sum_v``/``sum_v2``: sums of the ``t`` next-state values seen so far and of their squares (this visit
     included); ``beta_prev = beta_{t-1}``. Hoeffding ignores the statistics (``beta`` is then irrelevant). The
     variance term of ``beta_t`` is ``H / t (W_t + H)`` (module docstring), or for the reference's state
-    (:class:`QLearningEpisodicColosseumState`) ``H (sum V^2 - sum V)^2 / t^2 + H``.
+    (``variant="colosseum"``) ``H (sum V^2 - sum V)^2 / t^2 + H``.
     """
     hp, H, iota = state.hparams, state.horizon, state.iota
     hoeffding = hp.c_1 * jnp.sqrt(H**3 * iota / t)
@@ -196,7 +201,7 @@ def bonus(
 def update(state: QLearningEpisodicState, tr: Transition) -> QLearningEpisodicState:
     """One Q-learning step at ``(h, s, a)`` (module docstring).
 
-    For the reference's state (:class:`QLearningEpisodicColosseumState`, counts from 1) its rules: the variance term
+    For the reference's state (``variant="colosseum"``, counts from 1) its rules: the variance term
     of :func:`bonus` and the swapped weights ``Q <- alpha_t Q + (1 - alpha_t) (r + V_{h+1}(s') + b_t)``; its refresh
     ``V_h(s) <- min(H, max_a Q_h(s, a))`` is implicit (:func:`table_values` reads ``V`` off the table).
     """
@@ -252,22 +257,11 @@ Q_LEARNING_EPISODIC = Agent(
 # ---------------------------------------------------------------------------------------------------------------
 
 
-class QLearningEpisodicColosseumState(QLearningEpisodicState):
-    """The reference's state: :class:`QLearningEpisodicState` with counts from 1 and the reference's ``V``, which
-    starts at 0 while ``Q`` starts at ``H``; it is read off the table too (:func:`table_values`), not stored.
-    :func:`bonus` and :func:`update` apply the reference's rules to it."""
-
-    variant: ClassVar[Variant] = "colosseum"
-
-
-def init_colosseum(
-    key: jax.Array, spec: MDPSpec, hparams: QLearningEpisodicHParams
-) -> QLearningEpisodicColosseumState:
-    """The reference's tables: counts start at 1 (``Q = H`` as in :func:`init`; ``V = 0``, :func:`table_values`)."""
+def init_colosseum(key: jax.Array, spec: MDPSpec, hparams: QLearningEpisodicHParams) -> QLearningEpisodicState:
+    """The reference's state (``variant="colosseum"``): counts start at 1 (``Q = H`` as in :func:`init`; ``V = 0``,
+    :func:`table_values`); :func:`bonus` and :func:`update` apply the reference's rules to it."""
     state = init(key, spec, hparams)
-    fields = {f.name: getattr(state, f.name) for f in dataclasses.fields(state)}
-    fields["stats"] = state.stats.at[..., _N].set(1.0)
-    return QLearningEpisodicColosseumState(**fields)
+    return state.replace(stats=state.stats.at[..., _N].set(1.0), variant="colosseum")
 
 
 # The same update, with the reference's rules for the reference's state (:func:`update`).

@@ -103,6 +103,27 @@ def test_q_learning_episodic_stream(variant):
     np.testing.assert_allclose(state.V[0, 0], H)
 
 
+def test_q_learning_episodic_variants_have_different_tree_structures():
+    # The variant is part of the state's tree structure (a static field), so no jit cache can hand one variant's
+    # trace to the other: with the variant as a class attribute of a subclass, jax.tree.structure of the two states
+    # compared equal (PyTreeDef equality ignored the dataclass's class), and this module's stream test once ran the
+    # paper rules on the colosseum state in a full-suite run.
+    spec = _spec(2, 2, H=2)
+    paper, colosseum = (agents.get("q_learning_episodic", v).init(jax.random.key(0), spec, QLE_HP)
+                        for v in ("paper", "colosseum"))
+    assert (paper.variant, colosseum.variant) == ("paper", "colosseum")
+    assert jax.tree.structure(paper) != jax.tree.structure(colosseum)
+    # Both variants through one jitted update, colosseum first and then paper: each runs its own rules.
+    update = jax.jit(agents.get("q_learning_episodic").update)
+    tr = _tr(*QLE_STREAM[0])
+    for state in (colosseum, paper):
+        got = update(state, tr)
+        want = agents.get("q_learning_episodic").update(state, tr)  # eager: traced anew for each state
+        assert got.variant == state.variant
+        np.testing.assert_allclose(got.q, want.q, rtol=1e-6)
+    assert not np.allclose(update(colosseum, tr).q, update(paper, tr).q)  # the two rules differ on this step
+
+
 def _replay_reference_q_learning(stream, S, A, horizon, n_steps, hp):
     """A plain float64 replay of the reference's episodic Q-learning (docs/agents.md §2, reference mode), with its
     stored ``V[horizon + 1, S]`` refreshed after every update, step by step: ``[(Q, N, beta, V)]`` after each step."""
