@@ -423,7 +423,8 @@ def diameter(
     """The diameter of ``mdp`` (module docstring), as a :class:`~hardness.MeasureResult`.
 
     Args:
-      mdp: a single MDP; ``jax.vmap`` over a stacked batch for many.
+      mdp: a single MDP; ``jax.vmap`` over a stacked batch of equal shapes for many (MDPs of different sizes:
+        :func:`hardness.measures_many`, which maps over size buckets; module docstring of :mod:`hardness.batched`).
       variant: ``"paper"`` (exact, certified to ``rtol``) or ``"colosseum"`` (the reference's procedure).
       rtol: relative certificate of the continuous paper variant, ``max U <= (1 + rtol) max L``. Float32 round-off
         bounds what is reachable: values are exact to about ``1e-6`` relative; a tolerance far below the dtype's

@@ -92,7 +92,8 @@ def sum_reciprocal_gaps(
     """Sum of the reciprocal sub-optimality gaps of ``mdp`` (module docstring).
 
     Args:
-      mdp: a single MDP (``jax.vmap`` over a stacked batch for many).
+      mdp: a single MDP (``jax.vmap`` over a stacked batch of equal shapes for many; MDPs of different sizes:
+        :func:`hardness.measures_many`).
       gamma: discount of the continuous gaps, in ``(0, 1)`` (unused for episodic MDPs).
       variant: ``"paper"`` (exact values) or ``"colosseum"`` (the reference's value iteration).
       form: ``"regularized"`` (``sum 1 / (Delta + regularizer)``, the reference's) or ``"raw"`` (the paper's).

@@ -181,7 +181,8 @@ def value_norm(
     """The environmental value norm of ``mdp`` (module docstring).
 
     Args:
-      mdp: a single MDP (``jax.vmap`` over a stacked batch for many).
+      mdp: a single MDP (``jax.vmap`` over a stacked batch of equal shapes for many; MDPs of different sizes:
+        :func:`hardness.measures_many`).
       gamma: discount factor in ``(0, 1)``.
       variant: ``"paper"`` (exact variance of the optimal values) or ``"colosseum"`` (the reference's formula).
       discounted: ``False`` for the undiscounted variant (optimal bias instead of discounted values).
