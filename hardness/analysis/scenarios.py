@@ -14,7 +14,7 @@ How the grid is computed (one jitted program per grid):
 * scenarios 1-2, ``variant="paper"``: one base MDP per seed (built without the swept noise), the seeds stacked with
   :func:`jaxmdp.stack` (padded to common shapes when they differ, e.g. FrozenLake), and
   ``vmap(seeds) . vmap(values)`` of the kernel transform (:func:`jaxmdp.apply_p_rand` / :func:`jaxmdp.apply_p_lazy`)
-  followed by :func:`hardness.measures`. The transform lists the states in the base order, whereas a construction
+  followed by ``lax.map(hardness.measures)`` over the grid (each member stops at its own convergence). The transform lists the states in the base order, whereas a construction
   from scratch with the noise enumerates them over the noisy outcome lists (``jaxmdp.transforms``); the paper's
   measures do not depend on the state order, so the two agree to round-off.
 * scenarios 3-4, and scenarios 1-2 with ``variant="colosseum"``: every MDP of the grid is built from scratch (as the
@@ -331,8 +331,11 @@ def _transformed(bases: MDP, values: jax.Array, kind: str) -> MDP:
 
 @functools.partial(jax.jit, static_argnames=("kind", "variant", "gamma"))
 def _transform_grid(bases: MDP, values: jax.Array, kind: str, variant: str, gamma: float) -> HardnessMeasures:
-    """The measures of :func:`_transformed`'s grid, ``[n_seeds * n_values]`` (equal shapes: vmapped)."""
-    return jax.vmap(lambda m: measures(m, gamma, variant=variant))(_transformed(bases, values, kind))
+    """The measures of :func:`_transformed`'s grid, ``[n_seeds * n_values]``, mapped over its members (``lax.map``:
+    each member's solvers stop at its own convergence). Vmapped in lockstep, the same numbers took 3.6x as long on a
+    CPU (FrozenLake continuous, 3 seeds x 11 values: 1.00 against 0.28 s a call, and 4.4 against 2.4 s with the
+    compilation; MiniGridEmpty continuous 0.095 against 0.079 s, episodic the same)."""
+    return jax.lax.map(lambda m: measures(m, gamma, variant=variant), _transformed(bases, values, kind))
 
 
 def grid_mdps(grid: ScenarioGrid) -> MDP:
