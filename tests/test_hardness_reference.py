@@ -38,6 +38,9 @@ def groups():
 
 
 def colosseum_batch(batch, forms):
+    # The three public functions one by one, not hardness.map_measures: measures() shares the optimal values between
+    # the value norm and the gap sum, and the built-fixture route (test_hardness_reference_built.py) goes through it,
+    # so each route checks a different path against the reference.
     def one(m, cf):
         return (
             hardness.diameter(m, variant="colosseum").value,

@@ -14,9 +14,10 @@ How the grid is computed (one jitted program per grid):
 * scenarios 1-2, ``variant="paper"``: one base MDP per seed (built without the swept noise), the seeds stacked with
   :func:`jaxmdp.stack` (padded to common shapes when they differ, e.g. FrozenLake), and
   ``vmap(seeds) . vmap(values)`` of the kernel transform (:func:`jaxmdp.apply_p_rand` / :func:`jaxmdp.apply_p_lazy`)
-  followed by ``lax.map(hardness.measures)`` over the grid (each member stops at its own convergence). The transform lists the states in the base order, whereas a construction
-  from scratch with the noise enumerates them over the noisy outcome lists (``jaxmdp.transforms``); the paper's
-  measures do not depend on the state order, so the two agree to round-off.
+  followed by ``lax.map(hardness.measures)`` over the grid (each member stops at its own convergence). The transform
+  lists the states in the base order, whereas a construction from scratch with the noise enumerates them over the
+  noisy outcome lists (``jaxmdp.transforms``); the paper's measures do not depend on the state order, so the two
+  agree to round-off.
 * scenarios 3-4, and scenarios 1-2 with ``variant="colosseum"``: every MDP of the grid is built from scratch (as the
   reference does), all are padded to common shapes with :func:`jaxmdp.stack` (padding changes no measure) and
   ``lax.map(hardness.measures)`` runs once over the stack: members of different sizes converge in different numbers
