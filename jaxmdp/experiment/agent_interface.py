@@ -10,8 +10,9 @@ hyperparameter sets and drives them in lockstep:
   iteration, extended value iteration, ...) must run before the next action, e.g. at an episode or epoch boundary;
 * ``plan(key, state) -> state``: that planning step. The runner calls it inside a ``lax.cond`` whose predicate is
   "some member of the batch needs to plan" and keeps the result only for the members that do, so planning is paid
-  only at boundaries instead of at every step (a ``cond`` inside a ``vmap`` would run it every step). The runner
-  also calls it once right after ``init`` (the reference's ``before_start_interacting``);
+  only at boundaries instead of at every step (a ``cond`` inside a ``vmap`` would run it every step). Before the
+  first action the runner plans every member, whatever ``needs_plan`` says (the reference's
+  ``before_start_interacting``);
 * ``policy(state) -> pi``: the agent's current best policy estimate, ``[S, A]`` (continuous) or ``[H, S, A]``
   (episodic), used only to compute expected regret.
 * ``greedy_actions(state) -> actions`` (optional): for an agent whose ``policy`` is always deterministic, the same

@@ -8,7 +8,8 @@ through ``n_steps`` agent/MDP interaction steps (paper §3.3 and App. A.1; docs/
   ``lax.cond`` inside the per-step body, XLA copied the whole carry, policy cache included, at every step);
 * planning (``agent.plan``) runs under a ``lax.cond`` whose predicate is unbatched, "some member needs to plan", and
   only the members that asked are planned, ``plan_slots`` at a time (:mod:`jaxmdp.experiment.planning`), so planning
-  is paid at boundaries only and for those members only;
+  is paid at boundaries only and for those members only; every member plans before its first action, in the same
+  step (the initialisation program holds no plan, so the plan is compiled once less);
 * indicator logging (:mod:`jaxmdp.experiment.indicators`, exact policy evaluation of ``agent.policy``) runs under a
   ``lax.cond`` on "this is a log step" (a chunk may end between two): after every ``log_period`` steps and after
   the last step. A log made after
@@ -78,6 +79,8 @@ __all__ = [
 
 # Sub-keys of a member's key: environment, actions, planning, initialisation.
 _N_SUBKEYS = 4
+# Tags of the initialisation sub-key: the reset, the agent's init and the plan before the first action.
+_INIT_TAGS = {"reset": 0, "init": 1, "plan": 2}
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -132,6 +135,19 @@ def _keys(key_data: jax.Array, which: int, t: jax.Array) -> jax.Array:
     """Per-member key ``which`` of a member for step ``t`` (vectorised over members)."""
     base = jax.random.wrap_key_data(key_data[:, which])
     return jax.vmap(jax.random.fold_in, in_axes=(0, None))(base, t)
+
+
+def _init_keys(key_data: jax.Array, tag: str) -> jax.Array:
+    """Per-member initialisation key ``tag`` (:data:`_INIT_TAGS`)."""
+    return _keys(key_data, 3, jnp.uint32(_INIT_TAGS[tag]))
+
+
+def _plan_keys(key_data: jax.Array, t: jax.Array) -> jax.Array:
+    """Per-member planning keys before step ``t``'s action: the initialisation's ``plan`` key before the first
+    action (``t = 0``), else planning sub-key ``t + 1``."""
+    first = jax.random.key_data(_init_keys(key_data, "plan"))
+    later = jax.random.key_data(_keys(key_data, 2, t + 1))
+    return jax.random.wrap_key_data(jnp.where(t == 0, first, later))
 
 
 def _evaluate_changed(
@@ -195,18 +211,16 @@ def _init_program(agent: Agent, record_visits: bool = False) -> Callable:
         sub = jax.vmap(lambda k: jax.random.key_data(jax.random.split(jax.random.wrap_key_data(k), _N_SUBKEYS)))(
             key_data
         )
-        init_key = lambda tag: jax.vmap(  # noqa: E731
-            lambda k: jax.random.fold_in(jax.random.wrap_key_data(k[3]), tag)
-        )(sub)
+        # The agents' first plan runs in the chunk program's first planning step (t = 0), with the initialisation's
+        # "plan" key (_plan_keys): a copy of the plan here compiled it once more (PSRL continuous: 29 -> 18 s for a
+        # runner, docs/benchmarks/bench_compile.md).
 
-        def one(i, hp, k_reset, k_init, k_plan):
+        def one(i, hp, k_reset, k_init):
             m = member_mdp(mdps, i)
             obs, env_state = env.reset(k_reset, m)
-            state = agent.init(k_init, spec_of(m, n_steps), hp)
-            state = agent.plan(k_plan, state)
-            return obs, env_state, state
+            return obs, env_state, agent.init(k_init, spec_of(m, n_steps), hp)
 
-        obs, env_state, state = jax.vmap(one)(mdp_index, hparams, init_key(0), init_key(1), init_key(2))
+        obs, env_state, state = jax.vmap(one)(mdp_index, hparams, _init_keys(sub, "reset"), _init_keys(sub, "init"))
         B = mdp_index.shape[0]
         policy = jax.eval_shape(jax.vmap(_policy_of(agent)), state)
         dyn = dynamics(mdps)
@@ -262,8 +276,10 @@ def _chunk_program(
         dtype = dyn.dtype
 
         def plan_step(c: Carry) -> Carry:
-            needs = jax.vmap(agent.needs_plan)(c.agent_state)
-            keys = lambda: _keys(c.key_data, 2, c.t + 1)  # noqa: E731
+            # Before the first action every member plans (the reference's before_start_interacting), later those
+            # that ask.
+            needs = jax.vmap(agent.needs_plan)(c.agent_state) | (c.t == 0)
+            keys = lambda: _plan_keys(c.key_data, c.t)  # noqa: E731
             if slots >= B:
                 do_plan = lambda state: where_due(needs, jax.vmap(agent.plan)(keys(), state), state)  # noqa: E731
             else:
