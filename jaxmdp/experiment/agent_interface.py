@@ -115,6 +115,14 @@ class Transition(struct.PyTreeNode):
     terminated: jax.Array
 
 
+def _never_plans(state: Any) -> jax.Array:
+    return jnp.zeros((), bool)
+
+
+def _no_plan(key: jax.Array, state: Any) -> Any:
+    return state
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class Agent:
     """A named bundle of the interface functions (see the module docstring) and default hyperparameters.
@@ -129,8 +137,8 @@ class Agent:
     act: Callable[[jax.Array, Any, jax.Array, jax.Array], jax.Array]
     update: Callable[[Any, Transition], Any]
     policy: Callable[[Any], jax.Array]
-    needs_plan: Callable[[Any], jax.Array] = lambda state: jnp.zeros((), bool)
-    plan: Callable[[jax.Array, Any], Any] = lambda key, state: state
+    needs_plan: Callable[[Any], jax.Array] = _never_plans
+    plan: Callable[[jax.Array, Any], Any] = _no_plan
     #: Validates hyperparameters on the host (raises ``ValueError``); called by the runner before compiling.
     check_hparams: Callable[[Any], None] = lambda hparams: None
     #: What ``obs`` is: ``"state"`` (a state index), ``"emission"`` (a BlockMDP observation) or ``"any"``.
@@ -142,6 +150,11 @@ class Agent:
     #: True when ``policy`` is the same at every step of a run (it depends on no learnt quantity, as the random
     #: agent's): the runner then evaluates it at the first log only and never extracts or compares it again.
     fixed_policy: bool = False
+
+    @property
+    def plans(self) -> bool:
+        """Whether the agent has a planning step (``plan`` given); the runner compiles none for one without."""
+        return self.plan is not _no_plan
 
 
 def where_due(due: jax.Array, new: Any, old: Any) -> Any:

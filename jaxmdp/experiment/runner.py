@@ -276,6 +276,8 @@ def _chunk_program(
         dtype = dyn.dtype
 
         def plan_step(c: Carry) -> Carry:
+            if not agent.plans:
+                return c
             # Before the first action every member plans (the reference's before_start_interacting), later those
             # that ask.
             needs = jax.vmap(agent.needs_plan)(c.agent_state) | (c.t == 0)
