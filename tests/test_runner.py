@@ -130,6 +130,31 @@ def test_accounting_matches_numpy(episodic):
     np.testing.assert_array_equal(res.agent_state.c, [1050, 1050])
 
 
+class FirstKeyState(struct.PyTreeNode):
+    plans: jax.Array
+    first_key: jax.Array
+
+
+def test_every_member_plans_once_before_its_first_action_with_its_initialisation_key():
+    # An agent that never asks for a plan is still planned once, before its first action, with the key
+    # fold_in(split(member key, 4)[3], 2) (the initialisation sub-key's "plan" tag); an agent without plan() has none.
+    agent = Agent(
+        name="first_key", episodic=False, default_hparams=ScriptedHParams(),
+        init=lambda key, spec, hp: FirstKeyState(jnp.int32(0), jnp.zeros((2,), jnp.uint32)),
+        act=lambda key, state, obs, h: jnp.int32(0), update=lambda state, tr: state,
+        policy=lambda state: jnp.full((5, 2), 0.5), needs_plan=lambda state: jnp.zeros((), bool),
+        plan=lambda key, state: FirstKeyState(state.plans + 1, jnp.where(state.plans == 0, jax.random.key_data(key),
+                                                                         state.first_key)),
+    )
+    assert agent.plans and not agents.get("q_learning_continuous").plans
+    g = runner.product([river_swim(False)], [ScriptedHParams()], seeds=[0, 1])
+    res = runner.run(agent, g, 30, log_period=10, n_records=1)
+    np.testing.assert_array_equal(res.agent_state.plans, [1, 1])
+    for b in range(2):
+        sub = jax.random.split(jax.random.wrap_key_data(jnp.asarray(g.key_data[b])), 4)
+        np.testing.assert_array_equal(res.agent_state.first_key[b], jax.random.key_data(jax.random.fold_in(sub[3], 2)))
+
+
 def test_exact_mode_logs_every_step():
     mdp = river_swim(False)
     g = runner.product([mdp], [ScriptedHParams(), ScriptedHParams(plan_every=7)], seeds=[0])
