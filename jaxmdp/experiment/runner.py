@@ -212,8 +212,8 @@ def _init_program(agent: Agent, record_visits: bool = False) -> Callable:
             key_data
         )
         # The agents' first plan runs in the chunk program's first planning step (t = 0), with the initialisation's
-        # "plan" key (_plan_keys): a copy of the plan here compiled it once more (PSRL continuous: 29 -> 18 s for a
-        # runner, docs/benchmarks/bench_compile.md).
+        # "plan" key (_plan_keys): a copy of the plan here compiled it once more (PSRL continuous: 32 -> 23 s for a
+        # runner, docs/benchmarks/bench_runner_compile.md).
 
         def one(i, hp, k_reset, k_init):
             m = member_mdp(mdps, i)
