@@ -27,7 +27,6 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 DEFAULT_AGENTS = ("q_learning_episodic", "psrl_episodic", "q_learning_continuous", "ucrl2", "psrl_continuous")
-PLANNING = {"psrl_episodic", "ucrl2", "psrl_continuous"}
 
 
 def _grid(agent):
@@ -75,9 +74,11 @@ def main() -> None:
     args = p.parse_args()
     if args.repeats < 1:
         p.error("--repeats must be at least 1")
+    import agents
+
     rows = []
     for name in args.agents.split(","):
-        for variant in ("paper", "colosseum") if name in PLANNING else ("paper",):
+        for variant in ("paper", "colosseum") if agents.get(name).plans else ("paper",):
             rows.append(measure(name, variant, args.repeats))
             r = rows[-1]
             print(f"{r['agent']:28s} compile {r['compile_s']:6.1f} s  digest {r['digest']}", flush=True)
