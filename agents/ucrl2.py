@@ -276,6 +276,9 @@ UCRL2 = Agent(
     plan=plan,
     check_hparams=check_hparams,
     diagnostics=lambda state: {"plans_unconverged": state.plans_unconverged},
+    # Epochs end member by member: planning in rounds only is as fast, and the runner compiles the plan once, not
+    # twice (RiverSwim-10, 24-192 seeds: 3-5 s less compile; docs/benchmarks/bench_whole_batch_plans.md).
+    whole_batch_plans=0,
 )
 
 

@@ -155,6 +155,28 @@ def test_every_member_plans_once_before_its_first_action_with_its_initialisation
         np.testing.assert_array_equal(res.agent_state.first_key[b], jax.random.key_data(jax.random.fold_in(sub[3], 2)))
 
 
+def test_a_shard_above_the_agents_whole_batch_plans_compiles_one_copy_of_plan_with_the_same_results():
+    # Six members asking every 3, 4 or 6 updates: at c = 6 four ask and at c = 12 all six, more than half, which a
+    # shard of at most whole_batch_plans members plans whole. Above it, rounds only: plan is traced once per chunk
+    # program instead of twice (whole batch and rounds), and the records and plan counts are the same.
+    traced = []
+
+    def counting(limit):
+        def plan(key, state):
+            traced.append(limit)
+            return SCRIPTED[False].plan(key, state)
+
+        return dataclasses.replace(SCRIPTED[False], name=f"scripted_{limit}", plan=plan, whole_batch_plans=limit)
+
+    g = runner.product([river_swim(False)], [ScriptedHParams(3), ScriptedHParams(4), ScriptedHParams(6)], seeds=[0, 1])
+    whole, rounds = (runner.run(counting(limit), g, 60, log_period=10, n_records=2, shards=1) for limit in (6, 5))
+    assert traced.count(5) >= 1 and traced.count(6) == 2 * traced.count(5)
+    np.testing.assert_array_equal(rounds.values, whole.values)
+    np.testing.assert_array_equal(rounds.agent_state.plans, whole.agent_state.plans)
+    # The first plan, then one before every step at which c is a positive multiple (c = 60 is after the last step).
+    np.testing.assert_array_equal(whole.agent_state.plans, 1 + 59 // np.array([3, 3, 4, 4, 6, 6]))
+
+
 def test_exact_mode_logs_every_step():
     mdp = river_swim(False)
     g = runner.product([mdp], [ScriptedHParams(), ScriptedHParams(plan_every=7)], seeds=[0])

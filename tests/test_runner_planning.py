@@ -25,14 +25,15 @@ def _toy_plan(key, state):
     return {"x": x * 2.0 + jax.random.uniform(key, x.shape) + n, "n": n + 1}
 
 
+@pytest.mark.parametrize("whole_batch", [True, False])
 @pytest.mark.parametrize("slots", [1, 2, 3, 7])
-def test_plan_due_equals_planning_the_whole_batch(slots):
+def test_plan_due_equals_planning_the_whole_batch(slots, whole_batch):
     B = 7
     states = {"x": jnp.arange(B * 3, dtype=jnp.float32).reshape(B, 3), "n": jnp.arange(B, dtype=jnp.int32) * 10}
     keys = jax.random.split(jax.random.key(3), B)
     patterns = [np.zeros(B, bool), np.ones(B, bool), np.eye(B, dtype=bool)[B - 1], np.eye(B, dtype=bool)[0]]
     patterns += [np.random.default_rng(i).random(B) < 0.5 for i in range(4)]
-    run = jax.jit(lambda due: plan_due(_toy_plan, slots, due, keys, states))
+    run = jax.jit(lambda due: plan_due(_toy_plan, slots, due, keys, states, whole_batch))
     for due in patterns:
         due = jnp.asarray(due)
         want = where_due(due, jax.vmap(_toy_plan)(keys, states), states)
@@ -73,7 +74,8 @@ def test_results_do_not_depend_on_the_slots(name, make_grid, n_steps):
     agent = agents.get(name)
     g = make_grid(agent)
     # Two slots: one member waiting leaves a slot empty, two to four (episodic; continuous: two or three) need rounds,
-    # more than half the batch is planned whole.
+    # more than half the batch is planned whole (episodic PSRL; UCRL2 and continuous PSRL plan in rounds only,
+    # Agent.whole_batch_plans).
     whole = runner.run(agent, g, n_steps, log_period=10, n_records=5, plan_slots=g.n_members)
     _assert_same_run(runner.run(agent, g, n_steps, log_period=10, n_records=5, plan_slots=2), whole)
 

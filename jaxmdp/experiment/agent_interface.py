@@ -22,6 +22,9 @@ hyperparameter sets and drives them in lockstep:
 * ``fixed_policy`` (a flag, default False): ``policy`` is the same at every step of a run (it depends on no learnt
   quantity, as the random agent's). The runner then evaluates it at the first log and never builds or compares it
   again (the same records; an episodic random run on Taxi takes 0.43x the time, docs/benchmarks/bench_fixed_policy.md).
+* ``whole_batch_plans`` (an int, default ``None``: no limit): the largest batch the runner plans whole when most of
+  its members ask at once; larger ones plan in rounds (:mod:`jaxmdp.experiment.planning`). An agent whose members
+  seldom ask together (epochs that end member by member) sets 0, and its runner compiles the plan once, not twice.
 * ``diagnostics(state) -> {name: int scalar}`` (optional): counters of silent degradation kept in the state, e.g.
   plans that stopped at their iteration cap; the runner writes each as a column of its per-record CSV and warns at
   the end of a run where one is non-zero.
@@ -150,6 +153,11 @@ class Agent:
     #: True when ``policy`` is the same at every step of a run (it depends on no learnt quantity, as the random
     #: agent's): the runner then evaluates it at the first log only and never extracts or compares it again.
     fixed_policy: bool = False
+    #: The largest lockstep batch (a shard's members) that the runner plans whole, in one ``vmap``, when more than
+    #: half its members ask at once (``None``: any); larger batches always plan in rounds of planning slots
+    #: (:func:`jaxmdp.experiment.planning.plan_due`) and compile no whole-batch copy of ``plan``. 0 for an agent
+    #: whose members seldom ask together (docs/benchmarks/bench_whole_batch_plans.md).
+    whole_batch_plans: int | None = None
 
     @property
     def plans(self) -> bool:

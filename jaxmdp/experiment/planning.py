@@ -7,7 +7,7 @@ result only for those that did) then costs a full batch of plans per step. :func
 members that asked into ``slots`` planning slots (:func:`jaxmdp.sampling.compaction.compact`), plans those under
 ``vmap``, scatters the plans back and repeats until every member that asked has its plan; the cost is
 ``ceil(m / slots)`` rounds of ``slots`` plans for ``m`` members asking, whatever ``B`` (one batch of ``B`` when more
-than half ask).
+than half ask and ``B`` is at most the agent's ``whole_batch_plans``).
 
 Each member plans with its own key and its own state, exactly as in the whole-batch step, and the agents' plans
 (their samplers included, :mod:`jaxmdp.sampling.beta_sampling`) give a member the same bits whoever else is in the
@@ -34,7 +34,12 @@ def default_plan_slots(n_members: int) -> int:
 
 
 def plan_due(
-    plan: Callable[[jax.Array, Any], Any], slots: int, due: jax.Array, keys: jax.Array, states: Any
+    plan: Callable[[jax.Array, Any], Any],
+    slots: int,
+    due: jax.Array,
+    keys: jax.Array,
+    states: Any,
+    whole_batch: bool = True,
 ) -> Any:
     """``plan(keys[i], states[i])`` for every member ``i`` with ``due[i]``, ``states[i]`` for the others.
 
@@ -44,7 +49,9 @@ def plan_due(
     the result does not depend on ``slots``. When more than half the members wait, all ``B`` are planned in one batch
     instead (the result kept where due): a round has a fixed cost (the plan's loops and their dispatch: about 0.5 ms
     a round for PSRL on a CPU core, measured), so when every member's episode ends at the same step (one MDP, many
-    seeds) many rounds of small plans cost more than one batch.
+    seeds) many rounds of small plans cost more than one batch. ``whole_batch=False`` (static) always plans in
+    rounds and compiles no whole-batch copy of ``plan``: for large batches, whose rounds of ``slots`` plans are at
+    least as fast (a whole batch's working set leaves the caches), and for agents whose members seldom ask together.
     """
     def round_(carry):
         states, waiting = carry
@@ -60,4 +67,6 @@ def plan_due(
     def whole(states):
         return where_due(due, jax.vmap(plan)(keys, states), states)
 
+    if not whole_batch:
+        return rounds(states)
     return jax.lax.cond(2 * jnp.sum(due) > due.shape[0], whole, rounds, states)

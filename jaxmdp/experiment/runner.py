@@ -264,7 +264,8 @@ def _chunk_program(
     have no Beta reward anywhere (static ``MDP.stochastic_rewards``) compiles no reward draw. ``plan_slots``: members
     planned at once (:func:`jaxmdp.experiment.planning.plan_due`; default
     :func:`~jaxmdp.experiment.planning.default_plan_slots` of a shard's members); at least a shard's members, the
-    whole shard is planned whenever one member asks and the result kept for those that did.
+    whole shard is planned whenever one member asks and the result kept for those that did. A shard larger than
+    ``agent.whole_batch_plans`` plans in rounds only.
     """
 
     def chunk(
@@ -285,7 +286,8 @@ def _chunk_program(
             if slots >= B:
                 do_plan = lambda state: where_due(needs, jax.vmap(agent.plan)(keys(), state), state)  # noqa: E731
             else:
-                do_plan = lambda state: plan_due(agent.plan, slots, needs, keys(), state)  # noqa: E731
+                whole = agent.whole_batch_plans is None or B <= agent.whole_batch_plans
+                do_plan = lambda state: plan_due(agent.plan, slots, needs, keys(), state, whole)  # noqa: E731
             return c.replace(agent_state=jax.lax.cond(jnp.any(needs), do_plan, lambda s: s, c.agent_state))
 
         # A grid of several plain MDPs steps each member on the stack itself; a BlockMDP grid, or a single MDP (no
