@@ -16,7 +16,7 @@ import pytest
 
 import agents
 import jaxmdp
-from agent_loop import make_runner, seeds
+from agent_loop import make_grid_runner, seeds
 from stat_checks import mostly, seed
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, spec_of
 
@@ -67,16 +67,8 @@ def probe_hparams(agent: Agent):
 
 def grid_runner(agent: Agent, n_steps: int):
     """``run(keys [G, B], mdp, hparams [G], emissions)``: the agent-loop run of the ``G x B`` members (learning rate
-    by seed) as one batch; the results are reshaped to ``[G, B, ...]``."""
-    run = make_runner(agent, n_steps, trace=True, member_hparams=True)
-
-    def grid_run(keys, mdp, hparams, emissions):
-        G, B = keys.shape
-        member_hparams = jax.tree.map(lambda x: jnp.repeat(x, B, axis=0), hparams)
-        result = run(keys.reshape(G * B), mdp, member_hparams, emissions)
-        return jax.tree.map(lambda x: x.reshape(G, B, *x.shape[1:]) if x.ndim else x, result)
-
-    return grid_run
+    by seed) as one batch, with ``[G, B, ...]`` results (:func:`~agent_loop.make_grid_runner`, traced)."""
+    return make_grid_runner(agent, n_steps, trace=True)
 
 
 def grid_keys(base: int = 0, n_seeds: int = N_SEEDS) -> jax.Array:

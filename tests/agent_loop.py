@@ -115,6 +115,22 @@ def make_runner(
     return jax.jit(run)
 
 
+def make_grid_runner(agent: Agent, n_steps: int, trace: bool = False):
+    """``run(keys[G, B], mdp, hparams[G], emissions=None) -> RunResult`` (jitted) with ``[G, B]`` leading axes: the
+    ``G x B`` members (hyperparameter set ``g`` for row ``g``) as one batch of :func:`make_runner`, with one plan
+    predicate for the whole batch. (A ``vmap`` over ``G`` of the loop gives the same numbers, but turns its ``cond``s
+    into ``select``s and compiles longer: BootDQN's probe runner 21 s against 13 s.)"""
+    run = make_runner(agent, n_steps, trace=trace, member_hparams=True)
+
+    def grid_run(keys, mdp, hparams, emissions=None):
+        G, B = keys.shape
+        member_hparams = jax.tree.map(lambda x: jnp.repeat(x, B, axis=0), hparams)
+        result = run(keys.reshape(G * B), mdp, member_hparams, emissions)
+        return jax.tree.map(lambda x: x.reshape(G, B, *x.shape[1:]) if x.ndim else x, result)
+
+    return jax.jit(grid_run)
+
+
 def seeds(n: int, base: int = 0) -> jax.Array:
     """``n`` member keys."""
     return jax.random.split(jax.random.key(base), n)

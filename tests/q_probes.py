@@ -25,7 +25,7 @@ import numpy as np
 
 import agents
 import jaxmdp
-from tests.agent_loop import RunResult, make_runner, seeds
+from tests.agent_loop import RunResult, make_grid_runner, seeds
 
 PROBES = ("constant", "arms", "discounting")
 CHAIN = np.zeros((2, 2, 2))
@@ -74,9 +74,14 @@ def stack(*hparams: Any) -> Any:
 
 
 def grid_runner(agent: Any, n_steps: int, trace: bool = False):
-    """``run(keys[B], mdp, hparams[E], table) -> RunResult`` with ``[E, B]`` leading axes: the test loop vmapped over
-    a hyperparameter grid."""
-    return jax.jit(jax.vmap(make_runner(agent, n_steps, trace=trace), (None, None, 0, None)))
+    """``run(keys[B], mdp, hparams[E], table) -> RunResult`` with ``[E, B]`` leading axes: the test loop over a
+    hyperparameter grid, the same ``B`` keys for every set (:func:`~tests.agent_loop.make_grid_runner`)."""
+    run = make_grid_runner(agent, n_steps, trace=trace)
+
+    def grid_run(keys, mdp, hparams, table):
+        return run(jnp.stack([keys] * jax.tree.leaves(hparams)[0].shape[0]), mdp, hparams, table)
+
+    return grid_run
 
 
 @functools.cache
