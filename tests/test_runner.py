@@ -177,6 +177,14 @@ def test_a_shard_above_the_agents_whole_batch_plans_compiles_one_copy_of_plan_wi
     np.testing.assert_array_equal(whole.agent_state.plans, 1 + 59 // np.array([3, 3, 4, 4, 6, 6]))
 
 
+def test_a_bad_whole_batch_plans_is_refused_before_compiling():
+    g = runner.product([river_swim(False)], [ScriptedHParams()], seeds=[0])
+    for bad in (-1, 2.5, "64", True):
+        agent = dataclasses.replace(SCRIPTED[False], whole_batch_plans=bad)
+        with pytest.raises(ValueError, match=r"Agent.whole_batch_plans must be an integer >= 0 or None \(agent "):
+            runner.run(agent, g, 10)
+
+
 def test_exact_mode_logs_every_step():
     mdp = river_swim(False)
     g = runner.product([mdp], [ScriptedHParams(), ScriptedHParams(plan_every=7)], seeds=[0])

@@ -464,6 +464,8 @@ def _n_shards(n_members: int, shards: int | None) -> int:
 def _validate(agent: Agent, g: Grid, variant: str) -> None:
     if not isinstance(agent, Agent):
         raise ValueError(f"agent must be a jaxmdp.experiment.agent_interface.Agent; got {type(agent).__name__}")
+    if agent.whole_batch_plans is not None:
+        check_int("Agent.whole_batch_plans", agent.whole_batch_plans, 0, context=f" or None (agent {agent.name!r})")
     if not isinstance(g, Grid):
         raise ValueError("grid must be a jaxmdp.experiment.runner.Grid (see runner.grid and runner.product)")
     check_variant(variant)
@@ -777,8 +779,8 @@ def run(
     Raises:
       ValueError: before anything compiles, for an episodic agent on continuous MDPs (or the reverse), an agent
         whose policy or action does not fit the MDPs' ``S``/``A``/``H``, non-positive ``n_steps``, ``log_period`` or
-        ``n_records``, hyperparameters outside their domain (``agent.check_hparams``) or a checkpoint of another
-        run.
+        ``n_records``, hyperparameters outside their domain (``agent.check_hparams``), an ``agent.whole_batch_plans``
+        that is neither ``None`` nor an integer >= 0, or a checkpoint of another run.
       ProgramTooLarge: after compiling, before anything runs, when a program needs more memory than
         ``memory_limit`` (a ``MemoryError``; split the members over several calls).
     """
