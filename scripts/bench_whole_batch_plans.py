@@ -6,7 +6,7 @@ when more than half its members ask. For each agent and batch size this script r
 (``whole_batch_plans=None``: the whole-batch copy of ``plan`` compiled beside the rounds) and as ``rounds``
 (``whole_batch_plans=0``: rounds only), whatever the agent's own setting, on one host device (one shard, so a
 shard is the batch), and reports the cold compile time and the best of ``--repeats`` warm runs. The two must give
-the same records bit for bit (the script stops otherwise).
+the same records and final agent states bit for bit (the script stops otherwise).
 
 Grids: ``sync``, one episodic MiniGridEmpty (size 5) with every member's episodes ending at the same steps (one MDP,
 many seeds, as in a hyperparameter search); ``mixed``, three MiniGridEmpty sizes (4, 5, 6: horizons 11, 13, 15) in
@@ -50,7 +50,9 @@ def _grid(kind: str, members: int, hparams):
 
 
 def measure(name: str, kind: str, members: int, repeats: int) -> list[dict]:
-    """Compile and warm run seconds of the agent planning ``whole`` and in ``rounds`` (same records asserted)."""
+    """Compile and warm run seconds of the agent planning ``whole`` and in ``rounds`` (the same records and final
+    agent states asserted)."""
+    import jax
     import numpy as np
 
     import agents
@@ -61,16 +63,18 @@ def measure(name: str, kind: str, members: int, repeats: int) -> list[dict]:
     rows, values = [], None
     for mode, limit in (("whole", None), ("rounds", 0)):
         agent = dataclasses.replace(base, whole_batch_plans=limit)
-        run = lambda: runner.run(agent, grid, STEPS[kind], log_period=100, n_records=5)  # noqa: E731
+        # One shard whatever XLA_FLAGS says, so that the batch is the shard that whole_batch_plans bounds.
+        run = lambda: runner.run(agent, grid, STEPS[kind], log_period=100, n_records=5, shards=1)  # noqa: E731
         first = run()
         best = float("inf")
         for _ in range(repeats):
             t = time.perf_counter()
             res = run()
             best = min(best, time.perf_counter() - t)
-        v = np.asarray(res.values)
-        if values is not None and not np.array_equal(v, values):
-            raise SystemExit(f"{name} on {kind} with {members} members: whole and rounds gave different records")
+        v = [np.asarray(res.values)] + [np.asarray(x) for x in jax.tree.leaves(res.agent_state)]
+        if values is not None and not all(np.array_equal(x, y) for x, y in zip(v, values)):
+            raise SystemExit(f"{name} on {kind} with {members} members: whole and rounds gave different records or "
+                             "final agent states")
         values = v
         rows.append({"agent": name, "grid": kind, "members": members, "mode": mode, "steps": STEPS[kind],
                      "compile_s": first.compile_s, "run_s": best})
