@@ -17,17 +17,19 @@ accepted trials (the size of the rounding of ``ln U`` from a separate uniform), 
 ``t(x) > 1e-3``; divided by ``a`` as any error of ``ln U``. (A separate uniform cost 28% more time; the algebraically
 equal ``ln t = 3 d (log1p(c x) - c x + (c x)^2 / 2 - (c x)^3 / 3)`` halves the rounding but cost 5-15% more.)
 
-**Random numbers.** Only ``jax.random``, on keys folded from ``fold_in(key, 2^31 - 1)`` (nothing else drawn from
-``key`` overlaps it): a trial's ``x`` is ``jax.random.normal`` and its ``w = 1 - u`` with ``u`` from
-``jax.random.uniform``, each array of trials drawn at once from its own key. The whole-array round uses tag 0 of the
-sampler's key; pass ``p`` over the rejected entries uses the key ``fold_in(., p + 1)``, its first buffer that key's tag
-0 and its second buffer's rounds tags 1, 2, ...; small arrays run rounds on tags 0, 1, 2, ... . A buffer slot draws
-its own uniforms: which entry sits in a slot was decided by earlier trials only, so the slot's fresh draws are
-independent of it. (On CPU each 32-bit ``jax.random`` word costs one Threefry hash, evaluated in its own loop over
-memory. A hand-written Threefry fused with the arithmetic, both words of each hash used, was 1.5x faster on
-Dirichlet draws (29 against 44 ns per entry, ``[64, 100, 4, 100]``); we do not re-implement ``jax.random``.)
-``jax.random.normal`` inverts a float32 uniform with ``erf_inv``: its deviates stop at about 5.4, which truncates the
-normal's tails at ``P(|x| > 5.4) ~ 7e-8``, as ``jax.random.gamma`` does.
+**Random numbers.** Keys folded from ``fold_in(key, 2^31 - 1)`` (nothing else drawn from ``key`` overlaps it). A
+round's trials are drawn at once from the round's key: two key words from ``jax.random.bits``, then one Threefry-2x32
+hash per entry of the counter ``(entry, 0)`` (a second, ``(entry, 1)``, in float64), whose two words make the
+trial's ``x`` and ``w`` (:func:`trial_deviates`). The hash is :func:`jaxmdp.sampling.threefry.threefry2x32` written
+out, which XLA fuses with the trial's arithmetic; ``jax.random`` evaluates each 32-bit word's hash in a rolled loop
+over memory, which cost most of a Dirichlet draw on CPU (30.6 against 12.6 ns per entry, ``[8, 400, 3, 400]``,
+docs/benchmarks/bench_fused_draws.md; 1.5x on an AVX2 machine in an earlier trial). The whole-array round uses tag 0
+of the sampler's key; pass ``p`` over the rejected entries uses the key ``fold_in(., p + 1)``, its first buffer that
+key's tag 0 and its second buffer's rounds tags 1, 2, ...; small arrays run rounds on tags 0, 1, 2, ... . A buffer
+slot draws its own deviates: which entry sits in a slot was decided by earlier trials only, so the slot's fresh draws
+are independent of it. ``x = sqrt(2) erf_inv(v)`` with ``v`` uniform on the float grid of ``(-1, 1)``: the deviates
+stop at about 5.2-5.4, which truncates the normal's tails at ``P(|x| > 5.2) ~ 2e-7``, as ``jax.random.normal`` (and
+``jax.random.gamma``) do.
 
 **Rounds.** A large array (``n`` entries) runs one round over every entry, which accepts > 95% of them. The rejected
 entries are compacted (:func:`jaxmdp.sampling.compaction.compact`) into a buffer of ``m1 = n // 16 + 64`` slots that
@@ -70,6 +72,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxmdp.sampling.compaction import compact
+from jaxmdp.sampling.threefry import threefry2x32
 
 __all__ = ["sample_log_gamma", "sample_beta", "buffer_sizes", "shape_terms", "trial_log_gamma", "DEFAULT_CANDIDATES"]
 
@@ -119,17 +122,38 @@ def trial_log_gamma(e: jax.Array, w: jax.Array, shape: ShapeTerms) -> tuple[jax.
     return accept, shape.log_d + log_v + jnp.minimum(log_w - log_t, 0.0) * shape.inv_a
 
 
-def _trial(key: jax.Array, shape: ShapeTerms) -> jax.Array:
-    """One trial for each entry of ``shape`` (a flat array of ``n``), with ``n`` normals and ``n`` uniforms drawn from
-    ``key``: ``ln G`` where accepted, NaN where rejected."""
-    dtype = shape.d.dtype
-    n = shape.d.shape[0]
-    k_x, k_w = jax.random.split(key)
-    # x = sqrt(2) e is jax.random.normal(k_x) bit for bit (its uniform on (-1, 1), erf_inv, sqrt(2)); e is kept to
-    # form c x as (sqrt(2) c) e: see "batches" in the module docstring.
+def trial_deviates(key: jax.Array, n: int, dtype) -> tuple[jax.Array, jax.Array]:
+    """A trial's deviates for ``n`` entries: ``e = erf_inv(v)`` with ``v`` uniform on ``(-1, 1)`` (so that ``sqrt(2)
+    e ~ N(0, 1)``) and ``w`` uniform on ``(0, 1]``, from one Threefry-2x32 hash per entry (two in float64) of the
+    counter ``(i, 0)`` (and ``(i, 1)``) under two key words drawn from ``key``, written out by
+    :func:`~jaxmdp.sampling.threefry.threefry2x32` so that XLA fuses the hash with the trial's arithmetic: 0.7 ns
+    per entry for both words against 15-20 ns for two ``jax.random.uniform`` arrays, whose rolled hash loop goes
+    through memory (``[8, 400, 3, 400]`` on 2 CPU cores, docs/benchmarks/bench_fused_draws.md).
+
+    The mantissa bits make ``v`` and ``w`` exactly, with no rounding (and so no multiply-add that a compiler could
+    contract differently in scalar and vector code): ``v = [2, 4) - 3`` on the grid of ``2^-22`` (``2^-51`` in
+    float64), ``-1`` moved to the next float up (``erf_inv(-1)`` is infinite), and ``w = 2 - [1, 2)``. The tails of
+    ``x`` stop where ``jax.random.normal``'s do (module docstring)."""
+    words = jax.random.bits(key, (2,), jnp.uint32)
+    i = jax.lax.iota(jnp.uint32, n)
+    b0, b1 = threefry2x32(words[0], words[1], i, jnp.zeros_like(i))
+    if dtype == jnp.float64:
+        b2, b3 = threefry2x32(words[0], words[1], i, jnp.ones_like(i))
+        wide = lambda hi, lo: (hi.astype(jnp.uint64) << np.uint64(32)) | lo.astype(jnp.uint64)  # noqa: E731
+        m0, m1, shift, two, one = wide(b0, b1), wide(b2, b3), np.uint64(12), np.uint64(2 << 61), np.uint64(1023 << 52)
+    else:
+        m0, m1, shift, two, one = b0, b1, np.uint32(9), np.uint32(0x40000000), np.uint32(0x3F800000)
+    in_2_4 = jax.lax.bitcast_convert_type((m0 >> shift) | two, dtype)  # [2, 4)
     lo = np.nextafter(np.array(-1.0, dtype), np.array(0.0, dtype))
-    e = jax.lax.erf_inv(jax.random.uniform(k_x, (n,), dtype, minval=lo, maxval=1.0))
-    w = 1.0 - jax.random.uniform(k_w, (n,), dtype)  # uniform on (0, 1]
+    v = jnp.maximum(in_2_4 - np.array(3.0, dtype), lo)
+    w = np.array(2.0, dtype) - jax.lax.bitcast_convert_type((m1 >> shift) | one, dtype)  # (0, 1]
+    return jax.lax.erf_inv(v), w
+
+
+def _trial(key: jax.Array, shape: ShapeTerms) -> jax.Array:
+    """One trial for each entry of ``shape`` (a flat array of ``n``), its deviates from :func:`trial_deviates`:
+    ``ln G`` where accepted, NaN where rejected."""
+    e, w = trial_deviates(key, shape.d.shape[0], shape.d.dtype)
     accept, log_g = trial_log_gamma(e, w, shape)
     return jnp.where(accept, log_g, jnp.nan)
 

@@ -1,0 +1,86 @@
+"""The Gamma sampler's trial deviates from a fused Threefry hash against two ``jax.random.uniform`` arrays.
+
+Every Marsaglia-Tsang trial of :mod:`jaxmdp.sampling.beta_sampling` needs two uniforms per entry. This script times,
+in one process and interleaved (best of ``--repeats``), on a batch of Dirichlet concentrations shaped like episodic
+PSRL's posterior (``[B, S, A, S]``, prior 0.32, one entry in a hundred with counts):
+
+* ``jax.random``: two ``jax.random.uniform`` arrays per round (the sampler's deviates before the fused hash);
+* ``fused``: :func:`jaxmdp.sampling.beta_sampling.trial_deviates` (one written-out Threefry hash per entry);
+* ``dirichlet``: the whole draw that the agents make, :func:`agents.posteriors.dirichlet_sample`;
+* ``value iteration``: ``H`` backups of the drawn model, the rest of an episodic PSRL plan, for scale.
+
+Usage: ``python scripts/bench_fused_draws.py [--batch 8] [--states 400] [--actions 3] [--horizon 40] [--repeats 5]
+[--doc PATH]``; numbers are nanoseconds per entry of the ``[B, S, A, S]`` array, wall time over all cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import time
+
+import jax
+import jax.numpy as jnp
+
+from agents.posteriors import dirichlet_sample
+from jaxmdp.sampling.beta_sampling import trial_deviates
+
+
+def _best(fn, repeats: int) -> float:
+    jax.block_until_ready(fn())  # compile
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        jax.block_until_ready(fn())
+        times.append(time.perf_counter() - t)
+    return min(times)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--batch", type=int, default=8)
+    parser.add_argument("--states", type=int, default=400)
+    parser.add_argument("--actions", type=int, default=3)
+    parser.add_argument("--horizon", type=int, default=40)
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--doc", help="append the table to this Markdown file")
+    args = parser.parse_args()
+    B, S, A, H = args.batch, args.states, args.actions, args.horizon
+    shape = (B, S, A, S)
+    n = B * S * A * S
+    counts = (jax.random.uniform(jax.random.key(1), shape) < 0.01) * 5.0
+    alpha = 0.32 + counts
+    keys = jax.random.split(jax.random.key(0), B)
+    rewards = jax.random.uniform(jax.random.key(2), (B, S, A))
+
+    def two_uniforms(key, a):
+        k_x, k_w = jax.random.split(key)
+        return jax.random.uniform(k_x, (a.size,)), jax.random.uniform(k_w, (a.size,))
+
+    def backups(p, r):
+        step = lambda v, _: ((r + jnp.einsum("sat,t->sa", p, v)).max(-1),) * 2  # noqa: E731
+        return jax.lax.scan(step, jnp.zeros(S, p.dtype), None, length=H)[1]
+
+    jax_random = jax.jit(jax.vmap(two_uniforms))
+    fused = jax.jit(jax.vmap(lambda key, a: trial_deviates(key, a.size, jnp.float32)))
+    dirichlet = jax.jit(jax.vmap(dirichlet_sample))
+    vi = jax.jit(jax.vmap(backups))
+    model = dirichlet(keys, alpha)
+    rows = [
+        ("two jax.random.uniform arrays", _best(lambda: jax_random(keys, alpha), args.repeats)),
+        ("trial_deviates (fused Threefry)", _best(lambda: fused(keys, alpha), args.repeats)),
+        ("dirichlet_sample (whole draw)", _best(lambda: dirichlet(keys, alpha), args.repeats)),
+        (f"{H} backups of the drawn model", _best(lambda: vi(model, rewards), args.repeats)),
+    ]
+    lines = [f"`[B, S, A, S] = {list(shape)}`, best of {args.repeats}, {jax.device_count()} device(s), "
+             f"{platform.processor() or platform.machine()}", "", "| what | ms | ns per entry |", "|---|---|---|"]
+    lines += [f"| {name} | {t * 1e3:.1f} | {t / n * 1e9:.2f} |" for name, t in rows]
+    text = "\n".join(lines)
+    print(text)
+    if args.doc:
+        with open(args.doc, "a") as f:
+            f.write("\n" + text + "\n")
+
+
+if __name__ == "__main__":
+    main()
