@@ -142,6 +142,23 @@ def test_float64_and_bfloat16():
         checks.binomial(int(np.sum(y <= q)), y.size, ref.cdf(q + ulp / 2), f"bfloat16 below {q}")
 
 
+@pytest.mark.parametrize("bits", [32, 64])
+def test_deviates_from_extreme_words_are_finite_and_exact(bits):
+    # The lowest and highest words give the grid's ends, by hand: v = -1 (moved up to the next float, as erf_inv(-1)
+    # is infinite) and 1 - 2^(2 - m) with m the mantissa bits + 1; w = 1 and 2^(1 - m). Every deviate is finite.
+    dtype, uint, m = (jnp.float32, np.uint32, 24) if bits == 32 else (jnp.float64, np.uint64, 53)
+    with jax.enable_x64(bits == 64):
+        words = jnp.array([0, np.iinfo(uint).max], uint)
+        e, w = jax.jit(bs.deviates_from_words, static_argnums=2)(words, words, dtype)
+        e, w = np.asarray(e), np.asarray(w)
+        np_dtype = np.dtype(dtype)
+        lo = np.nextafter(np_dtype.type(-1.0), np_dtype.type(0.0))
+        ref = jax.lax.erf_inv(jnp.array([lo, 1.0 - 2.0 ** (2 - m)], dtype))
+    assert e.dtype == np_dtype and w.dtype == np_dtype and np.all(np.isfinite(e))
+    np.testing.assert_array_equal(e, np.asarray(ref))
+    np.testing.assert_array_equal(w, np.array([1.0, 2.0 ** (1 - m)], np_dtype))
+
+
 @functools.partial(jax.jit, static_argnames="dtype")
 def beta_draws(keys, a, b, dtype):
     return jax.vmap(lambda k: sample_beta(k, a, b, dtype=dtype))(keys)

@@ -74,7 +74,8 @@ import numpy as np
 from jaxmdp.sampling.compaction import compact
 from jaxmdp.sampling.threefry import threefry2x32
 
-__all__ = ["sample_log_gamma", "sample_beta", "buffer_sizes", "shape_terms", "trial_log_gamma", "DEFAULT_CANDIDATES"]
+__all__ = ["sample_log_gamma", "sample_beta", "buffer_sizes", "shape_terms", "trial_log_gamma", "trial_deviates",
+           "deviates_from_words", "DEFAULT_CANDIDATES"]
 
 #: Trials per round for arrays too small to compact: with acceptance > 0.95 a round fails with probability < 7e-6.
 DEFAULT_CANDIDATES = 4
@@ -122,31 +123,38 @@ def trial_log_gamma(e: jax.Array, w: jax.Array, shape: ShapeTerms) -> tuple[jax.
     return accept, shape.log_d + log_v + jnp.minimum(log_w - log_t, 0.0) * shape.inv_a
 
 
-def trial_deviates(key: jax.Array, n: int, dtype) -> tuple[jax.Array, jax.Array]:
+def trial_deviates(key: jax.Array, n: int, dtype: jax.typing.DTypeLike) -> tuple[jax.Array, jax.Array]:
     """A trial's deviates for ``n`` entries: ``e = erf_inv(v)`` with ``v`` uniform on ``(-1, 1)`` (so that ``sqrt(2)
     e ~ N(0, 1)``) and ``w`` uniform on ``(0, 1]``, from one Threefry-2x32 hash per entry (two in float64) of the
     counter ``(i, 0)`` (and ``(i, 1)``) under two key words drawn from ``key``, written out by
-    :func:`~jaxmdp.sampling.threefry.threefry2x32` so that XLA fuses the hash with the trial's arithmetic: 0.7 ns
-    per entry for both words against 15-20 ns for two ``jax.random.uniform`` arrays, whose rolled hash loop goes
-    through memory (``[8, 400, 3, 400]`` on 2 CPU cores, docs/benchmarks/bench_fused_draws.md).
-
-    The mantissa bits make ``v`` and ``w`` exactly, with no rounding (and so no multiply-add that a compiler could
-    contract differently in scalar and vector code): ``v = [2, 4) - 3`` on the grid of ``2^-22`` (``2^-51`` in
-    float64), ``-1`` moved to the next float up (``erf_inv(-1)`` is infinite), and ``w = 2 - [1, 2)``. The tails of
-    ``x`` stop where ``jax.random.normal``'s do (module docstring)."""
+    :func:`~jaxmdp.sampling.threefry.threefry2x32` so that XLA fuses the hash with the trial's arithmetic: 2.7 ns per
+    entry, ``erf_inv`` included, against 13.6 ns for the random words alone as two ``jax.random.uniform`` arrays,
+    whose rolled hash loop goes through memory (``[8, 400, 3, 400]`` on 2 CPU cores,
+    docs/benchmarks/bench_fused_draws.md). The words become deviates in :func:`deviates_from_words`."""
     words = jax.random.bits(key, (2,), jnp.uint32)
     i = jax.lax.iota(jnp.uint32, n)
     b0, b1 = threefry2x32(words[0], words[1], i, jnp.zeros_like(i))
     if dtype == jnp.float64:
         b2, b3 = threefry2x32(words[0], words[1], i, jnp.ones_like(i))
         wide = lambda hi, lo: (hi.astype(jnp.uint64) << np.uint64(32)) | lo.astype(jnp.uint64)  # noqa: E731
-        m0, m1, shift, two, one = wide(b0, b1), wide(b2, b3), np.uint64(12), np.uint64(2 << 61), np.uint64(1023 << 52)
+        return deviates_from_words(wide(b0, b1), wide(b2, b3), dtype)
+    return deviates_from_words(b0, b1, dtype)
+
+
+def deviates_from_words(m0: jax.Array, m1: jax.Array, dtype: jax.typing.DTypeLike) -> tuple[jax.Array, jax.Array]:
+    """``(erf_inv(v), w)`` from random words (``uint32`` for float32, ``uint64`` for float64), their top mantissa bits
+    placed exactly, with no rounding (and so no multiply-add that a compiler could contract differently in scalar and
+    vector code): ``v = [2, 4) - 3`` on the grid of ``2^-22`` (``2^-51`` in float64) with ``-1`` moved to the next
+    float up (``erf_inv(-1)`` is infinite), and ``w = 2 - [1, 2)``, on ``(0, 1]``. The normal's tails stop where
+    ``jax.random.normal``'s do (module docstring)."""
+    if dtype == jnp.float64:
+        shift, two, one = np.uint64(12), np.uint64(0x4000000000000000), np.uint64(0x3FF0000000000000)
     else:
-        m0, m1, shift, two, one = b0, b1, np.uint32(9), np.uint32(0x40000000), np.uint32(0x3F800000)
-    in_2_4 = jax.lax.bitcast_convert_type((m0 >> shift) | two, dtype)  # [2, 4)
+        shift, two, one = np.uint32(9), np.uint32(0x40000000), np.uint32(0x3F800000)
+    in_2_4 = jax.lax.bitcast_convert_type((m0 >> shift) | two, dtype)
     lo = np.nextafter(np.array(-1.0, dtype), np.array(0.0, dtype))
     v = jnp.maximum(in_2_4 - np.array(3.0, dtype), lo)
-    w = np.array(2.0, dtype) - jax.lax.bitcast_convert_type((m1 >> shift) | one, dtype)  # (0, 1]
+    w = np.array(2.0, dtype) - jax.lax.bitcast_convert_type((m1 >> shift) | one, dtype)
     return jax.lax.erf_inv(v), w
 
 
