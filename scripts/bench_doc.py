@@ -1,5 +1,6 @@
-"""Appending a dated section to a benchmark's Markdown file (docs/benchmarks/), shared by the scripts that keep a
-history of their runs there rather than rewriting the file."""
+"""Helpers shared by the benchmark scripts: appending a dated section to a benchmark's Markdown file
+(docs/benchmarks/), for the scripts that keep a history of their runs there rather than rewriting the file, and the
+best-of-``n`` wall time of a call."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import os
 import platform
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import jax
@@ -35,3 +36,14 @@ def append_section(doc: str | Path, title: str, argv: Sequence[str] | None, body
     doc = Path(doc)
     old = doc.read_text() if doc.exists() else f"# {title}\n"
     doc.write_text(old.rstrip("\n") + "\n\n" + text)
+
+
+def best_seconds(fn: Callable[[], object], repeats: int) -> float:
+    """The shortest wall time of ``repeats`` calls of ``fn`` (results waited for), after one call that compiles."""
+    jax.block_until_ready(fn())
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        jax.block_until_ready(fn())
+        times.append(time.perf_counter() - start)
+    return min(times)

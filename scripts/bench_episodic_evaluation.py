@@ -21,8 +21,6 @@ from __future__ import annotations
 import argparse
 import functools
 import os
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 # The runner shards members over one host device per core (as scripts/bench_agents.py); set before jax is imported.
@@ -35,7 +33,7 @@ import numpy as np  # noqa: E402
 import agents  # noqa: E402
 import jaxmdp  # noqa: E402
 from bench_agents import BENCH_MDPS  # noqa: E402
-from bench_doc import append_section  # noqa: E402
+from bench_doc import append_section, best_seconds  # noqa: E402
 from jaxmdp import dynamic_programming as dp  # noqa: E402
 from jaxmdp.experiment.members import member_mdp  # noqa: E402
 from jaxmdp.experiment import indicators, runner  # noqa: E402
@@ -49,16 +47,6 @@ def whole_pass(mdp: jaxmdp.MDP, actions: jax.Array) -> jax.Array:
     return dp.finite_horizon_deterministic_evaluation(mdp, actions)[0]
 
 
-def _best(fn: Callable[[], object], repeats: int) -> float:
-    jax.block_until_ready(fn())
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        jax.block_until_ready(fn())
-        times.append(time.perf_counter() - t)
-    return min(times)
-
-
 def evaluation_rows(members: int, repeats: int) -> list[str]:
     rows = ["| MDP | S, A, H, K | whole pass, ms | V_0 alone, ms | ratio | same values |", "|---|---|---|---|---|---|"]
     for family in FAMILIES:
@@ -67,7 +55,7 @@ def evaluation_rows(members: int, repeats: int) -> list[str]:
         f_old = jax.jit(jax.vmap(lambda a: whole_pass(mdp, a)))
         f_new = jax.jit(jax.vmap(lambda a: dp.finite_horizon_deterministic_start_values(mdp, a)))
         same = bool(jnp.all(f_old(actions) == f_new(actions)))
-        t_old, t_new = (_best(lambda f=f: f(actions), repeats) for f in (f_old, f_new))
+        t_old, t_new = (best_seconds(lambda f=f: f(actions), repeats) for f in (f_old, f_new))
         shape = f"{mdp.n_states}, {mdp.n_actions}, {mdp.H}, {mdp.succ.shape[-1]}"
         rows.append(f"| {family} | {shape} | {1e3 * t_old:.2f} | {1e3 * t_new:.2f} | {t_new / t_old:.2f}x | {same} |")
         print(rows[-1], flush=True)
@@ -86,7 +74,7 @@ def stack_rows(members: int, repeats: int) -> list[str]:
     own = jax.jit(jax.vmap(lambda i, a: dp.finite_horizon_deterministic_start_values(member(i), a)))
     shared = jax.jit(jax.vmap(lambda i, a: dp.finite_horizon_deterministic_start_values(member(i), a, rows, i)))
     same = bool(jnp.all(own(index, actions) == shared(index, actions)))
-    t_own, t_shared = (_best(lambda f=f: f(index, actions), repeats) for f in (own, shared))
+    t_own, t_shared = (best_seconds(lambda f=f: f(index, actions), repeats) for f in (own, shared))
     return [
         "| two Taxi MDPs stacked | each member's own rows, ms | rows from the stack, ms | ratio | same values |",
         "|---|---|---|---|---|",

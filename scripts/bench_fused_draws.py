@@ -10,30 +10,19 @@ PSRL's posterior (``[B, S, A, S]``, prior 0.32, one entry in a hundred with coun
 * ``value iteration``: ``H`` backups of the drawn model, the rest of an episodic PSRL plan, for scale.
 
 Usage: ``python scripts/bench_fused_draws.py [--batch 8] [--states 400] [--actions 3] [--horizon 40] [--repeats 5]
-[--doc PATH]``; numbers are nanoseconds per entry of the ``[B, S, A, S]`` array, wall time over all cores.
+[--doc PATH]`` (``--doc`` appends a dated section); numbers are nanoseconds per entry of the ``[B, S, A, S]`` array, wall time over all cores.
 """
 
 from __future__ import annotations
 
 import argparse
-import platform
-import time
 
 import jax
 import jax.numpy as jnp
 
 from agents.posteriors import dirichlet_sample
+from bench_doc import append_section, best_seconds
 from jaxmdp.sampling.beta_sampling import trial_deviates
-
-
-def _best(fn, repeats: int) -> float:
-    jax.block_until_ready(fn())  # compile
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        jax.block_until_ready(fn())
-        times.append(time.perf_counter() - t)
-    return min(times)
 
 
 def main() -> None:
@@ -67,19 +56,17 @@ def main() -> None:
     vi = jax.jit(jax.vmap(backups))
     model = dirichlet(keys, alpha)
     rows = [
-        ("two jax.random.uniform arrays", _best(lambda: jax_random(keys, alpha), args.repeats)),
-        ("trial_deviates (fused Threefry)", _best(lambda: fused(keys, alpha), args.repeats)),
-        ("dirichlet_sample (whole draw)", _best(lambda: dirichlet(keys, alpha), args.repeats)),
-        (f"{H} backups of the drawn model", _best(lambda: vi(model, rewards), args.repeats)),
+        ("two jax.random.uniform arrays", best_seconds(lambda: jax_random(keys, alpha), args.repeats)),
+        ("trial_deviates (fused Threefry)", best_seconds(lambda: fused(keys, alpha), args.repeats)),
+        ("dirichlet_sample (whole draw)", best_seconds(lambda: dirichlet(keys, alpha), args.repeats)),
+        (f"{H} backups of the drawn model", best_seconds(lambda: vi(model, rewards), args.repeats)),
     ]
-    lines = [f"`[B, S, A, S] = {list(shape)}`, best of {args.repeats}, {jax.device_count()} device(s), "
-             f"{platform.processor() or platform.machine()}", "", "| what | ms | ns per entry |", "|---|---|---|"]
+    lines = [f"`[B, S, A, S] = {list(shape)}`, best of {args.repeats}", "", "| what | ms | ns per entry |",
+             "|---|---|---|"]
     lines += [f"| {name} | {t * 1e3:.1f} | {t / n * 1e9:.2f} |" for name, t in rows]
-    text = "\n".join(lines)
-    print(text)
+    print("\n".join(lines))
     if args.doc:
-        with open(args.doc, "a") as f:
-            f.write("\n" + text + "\n")
+        append_section(args.doc, "The Gamma sampler's deviates from a fused Threefry hash", None, lines)
 
 
 if __name__ == "__main__":
