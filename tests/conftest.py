@@ -6,8 +6,6 @@ import gc
 import json
 import logging
 import os
-import shutil
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -36,40 +34,6 @@ def missing_reference_error(environ: dict, shared: Path | None) -> str | None:
         return ("CI=true but the reference data is missing: the parity tests need ../shared/reference/colosseum "
                 "(or $JAXMDP_SHARED pointing to a folder holding reference/colosseum/index.json)")
     return None
-
-
-#: Environment variables of JAX's persistent compilation cache, read when JAX is imported.
-CACHE_DIR_ENV = "JAX_COMPILATION_CACHE_DIR"
-CACHE_MIN_S_ENV = "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"
-#: Programs that took at least this long to compile are shared by the session's processes (:func:`pytest_configure`).
-#: Full suite, two workers, 28 November 2026: 2 147 worker-seconds without the cache, 2 033 at 0.2 s, 2 119 at 0 s
-#: (every program written out: the writes cost more than the small programs' hits save).
-SHARED_CACHE_MIN_COMPILE_S = 0.2
-_CACHE_FOLDER = pytest.StashKey[str]()
-
-
-def pytest_configure(config: pytest.Config) -> None:
-    """One persistent compilation cache for the whole session: the xdist workers and the subprocesses the tests start
-    (notebooks, scripts, sharded runs on fake host devices) load a program that another process of the session
-    compiled instead of compiling it again. The cache is a fresh temporary folder, removed at the end, so no
-    program outlives the session; a program read from it is the executable XLA compiled, so results are unchanged.
-    The first process (the xdist controller, or the only one) creates the folder and exports
-    :data:`CACHE_DIR_ENV`, which the workers and subprocesses inherit; a folder already set in the environment is
-    used as it is. ``JAXMDP_TEST_COMPILATION_CACHE=0`` turns the sharing off."""
-    if os.environ.get("JAXMDP_TEST_COMPILATION_CACHE", "").strip().lower() in ("0", "off", "false"):
-        return
-    if not os.environ.get(CACHE_DIR_ENV):
-        config.stash[_CACHE_FOLDER] = os.environ[CACHE_DIR_ENV] = tempfile.mkdtemp(prefix="jaxmdp-tests-xla-")
-    os.environ.setdefault(CACHE_MIN_S_ENV, str(SHARED_CACHE_MIN_COMPILE_S))
-    # This process imported JAX before the variables were set (a run without workers): its own configuration.
-    jax.config.update("jax_compilation_cache_dir", os.environ[CACHE_DIR_ENV])
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", float(os.environ[CACHE_MIN_S_ENV]))
-
-
-def pytest_unconfigure(config: pytest.Config) -> None:
-    folder = config.stash.get(_CACHE_FOLDER, None)
-    if folder is not None:
-        shutil.rmtree(folder, ignore_errors=True)
 
 
 def pytest_sessionstart(session: pytest.Session) -> None:

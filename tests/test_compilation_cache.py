@@ -11,7 +11,6 @@ from pathlib import Path
 
 import pytest
 
-from conftest import CACHE_DIR_ENV, CACHE_MIN_S_ENV
 from jaxmdp.experiment import compilation
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -27,9 +26,7 @@ print(json.dumps({"folder": None if folder is None else str(folder), **stats.sna
 
 
 def _probe(env_value: str) -> dict:
-    # Without the suite's own shared cache (tests/conftest.py::pytest_configure): the probe sees only the scripts'.
-    env = {k: v for k, v in os.environ.items() if k not in (CACHE_DIR_ENV, CACHE_MIN_S_ENV)}
-    env.update({compilation.CACHE_ENV_VAR: env_value, "PYTHONPATH": str(ROOT)})
+    env = {**os.environ, compilation.CACHE_ENV_VAR: env_value, "PYTHONPATH": str(ROOT)}
     # No wall-clock limit tighter than pytest's own timeout: a slow machine must not fail the test.
     out = subprocess.run([sys.executable, "-c", PROBE], env=env, capture_output=True, text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
