@@ -10,7 +10,8 @@ PSRL's posterior (``[B, S, A, S]``, prior 0.32, one entry in a hundred with coun
 * ``value iteration``: ``H`` backups of the drawn model, the rest of an episodic PSRL plan, for scale.
 
 Usage: ``python scripts/bench_fused_draws.py [--batch 8] [--states 400] [--actions 3] [--horizon 40] [--repeats 5]
-[--doc PATH]`` (``--doc`` appends a dated section); numbers are nanoseconds per entry of the ``[B, S, A, S]`` array, wall time over all cores.
+[--doc PATH]`` (``--doc`` appends a dated section); numbers are nanoseconds per entry of the ``[B, S, A, S]``
+array, wall time over all cores.
 """
 
 from __future__ import annotations

@@ -23,7 +23,7 @@ hash per entry of the counter ``(entry, 0)`` (a second, ``(entry, 1)``, in float
 trial's ``x`` and ``w`` (:func:`trial_deviates`). The hash is :func:`jaxmdp.sampling.threefry.threefry2x32` written
 out, which XLA fuses with the trial's arithmetic; ``jax.random`` evaluates each 32-bit word's hash in a rolled loop
 over memory, which cost most of a Dirichlet draw on CPU (30.6 against 12.6 ns per entry, ``[8, 400, 3, 400]``,
-docs/benchmarks/bench_fused_draws.md; 1.5x on an AVX2 machine in an earlier trial). The whole-array round uses tag 0
+docs/benchmarks/bench_fused_draws.md; 1.5x on the earlier sessions' machine). The whole-array round uses tag 0
 of the sampler's key; pass ``p`` over the rejected entries uses the key ``fold_in(., p + 1)``, its first buffer that
 key's tag 0 and its second buffer's rounds tags 1, 2, ...; small arrays run rounds on tags 0, 1, 2, ... . A buffer
 slot draws its own deviates: which entry sits in a slot was decided by earlier trials only, so the slot's fresh draws
