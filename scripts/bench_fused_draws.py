@@ -1,13 +1,15 @@
 """The Gamma sampler's trial deviates from a fused Threefry hash against two ``jax.random.uniform`` arrays.
 
 Every Marsaglia-Tsang trial of :mod:`jaxmdp.sampling.beta_sampling` needs two uniforms per entry. This script times,
-in one process and interleaved (best of ``--repeats``), on a batch of Dirichlet concentrations shaped like episodic
-PSRL's posterior (``[B, S, A, S]``, prior 0.32, one entry in a hundred with counts):
+in one process, one after the other (each the best of ``--repeats`` calls after a compiling one), on a batch of
+Dirichlet concentrations shaped like episodic PSRL's posterior (``[B, S, A, S]``, prior 0.32, one entry in a hundred
+with counts):
 
-* ``jax.random``: two ``jax.random.uniform`` arrays per round (the sampler's deviates before the fused hash);
-* ``fused``: :func:`jaxmdp.sampling.beta_sampling.trial_deviates` (one written-out Threefry hash per entry);
-* ``dirichlet``: the whole draw that the agents make, :func:`agents.posteriors.dirichlet_sample`;
-* ``value iteration``: ``H`` backups of the drawn model, the rest of an episodic PSRL plan, for scale.
+* two ``jax.random.uniform`` arrays: the random words of a round as the sampler drew them before the fused hash;
+* :func:`jaxmdp.sampling.beta_sampling.trial_deviates`: one written-out Threefry hash per entry, ``erf_inv`` included;
+* :func:`agents.posteriors.dirichlet_sample`: the whole draw that the agents make;
+* ``H`` backups of the drawn model (:func:`jaxmdp.dynamic_programming.finite_horizon_value_iteration`, as episodic
+  PSRL plans): the rest of a plan, for scale.
 
 Usage: ``python scripts/bench_fused_draws.py [--batch 8] [--states 400] [--actions 3] [--horizon 40] [--repeats 5]
 [--doc PATH]`` (``--doc`` appends a dated section); numbers are nanoseconds per entry of the ``[B, S, A, S]``
@@ -23,6 +25,7 @@ import jax.numpy as jnp
 
 from agents.posteriors import dirichlet_sample
 from bench_doc import append_section, best_seconds
+from jaxmdp import dynamic_programming as dp
 from jaxmdp.sampling.beta_sampling import trial_deviates
 
 
@@ -47,14 +50,10 @@ def main() -> None:
         k_x, k_w = jax.random.split(key)
         return jax.random.uniform(k_x, (a.size,)), jax.random.uniform(k_w, (a.size,))
 
-    def backups(p, r):
-        step = lambda v, _: ((r + jnp.einsum("sat,t->sa", p, v)).max(-1),) * 2  # noqa: E731
-        return jax.lax.scan(step, jnp.zeros(S, p.dtype), None, length=H)[1]
-
     jax_random = jax.jit(jax.vmap(two_uniforms))
     fused = jax.jit(jax.vmap(lambda key, a: trial_deviates(key, a.size, jnp.float32)))
     dirichlet = jax.jit(jax.vmap(dirichlet_sample))
-    vi = jax.jit(jax.vmap(backups))
+    vi = jax.jit(jax.vmap(lambda p, r: dp.finite_horizon_value_iteration(p, rewards=r, H=H)))
     model = dirichlet(keys, alpha)
     rows = [
         ("two jax.random.uniform arrays", best_seconds(lambda: jax_random(keys, alpha), args.repeats)),

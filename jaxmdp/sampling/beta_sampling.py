@@ -133,24 +133,25 @@ def trial_deviates(key: jax.Array, n: int, dtype: jax.typing.DTypeLike) -> tuple
     docs/benchmarks/bench_fused_draws.md). The words become deviates in :func:`deviates_from_words`."""
     words = jax.random.bits(key, (2,), jnp.uint32)
     i = jax.lax.iota(jnp.uint32, n)
-    b0, b1 = threefry2x32(words[0], words[1], i, jnp.zeros_like(i))
+    b0, b1 = threefry2x32(words[0], words[1], i, np.uint32(0))
     if dtype == jnp.float64:
-        b2, b3 = threefry2x32(words[0], words[1], i, jnp.ones_like(i))
+        b2, b3 = threefry2x32(words[0], words[1], i, np.uint32(1))
         wide = lambda hi, lo: (hi.astype(jnp.uint64) << np.uint64(32)) | lo.astype(jnp.uint64)  # noqa: E731
-        return deviates_from_words(wide(b0, b1), wide(b2, b3), dtype)
-    return deviates_from_words(b0, b1, dtype)
+        return deviates_from_words(wide(b0, b1), wide(b2, b3))
+    return deviates_from_words(b0, b1)
 
 
-def deviates_from_words(m0: jax.Array, m1: jax.Array, dtype: jax.typing.DTypeLike) -> tuple[jax.Array, jax.Array]:
-    """``(erf_inv(v), w)`` from random words (``uint32`` for float32, ``uint64`` for float64), their top mantissa bits
-    placed exactly, with no rounding (and so no multiply-add that a compiler could contract differently in scalar and
-    vector code): ``v = [2, 4) - 3`` on the grid of ``2^-22`` (``2^-51`` in float64) with ``-1`` moved to the next
-    float up (``erf_inv(-1)`` is infinite), and ``w = 2 - [1, 2)``, on ``(0, 1]``. The normal's tails stop where
-    ``jax.random.normal``'s do (module docstring)."""
-    if dtype == jnp.float64:
-        shift, two, one = np.uint64(12), np.uint64(0x4000000000000000), np.uint64(0x3FF0000000000000)
+def deviates_from_words(m0: jax.Array, m1: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """``(erf_inv(v), w)`` from random words, float32 from ``uint32`` words and float64 from ``uint64`` ones, their
+    top mantissa bits placed exactly, with no rounding (and so no multiply-add that a compiler could contract
+    differently in scalar and vector code): ``v = [2, 4) - 3`` on the grid of ``2^-22`` (``2^-51`` in float64) with
+    ``-1`` moved to the next float up (``erf_inv(-1)`` is infinite), and ``w = 2 - [1, 2)``, on ``(0, 1]``. The
+    normal's tails stop where ``jax.random.normal``'s do (module docstring)."""
+    if m0.dtype == jnp.uint64:
+        dtype, shift = jnp.float64, np.uint64(12)
+        two, one = np.uint64(0x4000000000000000), np.uint64(0x3FF0000000000000)  # the bits of 2.0 and 1.0
     else:
-        shift, two, one = np.uint32(9), np.uint32(0x40000000), np.uint32(0x3F800000)
+        dtype, shift, two, one = jnp.float32, np.uint32(9), np.uint32(0x40000000), np.uint32(0x3F800000)
     in_2_4 = jax.lax.bitcast_convert_type((m0 >> shift) | two, dtype)
     lo = np.nextafter(np.array(-1.0, dtype), np.array(0.0, dtype))
     v = jnp.maximum(in_2_4 - np.array(3.0, dtype), lo)
