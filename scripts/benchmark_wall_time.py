@@ -38,6 +38,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from hardness.benchmark import run, sets  # noqa: E402
+from jaxmdp.experiment import compilation  # noqa: E402
 
 FULL = dict(seeds=tuple(range(20)), n_steps=500_000, log_period=100, n_buckets=4)
 
@@ -54,6 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "whose cost per member-step then stands for every bucket (an upper bound: the cost grows "
                         "with the states)")
     p.add_argument("--out", type=Path, required=True, help="folder for the measured runs and wall_time.json")
+    compilation.add_cache_flag(p)
     return p
 
 
@@ -97,6 +99,8 @@ def extrapolate(full_batches: list[dict], measured: list[dict]) -> list[dict]:
 
 def main(argv: list[str] | None = None) -> dict:
     args = build_parser().parse_args(argv)
+    # A second call with other steps loads the first's programs (the batches' compile_s then counts loading them).
+    compilation.setup_compilation(args.no_compile_cache)
     args.out.mkdir(parents=True, exist_ok=True)
     full = run.RunConfig(sets=sets.SETTINGS, hparams="reference", seeds=FULL["seeds"], n_steps=FULL["n_steps"],
                          log_period=FULL["log_period"], n_buckets=FULL["n_buckets"])
