@@ -58,8 +58,10 @@ the same, the first successful round's, whatever ``k`` (tested bit for bit): onl
 is cheap and an extra round costs the whole batch another round of arithmetic, so the step uses ``k = 1``. On a GPU
 each trip of a ``while_loop`` is its own kernel launches with its predicate read back, and with 1 024 members some
 member needs round 1 at about a third of the steps (above): ``k = 2`` would leave the loop a single predicate check
-at nearly every step. ``scripts/bench_beta_rounds.py`` measures both on the device at hand (the first GPU lease found
-Beta rewards costing 3-4x a step there, docs/benchmarks/gpu_h100.md).
+at nearly every step. ``scripts/bench_beta_rounds.py`` measures both on the device at hand. The first GPU lease found
+Beta rewards costing 3-4x a step there (docs/benchmarks/gpu_h100.md). On an H200 at 1 024 members ``k = 2`` drew
+1.29x faster with the worst shapes but 0.90x with the benchmark's mixed ones (docs/benchmarks/gpu_h200.md), so the step
+keeps ``k = 1`` on every platform.
 
 **Random numbers.** Threefry-2x32 of the key (the function ``jax.random`` uses;
 :func:`jaxmdp.sampling.threefry.threefry2x32`) on the counters ``(T, j)``, ``T = 0x62657461`` ("beta"): trial ``j``
