@@ -7,14 +7,25 @@ fewer seeds and steps, through the benchmark's own batches (one ``run_benchmark`
 exactly that bucket's MDPs), and records each batch's compile and run seconds (its ``batches.csv``) and the process CPU
 seconds it used.
 
-Extrapolation, for every batch of the full plan: run seconds = (measured run seconds per member-step, interpolated
-linearly in the bucket's largest state count between the measured buckets of the same agent and setting type, clipped
-at them; one measured bucket: its rate) x members x steps; compile seconds = the mean of the measured compiles
-(compiling does not depend on the member count or the steps). An unmeasured setting uses the measured one of its type
-(episodic, continuous).
+Extrapolation, for every batch of the full plan: run seconds = fixed seconds + (measured run seconds per member-step,
+interpolated linearly in the bucket's largest state count between the measured buckets of the same agent and setting
+type, clipped at them; one measured bucket: its rate) x members x steps; compile seconds = the mean of the measured
+compiles (compiling does not depend on the member count or the steps). An unmeasured setting uses the measured one of
+its type (episodic, continuous).
+
+* One step count (``--steps N``): the rate is run seconds / (members x N), which also charges the call's fixed cost
+  (the first execution of a program, the first logs) to the steps; the fixed seconds are 0.
+* Two step counts (``--steps N1 N2``): each bucket runs both, in this process (the second run reuses the first's
+  compiled program). The rate is the difference of the two runs' seconds / (members x (N2 - N1)), the fixed seconds
+  the rest of the first run. Where the second run was not slower (noise), the longer run's single-point rate is used.
+* ``--scaling lockstep-step`` (for a GPU, where a batch's step is bound by latency rather than by its members): the
+  cost of a lockstep step, rate x the measured batch's members, is interpolated in states instead, and a full batch
+  pays it for every step whatever its member count.
 
     python scripts/benchmark_wall_time.py --out results/wall_time
     python scripts/benchmark_wall_time.py --out results/wall_time --which largest --seeds 2 --steps 500
+    python scripts/benchmark_wall_time.py --out results/wall_gpu --which largest --seeds 20 --steps 500 5000 \
+        --scaling lockstep-step
 """
 
 from __future__ import annotations
@@ -41,6 +52,7 @@ from hardness.benchmark import run, sets  # noqa: E402
 from jaxmdp.experiment import compilation  # noqa: E402
 
 FULL = dict(seeds=tuple(range(20)), n_steps=500_000, log_period=100, n_buckets=4)
+SCALINGS = ("member-step", "lockstep-step")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -49,7 +61,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="settings to measure (default: the two ergodic ones)")
     p.add_argument("--agents", nargs="+", default=None, help="agents to measure (default: each setting's tabular)")
     p.add_argument("--seeds", type=int, default=2, help="seeds per measured batch (%(default)s)")
-    p.add_argument("--steps", type=int, default=1000, help="steps per measured batch (%(default)s)")
+    p.add_argument("--steps", type=int, nargs="+", default=[1000], metavar="N",
+                   help="steps per measured batch (%(default)s); two counts N1 < N2 separate the fixed cost of a call "
+                        "from the cost per step")
+    p.add_argument("--scaling", choices=SCALINGS, default="member-step",
+                   help="how a measured cost carries to a batch of other members: per member-step (default; a CPU), "
+                        "or per lockstep step whatever the members (a GPU bound by latency)")
     p.add_argument("--which", choices=["ends", "largest"], default="ends",
                    help="buckets measured per agent: the smallest and the largest (default), or only the largest, "
                         "whose cost per member-step then stands for every bucket (an upper bound: the cost grows "
@@ -77,9 +94,21 @@ def measure(set_name: str, agent: str, labels: list[str], seeds: int, steps: int
                 steps=steps, compile_s=float(row["compile_s"]), run_s=float(row["run_s"]), wall_s=wall, cpu_s=cpu)
 
 
-def extrapolate(full_batches: list[dict], measured: list[dict]) -> list[dict]:
+def rate_and_fixed(m: dict) -> tuple[float, float]:
+    """Run seconds per member-step and fixed seconds per call of a measured batch ``m`` (module docstring)."""
+    if "steps2" in m and m["run2_s"] > m["run_s"]:
+        rate = (m["run2_s"] - m["run_s"]) / (m["members"] * (m["steps2"] - m["steps"]))
+        return rate, m["run_s"] - rate * m["members"] * m["steps"]
+    if "steps2" in m:  # the longer run was not slower: no difference to take, charge everything to its steps
+        return m["run2_s"] / (m["members"] * m["steps2"]), 0.0
+    return m["run_s"] / (m["members"] * m["steps"]), 0.0
+
+
+def extrapolate(full_batches: list[dict], measured: list[dict], scaling: str = "member-step") -> list[dict]:
     """Each full batch (``set, agent, members, max_states``) with its estimated ``run_s`` and ``compile_s`` (``None``
-    when no batch of its agent on a setting of its type was measured)."""
+    when no batch of its agent on a setting of its type was measured); ``scaling`` as in the module docstring."""
+    if scaling not in SCALINGS:
+        raise ValueError(f"scaling must be one of {SCALINGS}, got {scaling!r}")
     rows = []
     for b in full_batches:
         same = [m for m in measured if m["agent"] == b["agent"] and m["set"] == b["set"]]
@@ -90,15 +119,22 @@ def extrapolate(full_batches: list[dict], measured: list[dict]) -> list[dict]:
             rows.append({**b, "run_s": None, "compile_s": None})
             continue
         same.sort(key=lambda m: m["max_states"])
-        per_member_step = np.interp(b["max_states"], [m["max_states"] for m in same],
-                                    [m["run_s"] / (m["members"] * m["steps"]) for m in same])
-        rows.append({**b, "run_s": float(per_member_step * b["members"] * FULL["n_steps"]),
-                     "compile_s": float(np.mean([m["compile_s"] for m in same]))})
+        rates, fixed = zip(*(rate_and_fixed(m) for m in same))
+        states = [m["max_states"] for m in same]
+        if scaling == "member-step":
+            per_step = np.interp(b["max_states"], states, rates) * b["members"]
+        else:
+            per_step = np.interp(b["max_states"], states, [r * m["members"] for r, m in zip(rates, same)])
+        run_s = np.interp(b["max_states"], states, fixed) + per_step * FULL["n_steps"]
+        rows.append({**b, "run_s": float(run_s), "compile_s": float(np.mean([m["compile_s"] for m in same]))})
     return rows
 
 
 def main(argv: list[str] | None = None) -> dict:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if len(args.steps) > 2 or min(args.steps) < 1 or args.steps != sorted(set(args.steps)):
+        parser.error(f"--steps takes one count or two increasing counts N1 < N2 (each >= 1), got {args.steps}")
     # A second call with other steps loads the first's programs (the batches' compile_s then counts loading them).
     compilation.setup_compilation(args.no_compile_cache)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -122,15 +158,23 @@ def main(argv: list[str] | None = None) -> dict:
                 if any(m["set"] == set_name and m["agent"] == agent and m["bucket"] == b.id for m in measured):
                     continue
                 labels = sorted({m for m, _ in b.members})
-                m = measure(set_name, agent, labels, args.seeds, args.steps, args.out / b.id)
+                if len(args.steps) == 1:
+                    m = measure(set_name, agent, labels, args.seeds, args.steps[0], args.out / b.id)
+                else:
+                    m, m2 = (measure(set_name, agent, labels, args.seeds, n, args.out / b.id / f"steps_{n}")
+                             for n in args.steps)
+                    m.update(steps2=m2["steps"], run2_s=m2["run_s"], compile2_s=m2["compile_s"], wall_s=m["wall_s"]
+                             + m2["wall_s"], cpu_s=m["cpu_s"] + m2["cpu_s"])
                 measured.append({**m, "bucket": b.id, "full_members": len(b.members)})
                 state_path.write_text(json.dumps(measured, indent=1) + "\n")
+                second = f", {m['steps2']} steps: run {m['run2_s']:.2f} s" if "steps2" in m else ""
                 print(f"{b.id}: {m['members']} members x {m['steps']} steps, up to {m['max_states']} states: "
-                      f"compile {m['compile_s']:.1f} s, run {m['run_s']:.1f} s, CPU {m['cpu_s']:.1f} s",
+                      f"compile {m['compile_s']:.1f} s, run {m['run_s']:.2f} s{second}, CPU {m['cpu_s']:.1f} s",
                       file=sys.stderr, flush=True)
-    rows = extrapolate(full_batches, measured)
+    rows = extrapolate(full_batches, measured, args.scaling)
     done = [r for r in rows if r["run_s"] is not None]
-    result = dict(full=dict(FULL, seeds=len(FULL["seeds"]), sets=list(sets.SETTINGS)), measured=measured,
+    result = dict(full=dict(FULL, seeds=len(FULL["seeds"]), sets=list(sets.SETTINGS)), scaling=args.scaling,
+                  measured=measured,
                   batches=rows, run_s=sum(r["run_s"] for r in done), compile_s=sum(r["compile_s"] for r in done),
                   unmeasured_agents=sorted({r["agent"] for r in rows if r["run_s"] is None}))
     (args.out / "wall_time.json").write_text(json.dumps(result, indent=1) + "\n")

@@ -15,13 +15,14 @@
 #   hlo: the optimised programs of episodic Q-learning's and the random agent's largest batch (XLA's dump, 100 steps),
 #     packed into $OUT/hlo.tgz: the kernels and copies of a step, to read on any machine;
 #   split: the largest bucket of SPLIT_AGENTS (default episodic PSRL; episodic ergodic) at 500 and 5 000 steps and of
-#     UCRL2 (continuous ergodic) at 500 and 2 000 steps: the difference of the two runs is the cost of a step without
-#     the fixed cost of a call (the second run loads the first's programs from the persistent compilation cache);
+#     UCRL2 (continuous ergodic) at 500 and 2 000 steps (benchmark_wall_time.py --steps N1 N2 --scaling
+#     lockstep-step): the difference of the two runs is the cost of a step without the fixed cost of a call;
 #   beta: the step's Beta draw with 1, 2 or 3 rounds before its loop (bench_beta_rounds.py), BETA_MEMBERS members;
 #   buckets: episodic Q-learning on all 20 episodic ergodic MDPs in one batch (--buckets 1, 400 members) against the
 #     default 4 buckets, 5 000 steps;
 #   deep: DQN on two continuous ergodic MDPs (RiverSwim (1), SimpleGrid (1)) through StateInfo, 2 000 steps, 20 seeds.
-# The default parts' limits add up to 580 s (the device's per-call limit is 600 s): run it with timeout_s=600.
+# The default parts' limits add up to 455 s (the device's per-call limit is 600 s): run it with timeout_s=600, which
+# leaves time for a slow start.
 # Each part's log goes to results/device/logs/; after every part the logs and results (without checkpoints) are packed
 # into $OUT/results.tgz, so a call stopped at its limit still brings back what finished (the device returns at most 8
 # files, so the logs travel packed).
@@ -51,8 +52,6 @@ else
     BUCKET_SEEDS=20; BUCKET_STEPS=5000; DEEP_SEEDS=20; DEEP_STEPS=2000
     export JAXMDP_NO_XLA_GUARD=1  # the guard's flag is for jaxlib 0.10.2's CPU backend; leave a GPU jaxlib's flags alone
 fi
-SPLIT_LIMITS=(45 70); UCRL2_LIMITS=(150 150)
-
 part() {  # part NAME LIMIT_S COMMAND...: run under a time limit, log to results/device/logs/NAME.log, print its tail
     local name=$1 limit=$2
     shift 2
@@ -100,20 +99,13 @@ if want hlo; then
     ls -l "$OUT/hlo.tgz"
 fi
 if want split; then
-    i=0
-    for steps in $SPLIT_STEPS; do
-        part "split_episodic_$steps" "${SPLIT_LIMITS[$i]}" $PY scripts/benchmark_wall_time.py \
-            --out "results/device/split_e$steps" --which largest --seeds $WALL_SEEDS --steps "$steps" \
-            --measure "episodic ergodic" --agents $SPLIT_AGENTS
-        i=$((i + 1))
-    done
-    i=0
-    for steps in $SPLIT_STEPS_UCRL2; do
-        part "split_ucrl2_$steps" "${UCRL2_LIMITS[$i]}" $PY scripts/benchmark_wall_time.py \
-            --out "results/device/split_c$steps" --which largest --seeds $WALL_SEEDS --steps "$steps" \
-            --measure "continuous ergodic" --agents ucrl2
-        i=$((i + 1))
-    done
+    # One process per setting: each batch runs both step counts (the second reuses the first's compiled program).
+    part split_episodic 90 $PY scripts/benchmark_wall_time.py --out results/device/split_e --which largest \
+        --seeds $WALL_SEEDS --steps $SPLIT_STEPS --scaling lockstep-step --measure "episodic ergodic" \
+        --agents $SPLIT_AGENTS
+    part split_ucrl2 200 $PY scripts/benchmark_wall_time.py --out results/device/split_c --which largest \
+        --seeds $WALL_SEEDS --steps $SPLIT_STEPS_UCRL2 --scaling lockstep-step --measure "continuous ergodic" \
+        --agents ucrl2
 fi
 want beta && part beta 60 $PY scripts/bench_beta_rounds.py --members $BETA_MEMBERS --repeats 3 \
     --doc results/device/bench_beta_rounds.md
