@@ -17,6 +17,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
+from jaxmdp.sampling import fused_random
 
 __all__ = ["RandomHParams", "RandomState", "RANDOM_EPISODIC", "RANDOM_CONTINUOUS"]
 
@@ -42,7 +43,7 @@ def act(key: jax.Array, state: RandomState, obs: jax.Array, h: jax.Array) -> jax
     """The ``k``-th valid action with ``k`` uniform on ``0 .. n_valid - 1``."""
     del obs, h
     n_valid = jnp.sum(state.action_mask)
-    k = jnp.minimum(jnp.floor(jax.random.uniform(key) * n_valid).astype(jnp.int32), n_valid - 1)
+    k = jnp.minimum(jnp.floor(fused_random.uniform(key) * n_valid).astype(jnp.int32), n_valid - 1)
     return jnp.argmax(jnp.cumsum(state.action_mask) > k).astype(jnp.int32)
 
 

@@ -32,6 +32,7 @@ from flax import struct
 
 from jaxmdp.blockmdp.block_mdp import BlockMDP, noise_key, observe
 from jaxmdp.mdp import MDP
+from jaxmdp.sampling import fused_random
 from jaxmdp.sampling.beta_shared import sample_beta_shared
 
 __all__ = ["EnvState", "reset", "step", "step_member", "sample_action", "sample_next_state", "sample_reward"]
@@ -91,13 +92,13 @@ def sample_action(key: jax.Array, mdp: MDP) -> jax.Array:
     """A uniformly random valid action. Uses one uniform draw, so padding an MDP does not change the draw."""
     mdp = mdp.mdp if isinstance(mdp, BlockMDP) else mdp
     n_valid = jnp.sum(mdp.action_mask)
-    a = jnp.floor(jax.random.uniform(key, dtype=jnp.float32) * n_valid).astype(jnp.int32)
+    a = jnp.floor(fused_random.uniform(key, dtype=jnp.float32) * n_valid).astype(jnp.int32)
     return jnp.minimum(a, n_valid - 1)
 
 
 def sample_next_state(key: jax.Array, mdp: MDP, state: jax.Array, action: jax.Array) -> jax.Array:
     """Draw ``s' ~ P(. | state, action)`` by inverse CDF over the successor list (``O(K)``)."""
-    k = _slot_from_uniform(jax.random.uniform(key, dtype=mdp.dtype), mdp, state, action)
+    k = _slot_from_uniform(fused_random.uniform(key, dtype=mdp.dtype), mdp, state, action)
     return mdp.succ[state, action, k].astype(jnp.int32)
 
 
@@ -126,7 +127,7 @@ def reset(key: jax.Array, mdp: MDP | BlockMDP) -> tuple[jax.Array, EnvState]:
     if isinstance(mdp, BlockMDP):
         _, state = reset(key, mdp.mdp)
         return observe(noise_key(key), mdp, state.state, state.h), state
-    s0 = _start_from_uniform(jax.random.uniform(key, dtype=mdp.dtype), mdp)
+    s0 = _start_from_uniform(fused_random.uniform(key, dtype=mdp.dtype), mdp)
     return s0, EnvState(state=s0, h=jnp.zeros((), jnp.int32))
 
 
@@ -217,9 +218,10 @@ def _step(
     key: jax.Array, state: EnvState, action: jax.Array, mdp: MDP, member: jax.Array | None
 ) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, jax.Array, dict[str, Any]]:
     """The body of :func:`step` (``member`` None) and :func:`step_member`."""
-    # One key for the reward and two uniforms for the next and reset states: fewer PRNG calls than three splits.
-    k_reward, k_uniform = jax.random.split(key)
-    u_next, u_reset = jax.random.uniform(k_uniform, (2,), dtype=mdp.dtype)
+    # One key for the reward and two uniforms for the next and reset states: fewer PRNG calls than three splits,
+    # each hashed in the step's own fusions (jax.random's values, jaxmdp.sampling.fused_random).
+    k_reward, k_uniform = fused_random.split(key)
+    u_next, u_reset = fused_random.uniform(k_uniform, (2,), dtype=mdp.dtype)
     action = jnp.asarray(action, jnp.int32)
     a = jnp.clip(action, 0, mdp.n_actions - 1)
     valid = (action == a) & _read(mdp.action_mask, member, a)

@@ -53,6 +53,7 @@ from flax import struct
 
 from jaxmdp import dynamic_programming as dp
 from jaxmdp import env
+from jaxmdp.sampling import fused_random
 from jaxmdp._checks import VARIANTS, Variant, check_int, check_variant
 from jaxmdp.experiment.agent_interface import Agent, Transition, spec_of, where_due
 from jaxmdp.experiment.checkpoints import fingerprint, load_checkpoint, save_checkpoint
@@ -133,8 +134,7 @@ class Schedule(struct.PyTreeNode):
 
 def _keys(key_data: jax.Array, which: int, t: jax.Array) -> jax.Array:
     """Per-member key ``which`` of a member for step ``t`` (vectorised over members)."""
-    base = jax.random.wrap_key_data(key_data[:, which])
-    return jax.vmap(jax.random.fold_in, in_axes=(0, None))(base, t)
+    return fused_random.fold_in(jax.random.wrap_key_data(key_data[:, which]), t)
 
 
 def _init_keys(key_data: jax.Array, tag: str) -> jax.Array:

@@ -1,0 +1,98 @@
+"""``fold_in``, ``split`` and ``uniform`` of ``jax.random``, bit for bit, with the hash written out so that XLA fuses it.
+
+A lockstep step calls ``jax.random`` a few times per member: the runner folds the step index into two member keys, the
+environment splits its key and draws two uniforms, an agent draws a tie-breaking uniform. Each call hashes with
+``threefry2x32_p``, which on CPU lowers to a rolled loop of its own, its state going through memory, and on a GPU to
+a kernel of its own that no fusion can absorb. Here the same Threefry-2x32 hash
+(:func:`jaxmdp.sampling.threefry.threefry2x32`) is applied to the same counters, so the results are ``jax.random``'s
+exactly (tests/test_fused_random.py), and XLA fuses the arithmetic with the step's own.
+
+What ``jax.random`` computes, for a Threefry key ``(k0, k1)`` with ``jax_threefry_partitionable`` (the default since
+jax 0.5):
+
+* ``fold_in(key, d)`` is the hash of the counter ``(0, d)``: both output words form the new key;
+* ``split(key, n)[i]`` is the hash of the counter ``(0, i)``;
+* ``uniform(key, shape)`` hashes the counters ``(0, i)``, ``i`` the flat index of an entry. float32 takes the XOR of
+  the two words, and float64 the 64-bit word ``(y0 << 32) | y1``. The top mantissa bits under the exponent of 1.0
+  give a float in ``[1, 2)``, and 1 is subtracted from it (exact).
+
+Raw ``uint32`` keys, keys of another implementation (``rbg``, ``unsafe_rbg``), the non-partitionable Threefry layout
+and other float types go to ``jax.random`` itself, so every key gets ``jax.random``'s values.
+
+Where the words of a hash feed many fusions, XLA may copy the hash into each one. Written out in episodic
+Q-learning's action draw, which chains it to the runner's ``fold_in``, it made the agent 7x dearer, and
+``jax.lax.optimization_barrier`` did not stop the copies. So the agents' draws keep ``jax.random``. These functions are
+used where they were measured to pay: the runner's per-step keys, the environment's step, the random agent's action
+(1.2-1.4x faster episodic runs of the random agent, 1.5-2.3x faster environment steps;
+docs/benchmarks/bench_agents_tabular.md, docs/benchmarks/bench_env.md).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxmdp.sampling.threefry import threefry2x32
+
+__all__ = ["fold_in", "split", "uniform"]
+
+
+def _written_out(key: jax.Array) -> bool:
+    """Whether ``key``'s ``jax.random`` values are the ones written out here: a typed Threefry key (not a raw
+    ``uint32`` one), the partitionable layout."""
+    return (jnp.issubdtype(key.dtype, jax.dtypes.prng_key) and jax.random.key_impl(key) == "threefry2x32"
+            and bool(jax.config.jax_threefry_partitionable))
+
+
+def _hash(key: jax.Array, counter: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """The two words of the hash of ``(0, counter)`` under ``key``; ``counter`` ``uint32``, shaped ``key.shape + s``."""
+    words = jax.random.key_data(key)
+    k0 = words[..., 0].reshape(key.shape + (1,) * (counter.ndim - key.ndim))
+    k1 = words[..., 1].reshape(k0.shape)
+    return threefry2x32(k0, k1, jnp.zeros_like(counter), counter)
+
+
+def fold_in(key: jax.Array, data: jax.Array | int) -> jax.Array:
+    """``jax.random.fold_in(key, data)``: the key hashed with the counter ``(0, data)``, for typed ``key`` of any
+    shape and an integer ``data`` that broadcasts to it (taken modulo ``2**32``, as ``jax.random`` does)."""
+    if not _written_out(key):
+        if not key.shape or not jnp.issubdtype(key.dtype, jax.dtypes.prng_key):  # one key (a raw key is one)
+            return jax.random.fold_in(key, data)
+        data = jnp.broadcast_to(jnp.asarray(data, dtype=jnp.uint32), key.shape)
+        return jax.vmap(jax.random.fold_in)(key.reshape(-1), data.reshape(-1)).reshape(key.shape)
+    counter = jnp.broadcast_to(jnp.asarray(data, dtype=jnp.uint32), key.shape)
+    y0, y1 = _hash(key, counter)
+    return jax.random.wrap_key_data(jnp.stack([y0, y1], axis=-1), impl=jax.random.key_impl(key))
+
+
+def split(key: jax.Array, num: int = 2) -> jax.Array:
+    """``jax.random.split(key, num)`` of a single typed ``key``: ``num`` keys, key ``i`` the hash of ``(0, i)``."""
+    if not _written_out(key):
+        return jax.random.split(key, num)
+    if key.shape:
+        raise ValueError(f"key must be a single key (shape ()), got shape {key.shape}; vmap over a batch of keys")
+    y0, y1 = _hash(key, jnp.arange(num, dtype=jnp.uint32))
+    return jax.random.wrap_key_data(jnp.stack([y0, y1], axis=-1), impl=jax.random.key_impl(key))
+
+
+def uniform(key: jax.Array, shape: tuple[int, ...] = (), dtype: Any = None) -> jax.Array:
+    """``jax.random.uniform(key, shape, dtype)`` on ``[0, 1)`` for a single ``key``: entry ``i`` (flat index) from
+    the hash of ``(0, i)``, its top mantissa bits under the exponent of 1.0, minus 1. ``dtype`` None: JAX's default
+    float type, as ``jax.random.uniform``'s."""
+    dtype = jax.dtypes.canonicalize_dtype(float if dtype is None else dtype)
+    size = int(np.prod(shape, dtype=np.int64))
+    if not _written_out(key) or dtype not in (jnp.float32, jnp.float64) or size >= 2**32:
+        return jax.random.uniform(key, shape, dtype)
+    if key.shape:
+        raise ValueError(f"key must be a single key (shape ()), got shape {key.shape}; vmap over a batch of keys")
+    y0, y1 = _hash(key, jnp.arange(size, dtype=jnp.uint32).reshape(shape))
+    if dtype == jnp.float32:
+        bits, mant, one = y0 ^ y1, 23, np.uint32(0x3F800000)
+    else:
+        bits = (y0.astype(jnp.uint64) << np.uint64(32)) | y1.astype(jnp.uint64)
+        mant, one = 52, np.uint64(0x3FF0000000000000)
+    floats = jax.lax.bitcast_convert_type((bits >> bits.dtype.type(bits.dtype.itemsize * 8 - mant)) | one, dtype)
+    return floats - dtype.type(1.0)

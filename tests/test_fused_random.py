@@ -1,0 +1,89 @@
+"""jaxmdp.sampling.fused_random: jax.random's fold_in, split and uniform, bit for bit, for every kind of key."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxmdp.sampling import fused_random as fr
+
+SEEDS = [0, 1, 12345, 2**31 + 7]
+
+
+def words(keys: jax.Array) -> np.ndarray:
+    return np.asarray(jax.random.key_data(keys))
+
+
+def same_bits(a: jax.Array, b: jax.Array) -> bool:
+    a, b = np.asarray(a), np.asarray(b)
+    return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_fold_in_and_split_equal_jax_random(seed):
+    key = jax.random.key(seed)
+    for data in [0, 1, 7, 2**31, 2**32 - 1]:
+        assert same_bits(words(fr.fold_in(key, data)), words(jax.random.fold_in(key, data)))
+    for num in [1, 2, 3, 5]:
+        assert same_bits(words(fr.split(key, num)), words(jax.random.split(key, num)))
+    jitted = jax.jit(lambda k, d: fr.fold_in(k, d))(key, jnp.uint32(99))
+    assert same_bits(words(jitted), words(jax.random.fold_in(key, 99)))
+
+
+def test_fold_in_of_a_batch_of_keys_equals_the_vmapped_jax_random():
+    keys = jax.random.split(jax.random.key(3), 6)
+    expected = jax.vmap(jax.random.fold_in, in_axes=(0, None))(keys, jnp.uint32(17))
+    assert same_bits(words(fr.fold_in(keys, jnp.uint32(17))), words(expected))  # one datum for every key
+    data = jnp.arange(6, dtype=jnp.int32)
+    expected = jax.vmap(jax.random.fold_in)(keys, data)
+    assert same_bits(words(jax.jit(fr.fold_in)(keys, data)), words(expected))  # a datum per key
+    assert same_bits(words(jax.vmap(fr.fold_in)(keys, data)), words(expected))
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("shape", [(), (1,), (2,), (7,), (3, 4)])
+def test_uniform_equals_jax_random(seed, shape):
+    key = jax.random.key(seed)
+    expected = jax.random.uniform(key, shape, jnp.float32)
+    assert same_bits(fr.uniform(key, shape, jnp.float32), expected)
+    assert same_bits(jax.jit(lambda k: fr.uniform(k, shape, jnp.float32))(key), expected)
+    assert same_bits(fr.uniform(key, shape), jax.random.uniform(key, shape))  # the default float type
+    keys = jax.random.split(key, 4)
+    expected = jax.vmap(lambda k: jax.random.uniform(k, shape))(keys)
+    assert same_bits(jax.vmap(lambda k: fr.uniform(k, shape))(keys), expected)
+
+
+def test_uniform_in_float64_equals_jax_random():
+    with jax.enable_x64(True):
+        key = jax.random.key(5)
+        for shape in [(), (2,), (3, 5)]:
+            value = fr.uniform(key, shape, jnp.float64)
+            assert value.dtype == jnp.float64 and same_bits(value, jax.random.uniform(key, shape, jnp.float64))
+        assert same_bits(fr.uniform(key), jax.random.uniform(key))  # the default float type is float64 here
+
+
+def test_other_keys_and_types_go_to_jax_random():
+    rbg = jax.random.key(0, impl="rbg")
+    assert same_bits(words(fr.fold_in(rbg, 3)), words(jax.random.fold_in(rbg, 3)))
+    assert same_bits(words(fr.split(rbg, 3)), words(jax.random.split(rbg, 3)))
+    assert same_bits(fr.uniform(rbg, (3,)), jax.random.uniform(rbg, (3,)))
+    batch = jax.random.split(rbg, 4)
+    expected = jax.vmap(jax.random.fold_in, in_axes=(0, None))(batch, 2)
+    assert same_bits(words(fr.fold_in(batch, 2)), words(expected))
+    raw = jax.random.PRNGKey(4)  # a raw uint32 key
+    assert same_bits(fr.fold_in(raw, 3), jax.random.fold_in(raw, 3))
+    assert same_bits(fr.split(raw), jax.random.split(raw))
+    assert same_bits(fr.uniform(raw, (2,)), jax.random.uniform(raw, (2,)))
+    key = jax.random.key(0)
+    assert same_bits(fr.uniform(key, (2,), jnp.bfloat16), jax.random.uniform(key, (2,), jnp.bfloat16))
+    with jax.threefry_partitionable(False):
+        assert same_bits(words(fr.split(key, 3)), words(jax.random.split(key, 3)))
+        assert same_bits(fr.uniform(key, (5,)), jax.random.uniform(key, (5,)))
+
+
+def test_split_and_uniform_want_one_key():
+    keys = jax.random.split(jax.random.key(0), 2)
+    with pytest.raises(ValueError, match="single key"):
+        fr.split(keys)
+    with pytest.raises(ValueError, match="single key"):
+        fr.uniform(keys, (2,))
