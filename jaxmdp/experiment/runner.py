@@ -53,7 +53,6 @@ from flax import struct
 
 from jaxmdp import dynamic_programming as dp
 from jaxmdp import env
-from jaxmdp.sampling import fused_random
 from jaxmdp._checks import VARIANTS, Variant, check_int, check_variant
 from jaxmdp.experiment.agent_interface import Agent, Transition, spec_of, where_due
 from jaxmdp.experiment.checkpoints import fingerprint, load_checkpoint, save_checkpoint
@@ -71,6 +70,7 @@ from jaxmdp.experiment.planning import default_plan_slots, plan_due
 from jaxmdp.experiment.members import Grid, dynamics, grid, member_mdp, n_distinct, product, seed_keys, stack_hparams
 from jaxmdp.experiment.records import MEMBER_COLUMNS, RunResult, append_rows, csv_rows, record_steps, truncate_csv
 from jaxmdp.mdp import MDP
+from jaxmdp.sampling import fused_random
 
 __all__ = [
     "Grid", "grid", "product", "seed_keys", "stack_hparams", "RunResult", "run", "record_steps", "MEMBER_COLUMNS",

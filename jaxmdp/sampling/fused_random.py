@@ -2,8 +2,8 @@
 
 A lockstep step calls ``jax.random`` a few times per member: the runner folds the step index into two member keys, the
 environment splits its key and draws two uniforms, an agent draws a tie-breaking uniform. Each call hashes with
-``threefry2x32_p``, which on CPU lowers to a rolled loop of its own, its state going through memory, and on a GPU to
-a kernel of its own that no fusion can absorb. Here the same Threefry-2x32 hash
+``threefry2x32_p``, which on CPU lowers to a rolled loop of its own, its state going through memory (on a GPU JAX
+already emits it unrolled, so this module matters on CPU). Here the same Threefry-2x32 hash
 (:func:`jaxmdp.sampling.threefry.threefry2x32`) is applied to the same counters, so the results are ``jax.random``'s
 exactly (tests/test_fused_random.py), and XLA fuses the arithmetic with the step's own.
 
@@ -23,7 +23,7 @@ Where the words of a hash feed many fusions, XLA may copy the hash into each one
 Q-learning's action draw, which chains it to the runner's ``fold_in``, it made the agent 7x dearer, and
 ``jax.lax.optimization_barrier`` did not stop the copies. So the agents' draws keep ``jax.random``. These functions are
 used where they were measured to pay: the runner's per-step keys, the environment's step, the random agent's action
-(1.2-1.4x faster episodic runs of the random agent, 1.5-2.3x faster environment steps;
+(1.16-1.44x faster episodic runs of the random agent, 1.5-2.3x faster environment steps on CPU;
 docs/benchmarks/bench_agents_tabular.md, docs/benchmarks/bench_env.md).
 """
 
