@@ -7,7 +7,7 @@
 #   SMALL=1 PY=.venv/bin/python OUT=/tmp/dc bash scripts/device_checks.sh   # a few-minute dry run on a CPU
 #   PARTS="env agents" bash scripts/device_checks.sh   # only some parts (after info, which always runs)
 #
-# Parts, in the order they run (PARTS, default "hlo split beta", what the H200 lease could not finish: see
+# Parts, in the order they run (PARTS, default "hlo split beta buckets", what the H200 lease could not finish: see
 # docs/benchmarks/gpu_h200.md, "What to do with the next GPU lease"; the H100 lease ran "env agents hardness wall",
 # docs/benchmarks/gpu_h100.md):
 #   env, agents, hardness: bench_env, bench_agents --ratio, bench_hardness;
@@ -19,9 +19,10 @@
 #     lockstep-step): the difference of the two runs is the cost of a step without the fixed cost of a call;
 #   beta: the step's Beta draw with 1, 2 or 3 rounds before its loop (bench_beta_rounds.py), BETA_MEMBERS members;
 #   buckets: episodic Q-learning on all 20 episodic ergodic MDPs in one batch (--buckets 1, 400 members) against the
-#     default 4 buckets, 5 000 steps;
+#     default 4 buckets, 2 000 steps (each part's limit also holds the process start, the report's hardness measures
+#     and the compiles, about 25-35 s on the H200);
 #   deep: DQN on two continuous ergodic MDPs (RiverSwim (1), SimpleGrid (1)) through StateInfo, 2 000 steps, 20 seeds.
-# The default parts' limits add up to 455 s (the device's per-call limit is 600 s): run it with timeout_s=600, which
+# The default parts' limits add up to 560 s (the device's per-call limit is 600 s): run it with timeout_s=600, which
 # leaves time for a slow start.
 # Each part's log goes to results/device/logs/; after every part the logs and results (without checkpoints) are packed
 # into $OUT/results.tgz, so a call stopped at its limit still brings back what finished (the device returns at most 8
@@ -49,7 +50,7 @@ if [ -n "${SMALL:-}" ]; then
 else
     ENVS="1024 16384 262144"; SEEDS=16384; WALL_SEEDS=20; WALL_STEPS=500; LIMIT_SCALE=1
     SPLIT_STEPS="500 5000"; SPLIT_STEPS_UCRL2="500 2000"; BETA_MEMBERS="16384 262144"
-    BUCKET_SEEDS=20; BUCKET_STEPS=5000; DEEP_SEEDS=20; DEEP_STEPS=2000
+    BUCKET_SEEDS=20; BUCKET_STEPS=2000; DEEP_SEEDS=20; DEEP_STEPS=2000
     export JAXMDP_NO_XLA_GUARD=1  # the guard's flag is for jaxlib 0.10.2's CPU backend; leave a GPU jaxlib's flags alone
 fi
 part() {  # part NAME LIMIT_S COMMAND...: run under a time limit, log to results/device/logs/NAME.log, print its tail
@@ -80,7 +81,7 @@ print(\"smoke run ok\", r.column(\"normalized_cumulative_regret\")[-1])
 '" || { echo "smoke failed"; exit 1; }
 grep -q "smoke run ok" results/device/logs/info.log || { echo "smoke failed: see info.log"; exit 1; }
 
-want() { [[ " ${PARTS:-hlo split beta} " == *" $1 "* ]]; }
+want() { [[ " ${PARTS:-hlo split beta buckets} " == *" $1 "* ]]; }
 
 want env && part env 90 $PY scripts/bench_env.py --quick --envs $ENVS --out results/device/env \
     --doc results/device/env/bench_env.md
@@ -103,7 +104,7 @@ if want split; then
     part split_episodic 90 $PY scripts/benchmark_wall_time.py --out results/device/split_e --which largest \
         --seeds $WALL_SEEDS --steps $SPLIT_STEPS --scaling lockstep-step --measure "episodic ergodic" \
         --agents $SPLIT_AGENTS
-    part split_ucrl2 200 $PY scripts/benchmark_wall_time.py --out results/device/split_c --which largest \
+    part split_ucrl2 150 $PY scripts/benchmark_wall_time.py --out results/device/split_c --which largest \
         --seeds $WALL_SEEDS --steps $SPLIT_STEPS_UCRL2 --scaling lockstep-step --measure "continuous ergodic" \
         --agents ucrl2
 fi
@@ -111,7 +112,7 @@ want beta && part beta 60 $PY scripts/bench_beta_rounds.py --members $BETA_MEMBE
     --doc results/device/bench_beta_rounds.md
 if want buckets; then
     for b in 1 4; do
-        part "buckets_$b" "$((45 + 5 * (b > 1)))" $PY scripts/run_benchmark.py --settings "episodic ergodic" \
+        part "buckets_$b" "$((75 + 5 * (b > 1)))" $PY scripts/run_benchmark.py --settings "episodic ergodic" \
             --agents q_learning_episodic \
             --seeds $BUCKET_SEEDS --steps $BUCKET_STEPS --buckets $b --quiet --out "results/device/buckets_$b"
     done
