@@ -24,7 +24,7 @@ def test_fold_in_and_split_equal_jax_random(seed):
     key = jax.random.key(seed)
     for data in [0, 1, 7, 2**31, 2**32 - 1]:
         assert same_bits(words(fr.fold_in(key, data)), words(jax.random.fold_in(key, data)))
-    for num in [1, 2, 3, 5]:
+    for num in [1, 2, 3, 5, (2, 3)]:
         assert same_bits(words(fr.split(key, num)), words(jax.random.split(key, num)))
     jitted = jax.jit(lambda k, d: fr.fold_in(k, d))(key, jnp.uint32(99))
     assert same_bits(words(jitted), words(jax.random.fold_in(key, 99)))

@@ -57,7 +57,7 @@ def _hash(key: jax.Array, counter: jax.Array) -> tuple[jax.Array, jax.Array]:
 
 def fold_in(key: jax.Array, data: jax.Array | int) -> jax.Array:
     """``jax.random.fold_in(key, data)``: the key hashed with the counter ``(0, data)``, for typed ``key`` of any
-    shape and an integer ``data`` that broadcasts to it (taken modulo ``2**32``, as ``jax.random`` does)."""
+    shape and an integer ``data`` that broadcasts to it (converted to ``uint32`` as ``jax.random`` converts it)."""
     if not _written_out(key):
         if not key.shape or not jnp.issubdtype(key.dtype, jax.dtypes.prng_key):  # one key (a raw key is one)
             return jax.random.fold_in(key, data)
@@ -68,9 +68,10 @@ def fold_in(key: jax.Array, data: jax.Array | int) -> jax.Array:
     return jax.random.wrap_key_data(jnp.stack([y0, y1], axis=-1), impl=jax.random.key_impl(key))
 
 
-def split(key: jax.Array, num: int = 2) -> jax.Array:
-    """``jax.random.split(key, num)`` of a single typed ``key``: ``num`` keys, key ``i`` the hash of ``(0, i)``."""
-    if not _written_out(key):
+def split(key: jax.Array, num: int | tuple[int, ...] = 2) -> jax.Array:
+    """``jax.random.split(key, num)`` of a single typed ``key``: ``num`` keys, key ``i`` the hash of ``(0, i)`` (a
+    shape ``num`` goes to ``jax.random.split``)."""
+    if not _written_out(key) or not isinstance(num, int):
         return jax.random.split(key, num)
     if key.shape:
         raise ValueError(f"key must be a single key (shape ()), got shape {key.shape}; vmap over a batch of keys")
