@@ -72,7 +72,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxmdp.sampling.compaction import compact
-from jaxmdp.sampling.threefry import threefry2x32
+from jaxmdp.sampling.threefry import join_words, threefry2x32, unit_floats
 
 __all__ = ["sample_log_gamma", "sample_beta", "buffer_sizes", "shape_terms", "trial_log_gamma", "trial_deviates",
            "deviates_from_words", "DEFAULT_CANDIDATES"]
@@ -136,27 +136,21 @@ def trial_deviates(key: jax.Array, n: int, dtype: jax.typing.DTypeLike) -> tuple
     b0, b1 = threefry2x32(words[0], words[1], i, np.uint32(0))
     if dtype == jnp.float64:
         b2, b3 = threefry2x32(words[0], words[1], i, np.uint32(1))
-        wide = lambda hi, lo: (hi.astype(jnp.uint64) << np.uint64(32)) | lo.astype(jnp.uint64)  # noqa: E731
-        return deviates_from_words(wide(b0, b1), wide(b2, b3))
+        return deviates_from_words(join_words(b0, b1), join_words(b2, b3))
     return deviates_from_words(b0, b1)
 
 
 def deviates_from_words(m0: jax.Array, m1: jax.Array) -> tuple[jax.Array, jax.Array]:
-    """``(erf_inv(v), w)`` from random words, float32 from ``uint32`` words and float64 from ``uint64`` ones, their
-    top mantissa bits placed exactly, with no rounding (and so no multiply-add that a compiler could contract
-    differently in scalar and vector code): ``v = [2, 4) - 3`` on the grid of ``2^-22`` (``2^-51`` in float64) with
-    ``-1`` moved to the next float up (``erf_inv(-1)`` is infinite), and ``w = 2 - [1, 2)``, on ``(0, 1]``. The
-    normal's tails stop where ``jax.random.normal``'s do (module docstring)."""
-    if m0.dtype == jnp.uint64:
-        dtype, shift = jnp.float64, np.uint64(12)
-        two, one = np.uint64(0x4000000000000000), np.uint64(0x3FF0000000000000)  # the bits of 2.0 and 1.0
-    else:
-        dtype, shift, two, one = jnp.float32, np.uint32(9), np.uint32(0x40000000), np.uint32(0x3F800000)
-    in_2_4 = jax.lax.bitcast_convert_type((m0 >> shift) | two, dtype)
+    """``(erf_inv(v), w)`` from random words, float32 from ``uint32`` words and float64 from ``uint64`` ones: with
+    ``u0, u1`` their :func:`~jaxmdp.sampling.threefry.unit_floats` on ``[0, 1)``, ``v = 2 u0 - 1`` on the grid of
+    ``2^-22`` (``2^-51`` in float64) with ``-1`` moved to the next float up (``erf_inv(-1)`` is infinite), and
+    ``w = 1 - u1``, on ``(0, 1]``. Every operation is exact (its result is on the float grid), so no compiler
+    contraction can change it between scalar and vector code. The normal's tails stop where ``jax.random.normal``'s
+    do (module docstring)."""
+    dtype = jnp.float64 if m0.dtype == jnp.uint64 else jnp.float32
     lo = np.nextafter(np.array(-1.0, dtype), np.array(0.0, dtype))
-    v = jnp.maximum(in_2_4 - np.array(3.0, dtype), lo)
-    w = np.array(2.0, dtype) - jax.lax.bitcast_convert_type((m1 >> shift) | one, dtype)
-    return jax.lax.erf_inv(v), w
+    v = jnp.maximum(np.array(2.0, dtype) * unit_floats(m0, dtype) - np.array(1.0, dtype), lo)
+    return jax.lax.erf_inv(v), np.array(1.0, dtype) - unit_floats(m1, dtype)
 
 
 def _trial(key: jax.Array, shape: ShapeTerms) -> jax.Array:

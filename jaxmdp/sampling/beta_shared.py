@@ -92,7 +92,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxmdp.sampling.beta_sampling import ShapeTerms, shape_terms, trial_log_gamma
-from jaxmdp.sampling.threefry import threefry2x32
+from jaxmdp.sampling.threefry import join_words, threefry2x32, unit_floats
 
 __all__ = ["sample_beta_shared", "DEFAULT_TRIALS"]
 
@@ -102,14 +102,6 @@ DEFAULT_TRIALS = 4
 _TAG = np.uint32(0x62657461)  # high word of the sampler's Threefry counters (jax.random's are 0)
 
 
-def _unit(bits: jax.Array, dtype) -> jax.Array:
-    """Uniforms on ``[0, 1)`` from unsigned words (their top mantissa bits), as ``jax.random.uniform`` forms them."""
-    nbits = np.iinfo(bits.dtype).bits
-    one = np.array(1.0, dtype).view(bits.dtype)
-    floats = jax.lax.bitcast_convert_type((bits >> np.array(nbits - np.finfo(dtype).nmant, bits.dtype)) | one, dtype)
-    return floats - np.array(1.0, dtype)
-
-
 def _trial_uniforms(key: jax.Array, j: jax.Array, dtype) -> tuple[jax.Array, jax.Array]:
     """The uniforms ``(u_j, u'_j)`` on ``[0, 1)`` of trial ``j``, scalars (module docstring, "Random numbers")."""
     data = jax.random.key_data(key)
@@ -117,15 +109,15 @@ def _trial_uniforms(key: jax.Array, j: jax.Array, dtype) -> tuple[jax.Array, jax
     typed = jnp.issubdtype(key.dtype, jax.dtypes.prng_key)
     if (typed and str(jax.random.key_impl(key)) != "threefry2x32") or data.shape != (2,):
         bits = jax.random.bits(jax.random.fold_in(key, j), (2,), jnp.uint64 if wide else jnp.uint32)
-        return _unit(bits[0], dtype), _unit(bits[1], dtype)
+        return unit_floats(bits[0], dtype), unit_floats(bits[1], dtype)
     j = j.astype(jnp.uint32)
     if not wide:
         hi, lo = threefry2x32(data[0], data[1], _TAG, j)
-        return _unit(hi, dtype), _unit(lo, dtype)
+        return unit_floats(hi, dtype), unit_floats(lo, dtype)
     pair = []
     for c in (2 * j, 2 * j + 1):
         hi, lo = threefry2x32(data[0], data[1], _TAG, c)
-        pair.append(_unit((hi.astype(jnp.uint64) << np.uint64(32)) | lo.astype(jnp.uint64), dtype))
+        pair.append(unit_floats(join_words(hi, lo), dtype))
     return pair[0], pair[1]
 
 

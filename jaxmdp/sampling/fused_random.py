@@ -35,7 +35,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxmdp.sampling.threefry import threefry2x32
+from jaxmdp.sampling.threefry import join_words, threefry2x32, unit_floats
 
 __all__ = ["fold_in", "split", "uniform"]
 
@@ -90,10 +90,4 @@ def uniform(key: jax.Array, shape: tuple[int, ...] = (), dtype: Any = None) -> j
     if key.shape:
         raise ValueError(f"key must be a single key (shape ()), got shape {key.shape}; vmap over a batch of keys")
     y0, y1 = _hash(key, jnp.arange(size, dtype=jnp.uint32).reshape(shape))
-    if dtype == jnp.float32:
-        bits, mant, one = y0 ^ y1, 23, np.uint32(0x3F800000)
-    else:
-        bits = (y0.astype(jnp.uint64) << np.uint64(32)) | y1.astype(jnp.uint64)
-        mant, one = 52, np.uint64(0x3FF0000000000000)
-    floats = jax.lax.bitcast_convert_type((bits >> bits.dtype.type(bits.dtype.itemsize * 8 - mant)) | one, dtype)
-    return floats - dtype.type(1.0)
+    return unit_floats(y0 ^ y1 if dtype == jnp.float32 else join_words(y0, y1), dtype)
