@@ -55,6 +55,11 @@ def _hash(key: jax.Array, counter: jax.Array) -> tuple[jax.Array, jax.Array]:
     return threefry2x32(k0, k1, jnp.zeros_like(counter), counter)
 
 
+def _keys_from(key: jax.Array, y0: jax.Array, y1: jax.Array) -> jax.Array:
+    """Keys of ``key``'s implementation whose two words are ``y0`` and ``y1``."""
+    return jax.random.wrap_key_data(jnp.stack([y0, y1], axis=-1), impl=jax.random.key_impl(key))
+
+
 def fold_in(key: jax.Array, data: jax.Array | int) -> jax.Array:
     """``jax.random.fold_in(key, data)``: the key hashed with the counter ``(0, data)``, for typed ``key`` of any
     shape and an integer ``data`` that broadcasts to it (converted to ``uint32`` as ``jax.random`` converts it)."""
@@ -63,9 +68,7 @@ def fold_in(key: jax.Array, data: jax.Array | int) -> jax.Array:
             return jax.random.fold_in(key, data)
         data = jnp.broadcast_to(jnp.asarray(data, dtype=jnp.uint32), key.shape)
         return jax.vmap(jax.random.fold_in)(key.reshape(-1), data.reshape(-1)).reshape(key.shape)
-    counter = jnp.broadcast_to(jnp.asarray(data, dtype=jnp.uint32), key.shape)
-    y0, y1 = _hash(key, counter)
-    return jax.random.wrap_key_data(jnp.stack([y0, y1], axis=-1), impl=jax.random.key_impl(key))
+    return _keys_from(key, *_hash(key, jnp.broadcast_to(jnp.asarray(data, dtype=jnp.uint32), key.shape)))
 
 
 def split(key: jax.Array, num: int | tuple[int, ...] = 2) -> jax.Array:
@@ -75,8 +78,7 @@ def split(key: jax.Array, num: int | tuple[int, ...] = 2) -> jax.Array:
         return jax.random.split(key, num)
     if key.shape:
         raise ValueError(f"key must be a single key (shape ()), got shape {key.shape}; vmap over a batch of keys")
-    y0, y1 = _hash(key, jnp.arange(num, dtype=jnp.uint32))
-    return jax.random.wrap_key_data(jnp.stack([y0, y1], axis=-1), impl=jax.random.key_impl(key))
+    return _keys_from(key, *_hash(key, jnp.arange(num, dtype=jnp.uint32)))
 
 
 def uniform(key: jax.Array, shape: tuple[int, ...] = (), dtype: Any = None) -> jax.Array:
