@@ -96,7 +96,7 @@ from agents.posteriors import (
     normal_gamma_prior,
     normal_gamma_sample,
 )
-from agents.tabular_common import copy_action_zero, discounted_greedy_policy, greedy_action
+from agents.tabular_common import copy_action_zero, discounted_greedy_policy, greedy_action, only_if
 from jaxmdp import dynamic_programming as dp
 from jaxmdp._checks import VARIANTS, Variant, check_int, check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
@@ -414,24 +414,6 @@ def candidate_kernels(
 
     P = jax.lax.map(one, jnp.arange(d.z.shape[0]))
     return jnp.where(d.active[:, None, None, None], P, P[:1])
-
-
-def only_if(pred: jax.Array, compute: Callable[..., Any], default: Any, *operands: Any) -> Any:
-    """``compute(*operands)`` if ``pred`` else ``default`` (same structure), skipping the work when ``pred`` is False.
-
-    A ``while_loop`` that runs its body at most once rather than a ``lax.cond``: under ``vmap`` a ``cond`` with a
-    batched predicate becomes a ``select`` that computes both branches for every member, whereas a batched
-    ``while_loop`` runs its body only if some member's predicate holds (then for every member, each keeping its own
-    result or its ``default``). Alone (one member) it is an ordinary skip. The operands travel in the loop's carry
-    through an optimisation barrier: a body computed from loop invariants alone is hoisted out of the loop by XLA
-    (and then always runs)."""
-
-    def body(carry):
-        _, ops, _ = carry
-        ops = jax.lax.optimization_barrier(ops)
-        return jnp.zeros((), bool), ops, compute(*ops)
-
-    return jax.lax.while_loop(lambda carry: carry[0], body, (jnp.asarray(pred, bool), operands, default))[2]
 
 
 def extended_mdp(R: jax.Array, P: jax.Array, action_mask: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:

@@ -1,10 +1,11 @@
 """Pieces shared by the tabular agents: the greedy actor with random tie-breaking, table reads and writes through one
-flat index, the counts of real states and actions of a (possibly padded) MDP, and the discounted policy estimate of a
-model with padded actions.
+flat index, the counts of real states and actions of a (possibly padded) MDP, the discounted policy estimate of a
+model with padded actions, and a computation skipped unless some member of a ``vmap`` needs it.
 Hyperparameter checks are :func:`jaxmdp._checks.check_range` and :func:`jaxmdp._checks.check_int`."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import jax
@@ -18,6 +19,7 @@ __all__ = [
     "first_argmax",
     "greedy_action",
     "greedy_action_single_draw",
+    "only_if",
     "read_at",
     "row_max",
     "valid_counts",
@@ -125,3 +127,21 @@ def discounted_greedy_policy(P: jax.Array, R: jax.Array, discount: Any, action_m
     model-based agents (docs/agents.md §3, §4)."""
     res = dp.solve_discounted(copy_action_zero(P, action_mask), discount, rewards=copy_action_zero(R, action_mask))
     return dp.greedy(res.Q, action_mask)
+
+
+def only_if(pred: jax.Array, compute: Callable[..., Any], default: Any, *operands: Any) -> Any:
+    """``compute(*operands)`` if ``pred`` else ``default`` (same structure), skipping the work when ``pred`` is False.
+
+    A ``while_loop`` that runs its body at most once rather than a ``lax.cond``: under ``vmap`` a ``cond`` with a
+    batched predicate becomes a ``select`` that computes both branches for every member, whereas a batched
+    ``while_loop`` runs its body only if some member's predicate holds (then for every member, each keeping its own
+    result or its ``default``). Alone (one member) it is an ordinary skip. The operands travel in the loop's carry
+    through an optimisation barrier: a body computed from loop invariants alone is hoisted out of the loop by XLA
+    (and then always runs)."""
+
+    def body(carry):
+        _, ops, _ = carry
+        ops = jax.lax.optimization_barrier(ops)
+        return jnp.zeros((), bool), ops, compute(*ops)
+
+    return jax.lax.while_loop(lambda carry: carry[0], body, (jnp.asarray(pred, bool), operands, default))[2]

@@ -15,8 +15,8 @@ With ``N(s, a)`` visits, ``N' = max(1, N)``, ``N'' = max(1, N - 1)``, ``t`` the 
   intersected with the simplex over the real states;
 * an unvisited pair is unconstrained: ``r~ = r_max`` and any next-state distribution.
 
-Per step the agent only counts (``O(1)``); planning costs ``O(S^2 A)`` per EVI sweep. The EVI sweep count is
-reported in the state (``evi_iterations``, ``evi_converged``, and ``plans_unconverged``: the count of plans that
+Per step the agent only counts (``O(K)``: dense counts, and ``K`` slots of observed next states per pair for the
+policy estimate); planning costs ``O(S^2 A)`` per EVI sweep. The EVI sweep count is reported in the state (``evi_iterations``, ``evi_converged``, and ``plans_unconverged``: the count of plans that
 stopped at ``evi_max_iter``, which the runner reports).
 
 Policy estimate (for regret), as the reference (docs/agents.md §3): the greedy policy of the
@@ -53,9 +53,10 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from agents import estimated_model as em
 from agents.epochs import EpochSchedule, epoch_schedule, record_visit, start_epoch
 from agents.extended_value_iteration import colosseum_extended_value_iteration, extended_value_iteration
-from agents.tabular_common import discounted_greedy_policy, greedy_action, valid_counts
+from agents.tabular_common import discounted_greedy_policy, greedy_action, only_if, valid_counts
 from jaxmdp._checks import check_int, check_range
 from jaxmdp.dynamic_programming import PlanResult
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
@@ -92,9 +93,11 @@ class UCRL2HParams(struct.PyTreeNode):
 
 
 class UCRL2State(struct.PyTreeNode):
-    """Counts, epoch counters, empirical mean rewards, step count and the current optimistic ``Q`` and bias ``u``."""
+    """Counts (dense ``[S, A, S]`` for planning, and per observed next state for the policy estimate), epoch
+    counters, empirical mean rewards, step count and the current optimistic ``Q`` and bias ``u``."""
 
     counts: jax.Array
+    successors: em.SuccessorCounts
     schedule: EpochSchedule
     reward_mean: jax.Array
     t: jax.Array
@@ -129,6 +132,7 @@ def init(key: jax.Array, spec: MDPSpec, hparams: UCRL2HParams) -> UCRL2State:
     dtype = jnp.result_type(float)
     return UCRL2State(
         counts=jnp.zeros((S, A, S), jnp.int32),
+        successors=em.empty_counts(S, A, spec.max_successors),
         schedule=epoch_schedule(S, A),
         reward_mean=jnp.zeros((S, A), dtype),
         t=jnp.zeros((), jnp.int32),
@@ -158,6 +162,7 @@ def update(state: UCRL2State, tr: Transition) -> UCRL2State:
     old = state.reward_mean[s, a]
     return state.replace(
         counts=state.counts.at[s, a, tr.next_obs].add(1),
+        successors=em.record(state.successors, s, a, tr.next_obs),
         schedule=schedule,
         reward_mean=state.reward_mean.at[s, a].set(old + (tr.reward - old) / n),
         t=state.t + 1,
@@ -258,10 +263,32 @@ def estimated_model(state: UCRL2State) -> tuple[jax.Array, jax.Array]:
     return P, jnp.where(visited, state.reward_mean, state.hparams.r_max)
 
 
+def sparse_estimated_model(state: UCRL2State) -> tuple[em.SparseKernel, jax.Array]:
+    """:func:`estimated_model` on the observed next states (:mod:`agents.estimated_model`): the same kernel."""
+    dtype = state.reward_mean.dtype
+    N = state.schedule.visits
+    visited = N > 0
+    succ = state.successors
+    kernel = em.SparseKernel(
+        states=succ.states,
+        probs=succ.counts.astype(dtype) / jnp.maximum(N, 1)[..., None],
+        uniform=jnp.where(visited, 0.0, 1.0).astype(dtype),
+        state_mask=state.state_mask,
+    )
+    return kernel, jnp.where(visited, state.reward_mean, state.hparams.r_max)
+
+
 def policy(state: UCRL2State) -> jax.Array:
-    """Greedy ``[S, A]`` policy of the discounted optimal values of the estimated MDP."""
-    P, R = estimated_model(state)
-    return discounted_greedy_policy(P, R, state.hparams.policy_discount, state.action_mask)
+    """Greedy ``[S, A]`` policy of the discounted optimal values of the estimated MDP (``O(S A K)`` backups on the
+    observed next states, :func:`agents.estimated_model.discounted_greedy_policy`). Should the slots have overflowed
+    (a spec whose ``max_successors`` is below the MDP's), the dense route on the dense counts, for that member only."""
+    kernel, R = sparse_estimated_model(state)
+    sparse = em.discounted_greedy_policy(kernel, R, state.hparams.policy_discount, state.action_mask)
+
+    def dense(st: UCRL2State) -> jax.Array:
+        return discounted_greedy_policy(*estimated_model(st), st.hparams.policy_discount, st.action_mask)
+
+    return only_if(state.successors.overflowed, dense, sparse, state)
 
 
 UCRL2 = Agent(

@@ -79,6 +79,10 @@ class MDPSpec(struct.PyTreeNode):
     observations: jax.Array | None = None
     #: Floating dtype of the MDP (static): tabular agents keep their tables in it.
     dtype: Any = struct.field(pytree_node=False, default=np.dtype("float32"))
+    #: Length ``K`` of the MDP's successor lists (static): no pair has more than ``K`` next states of positive
+    #: probability, so an agent may store its counts of observed next states in ``K`` slots per pair, a storage
+    #: bound that changes none of its decisions. ``None`` (a spec built by hand) means no bound (``n_states``).
+    max_successors: int | None = struct.field(pytree_node=False, default=None)
 
     @property
     def episodic(self) -> bool:
@@ -100,6 +104,7 @@ def spec_of(mdp: MDP, n_steps: int | jax.Array) -> MDPSpec:
         n_steps=jnp.broadcast_to(jnp.asarray(n_steps, jnp.int32), mdp.horizon.shape),
         observations=observations,
         dtype=np.dtype(mdp.dtype),
+        max_successors=mdp.max_successors,
     )
 
 

@@ -1,0 +1,170 @@
+"""The estimated kernel on observed next states (agents.estimated_model) against dense numpy computations: counts of a
+transition stream, expectations and policy matrices, and the discounted greedy policy by enumerating every
+deterministic policy; UCRL2's policy estimate against the dense route it replaced."""
+
+from __future__ import annotations
+
+import itertools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxmdp
+from agents import estimated_model as em
+from agents import ucrl2
+from agents.tabular_common import discounted_greedy_policy
+from jaxmdp.experiment import runner
+from jaxmdp.experiment.agent_interface import Transition, spec_of
+
+
+def _stream(rng, n, S, A, K):
+    """``n`` transitions whose next states come from ``K`` fixed candidates per pair (so ``K`` slots suffice)."""
+    cand = np.stack([rng.choice(S, size=K, replace=False) for _ in range(S * A)]).reshape(S, A, K)
+    s, a = rng.integers(0, S, n), rng.integers(0, A, n)
+    return s, a, cand[s, a, rng.integers(0, K, n)]
+
+
+def _record_all(table, s, a, s2):
+    step = jax.jit(em.record)
+    for x in zip(s, a, s2):
+        table = step(table, *map(jnp.int32, x))
+    return table
+
+
+def test_record_counts_every_transition_in_first_seen_slots():
+    rng = np.random.default_rng(0)
+    S, A, K = 7, 3, 4
+    s, a, s2 = _stream(rng, 400, S, A, K)
+    table = _record_all(em.empty_counts(S, A, K), s, a, s2)
+    dense = np.zeros((S, A, S), np.int64)
+    np.add.at(dense, (s, a, s2), 1)
+    np.testing.assert_array_equal(em.dense_counts(table), dense)
+    assert not bool(table.overflowed)
+    for i, j in itertools.product(range(S), range(A)):  # slots in order of first observation, then empty
+        seen = s2[(s == i) & (a == j)]
+        first = list(dict.fromkeys(seen.tolist()))
+        n = len(first)
+        assert np.asarray(table.states[i, j, :n]).tolist() == first
+        assert np.all(np.asarray(table.counts[i, j, :n]) > 0) and np.all(np.asarray(table.counts[i, j, n:]) == 0)
+
+
+def test_overflow_is_flagged_and_ucrl2_falls_back_to_its_dense_counts():
+    S, A = 4, 1
+    table = _record_all(em.empty_counts(S, A, 2), [0, 0, 0, 0], [0, 0, 0, 0], [1, 2, 1, 3])
+    assert bool(table.overflowed)
+    np.testing.assert_array_equal(table.counts[0, 0], [2, 1])  # the third next state was not counted
+    assert not bool(_record_all(em.empty_counts(S, A, None), [0] * 4, [0] * 4, [1, 2, 1, 3]).overflowed)
+    # UCRL2 with a spec that understates the successors: its policy estimate is still the dense route's.
+    mdp = jaxmdp.make("MiniGridEmpty", episodic=False, seed=0, size=5, p_lazy=0.3, n_starting_states=2,
+                      make_reward_stochastic=True)
+    assert mdp.max_successors > 1
+    spec = spec_of(mdp, 500).replace(max_successors=1)
+    state = ucrl2.UCRL2.init(jax.random.key(0), spec, ucrl2.UCRL2.default_hparams)
+    obs, env_state = jaxmdp.reset(jax.random.key(1), mdp)
+    for k in jax.random.split(jax.random.key(2), 300):
+        a = jax.random.randint(jax.random.fold_in(k, 1), (), 0, mdp.n_actions)
+        obs2, env_state, r, term, _, info = jaxmdp.step(k, env_state, a, mdp)
+        state = _UPDATE(state, Transition(obs=obs, action=a, reward=r, next_obs=info["final_observation"],
+                                          h=env_state.h, terminated=term))
+        obs = obs2
+    assert bool(state.successors.overflowed)
+    dense = discounted_greedy_policy(*ucrl2.estimated_model(state), state.hparams.policy_discount, state.action_mask)
+    np.testing.assert_array_equal(jax.jit(ucrl2.policy)(state), dense)
+    sparse = em.discounted_greedy_policy(*ucrl2.sparse_estimated_model(state), 0.99, state.action_mask)
+    assert not np.array_equal(sparse, dense)  # the slots alone would have been wrong here
+
+
+_UPDATE = jax.jit(ucrl2.update)
+
+
+def _random_kernel(rng, S, A, K, n_real):
+    """A kernel with ``K`` slots per pair on real states (distinct, some empty) and a uniform part, and its dense
+    numpy form built entry by entry."""
+    mask = np.arange(S) < n_real
+    states = np.stack([rng.choice(n_real, size=K, replace=False) for _ in range(S * A)]).reshape(S, A, K)
+    w = rng.random((S, A, K)) * (rng.random((S, A, K)) < 0.7)
+    uniform = rng.random((S, A)) * (rng.random((S, A)) < 0.5)
+    total = w.sum(-1) + uniform
+    total[total == 0] = 1.0
+    probs, uniform = w / total[..., None], uniform / total
+    uniform[w.sum(-1) == 0] = 1.0
+    dense = np.zeros((S, A, S))
+    for i, j in itertools.product(range(S), range(A)):
+        for k in range(K):
+            dense[i, j, states[i, j, k]] += probs[i, j, k]
+        dense[i, j, :n_real] += uniform[i, j] / n_real
+    kernel = em.SparseKernel(jnp.asarray(states, jnp.int32), jnp.asarray(probs, jnp.float32),
+                             jnp.asarray(uniform, jnp.float32), jnp.asarray(mask))
+    return kernel, dense
+
+
+def test_expectations_and_policy_matrix_match_the_dense_kernel():
+    rng = np.random.default_rng(1)
+    S, A, K = 9, 3, 3
+    kernel, dense = _random_kernel(rng, S, A, K, n_real=7)
+    np.testing.assert_allclose(dense.sum(-1), 1.0, atol=1e-12)
+    V = rng.normal(size=S) * 5
+    np.testing.assert_allclose(em.expected_next_values(kernel, jnp.asarray(V, jnp.float32)), dense @ V,
+                               rtol=2e-6, atol=2e-6)
+    pi = rng.random((S, A))
+    pi /= pi.sum(-1, keepdims=True)
+    np.testing.assert_allclose(em.policy_matrix(kernel, jnp.asarray(pi, jnp.float32)),
+                               np.einsum("sa,sat->st", pi, dense), rtol=1e-6, atol=1e-7)
+
+
+def _optimal_q_by_enumeration(P, R, gamma):
+    """``Q*`` of a small dense model: the best of every deterministic policy's exact values (float64)."""
+    S, A = R.shape
+    best = np.full(S, -np.inf)
+    for actions in itertools.product(range(A), repeat=S):
+        idx = np.arange(S), np.asarray(actions)
+        V = np.linalg.solve(np.eye(S) - gamma * P[idx], R[idx])
+        best = np.maximum(best, V)
+    return R + gamma * P @ best
+
+
+@pytest.mark.parametrize("seed", [2, 3, 4])
+def test_discounted_greedy_policy_is_optimal(seed):
+    rng = np.random.default_rng(seed)
+    S, A, K, gamma = 6, 3, 2, 0.95
+    kernel, dense = _random_kernel(rng, S, A, K, n_real=S)
+    R = rng.random((S, A))
+    Q = _optimal_q_by_enumeration(dense, R, gamma)
+    top = np.sort(Q, -1)
+    assert np.min(top[:, -1] - top[:, -2]) > 1e-4  # no near-ties: the optimal actions are well defined
+    pi = em.discounted_greedy_policy(kernel, jnp.asarray(R, jnp.float32), gamma, jnp.ones(A, bool))
+    np.testing.assert_array_equal(pi, np.eye(A)[np.argmax(Q, -1)])
+
+
+def test_padded_actions_mirror_action_zero():
+    rng = np.random.default_rng(5)
+    S, A, K = 5, 3, 2
+    kernel, _ = _random_kernel(rng, S, A, K, n_real=S)
+    R = jnp.asarray(rng.random((S, A)), jnp.float32)
+    mask = jnp.asarray([True, True, False])
+    pi = em.discounted_greedy_policy(kernel, R.at[:, 2].set(100.0), 0.9, mask)  # the padded action's reward ignored
+    assert np.all(np.asarray(pi)[:, 2] == 0) and np.all(np.asarray(pi).sum(-1) == 1)
+    two = kernel.replace(states=kernel.states[:, :2], probs=kernel.probs[:, :2], uniform=kernel.uniform[:, :2])
+    np.testing.assert_array_equal(pi[:, :2], em.discounted_greedy_policy(two, R[:, :2], 0.9, jnp.ones(2, bool)))
+
+
+@pytest.mark.parametrize("family, params", [
+    ("RiverSwim", dict(size=8, p_lazy=0.1, make_reward_stochastic=True)),
+    ("MiniGridEmpty", dict(size=5, p_lazy=0.3, n_starting_states=2, make_reward_stochastic=True)),
+])
+def test_ucrl2_policy_estimate_equals_the_dense_route(family, params):
+    """After a lockstep run, UCRL2's slots hold its dense counts and its policy estimate is the dense route's
+    (:func:`agents.tabular_common.discounted_greedy_policy` of :func:`agents.ucrl2.estimated_model`), at every one
+    of several checkpoints (early: many unvisited pairs; later: most pairs visited)."""
+    mdp = jaxmdp.make(family, episodic=False, seed=0, **params)
+    assert spec_of(mdp, 10).max_successors == mdp.max_successors
+    dense_route = jax.jit(jax.vmap(
+        lambda st: discounted_greedy_policy(*ucrl2.estimated_model(st), st.hparams.policy_discount, st.action_mask)))
+    sparse_route = jax.jit(jax.vmap(ucrl2.policy))
+    for n_steps in (30, 400, 3000):
+        grid = runner.product([mdp], [ucrl2.UCRL2.default_hparams], [0, 1, 2])
+        states = runner.run(ucrl2.UCRL2, grid, n_steps, log_period=n_steps).agent_state
+        np.testing.assert_array_equal(jax.vmap(em.dense_counts)(states.successors), states.counts)
+        np.testing.assert_array_equal(sparse_route(states), dense_route(states))
