@@ -27,6 +27,8 @@ __all__ = [
     "optimistic_expectation",
     "optimistic_kernel",
     "extended_value_iteration",
+    "sparse_optimistic_expectation",
+    "sparse_extended_value_iteration",
     "colosseum_optimistic_kernel",
     "colosseum_extended_value_iteration",
 ]
@@ -167,6 +169,106 @@ def extended_value_iteration(
         tol=tol,
         max_iter=max_iter,
         aperiodicity=aperiodicity,
+        active=active,
+    )
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Boxes given on each pair's observed next states (UCRL2's plan)
+# ---------------------------------------------------------------------------------------------------------------
+#
+# A pair's box is ``[lo_k, hi_k]`` at its ``K`` slot states (the observed next states; an empty slot is a box
+# ``[0, c]``) and ``[0, c]`` at every other real state, ``c`` the pair's width at ``p_hat = 0``. With the real states
+# in decreasing order of ``u`` (ties: lower index first), the mass placed before position ``i`` is
+# ``M(i) = c i + sum_{k: rank_k < i} (room_k - c)`` (``room = hi - lo``), non-decreasing in ``i``. The greedy fill of
+# the module docstring fills every position before the first ``m`` with ``M(m + 1) >= B`` (``B = 1 - sum lo``), gives
+# position ``m`` the rest ``B - M(m)``, and nothing after. So
+#
+#     max_p p . u = sum_k lo_k u_k + c U(m) + sum_{k: rank_k < m} (room_k - c) u_k + (B - M(m)) u_(m),
+#
+# with ``U(m)`` the sum of the ``m`` largest values of ``u`` (one running sum per sweep, shared by every pair) and
+# ``m`` found by bisection on ``M`` (``O(K log S)`` per pair): ``O(S log S + S A K log S)`` per sweep instead of
+# ``O(S A S)``.
+
+
+def _bisection_steps(n: int) -> int:
+    """Halvings that narrow ``[0, n - 1]`` to one position."""
+    return max(1, int(n - 1).bit_length())
+
+
+def sparse_optimistic_expectation(
+    u: jax.Array, states: jax.Array, lo: jax.Array, hi: jax.Array, room_other: jax.Array, state_mask: jax.Array
+) -> jax.Array:
+    """``max_p sum_s' p(s') u(s')`` over each pair's box (the section comment above), ``[S, A]``.
+
+    Args:
+      u: ``[S]`` values of the next states.
+      states: ``[S, A, K]`` slot states (distinct real states per pair, or empty slots with ``lo = 0, hi = c``).
+      lo, hi: ``[S, A, K]`` bounds at the slots.
+      room_other: ``[S, A]`` upper bound ``c`` at every real state outside the slots (lower bound 0).
+      state_mask: ``[S]`` real states.
+    Requires ``sum lo <= 1 <= sum hi`` per pair, as :func:`optimistic_expectation`.
+    """
+    S = u.shape[0]
+    dtype = u.dtype
+    order = jnp.argsort(jnp.where(state_mask, -u, jnp.inf), stable=True)
+    rank = jnp.zeros((S,), jnp.int32).at[order].set(jnp.arange(S, dtype=jnp.int32))
+    u_sorted = jnp.where(state_mask[order], u[order], 0.0)
+    # U(m) for m = 0 .. S: blocked running sums (rounding error ~ (32 + S / 32) ulp rather than S ulp).
+    U = jnp.concatenate([_exclusive_running_sum(u_sorted[:, None])[:, 0], jnp.sum(u_sorted, keepdims=True)])
+    n_real = jnp.sum(state_mask).astype(jnp.int32)
+    r = rank[states]
+    c = room_other[..., None]
+    delta = (hi - lo) - c
+    budget = 1.0 - jnp.sum(lo, axis=-1)
+
+    def mass_through(i):  # M(i + 1): mass of positions 0 .. i
+        return room_other * (i + 1).astype(dtype) + jnp.sum(jnp.where(r <= i[..., None], delta, 0.0), axis=-1)
+
+    def halve(_, bounds):
+        low, high = bounds
+        mid = (low + high) // 2
+        enough = mass_through(mid) >= budget
+        return jnp.where(enough, low, mid + 1), jnp.where(enough, mid, high)
+
+    low = jnp.zeros(room_other.shape, jnp.int32)
+    high = jnp.broadcast_to(n_real - 1, room_other.shape)
+    m, _ = jax.lax.fori_loop(0, _bisection_steps(S), halve, (low, high))
+    before = r < m[..., None]
+    placed = room_other * m.astype(dtype) + jnp.sum(jnp.where(before, delta, 0.0), axis=-1)
+    room_m = room_other + jnp.sum(jnp.where(r == m[..., None], delta, 0.0), axis=-1)
+    rest = jnp.clip(budget - placed, 0.0, room_m)
+    u_k = u[states]
+    return (jnp.sum(lo * u_k, axis=-1) + room_other * U[m] + jnp.sum(jnp.where(before, delta * u_k, 0.0), axis=-1)
+            + rest * u_sorted[m])
+
+
+@jax.jit  # as extended_value_iteration
+def sparse_extended_value_iteration(
+    states: jax.Array,
+    lo: jax.Array,
+    hi: jax.Array,
+    room_other: jax.Array,
+    rewards: jax.Array,
+    state_mask: jax.Array,
+    action_mask: jax.Array,
+    *,
+    u0: jax.Array | None = None,
+    tol: float | jax.Array = 1e-3,
+    max_iter: int = 100_000,
+    aperiodicity: float | jax.Array = 0.5,
+    active: bool | jax.Array = True,
+) -> PlanResult:
+    """:func:`extended_value_iteration` with the boxes given on each pair's slots
+    (:func:`sparse_optimistic_expectation`): the same iteration and stopping rule, ``O(S log S + S A K log S)`` per
+    sweep. The optimistic values agree with the dense ones up to rounding (sums in another order)."""
+    u0 = jnp.zeros(rewards.shape[:1], rewards.dtype) if u0 is None else u0
+
+    def backup(u):
+        return rewards + sparse_optimistic_expectation(u, states, lo, hi, room_other, state_mask)
+
+    return relative_value_iteration(
+        backup, u0, state_mask, action_mask, discount=1.0, tol=tol, max_iter=max_iter, aperiodicity=aperiodicity,
         active=active,
     )
 

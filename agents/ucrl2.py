@@ -15,9 +15,11 @@ With ``N(s, a)`` visits, ``N' = max(1, N)``, ``N'' = max(1, N - 1)``, ``t`` the 
   intersected with the simplex over the real states;
 * an unvisited pair is unconstrained: ``r~ = r_max`` and any next-state distribution.
 
-Per step the agent only counts (``O(K)``: dense counts, and ``K`` slots of observed next states per pair for the
-policy estimate); planning costs ``O(S^2 A)`` per EVI sweep. The EVI sweep count is reported in the state (``evi_iterations``, ``evi_converged``, and ``plans_unconverged``: the count of plans that
-stopped at ``evi_max_iter``, which the runner reports).
+Per step the agent only counts (``O(K)``: dense counts, and ``K`` slots per pair of the observed next states, on
+which planning and the policy estimate back up; ``K = MDPSpec.max_successors``); planning costs
+``O(S log S + S A K log S)`` per EVI sweep. The EVI sweep count is reported in the state (``evi_iterations``,
+``evi_converged``, and ``plans_unconverged``: the count of plans that stopped at ``evi_max_iter``, which the runner
+reports).
 
 Policy estimate (for regret), as the reference (docs/agents.md §3): the greedy policy of the
 ``policy_discount``-discounted optimal values (0.99) of the estimated MDP ``(p_hat, r_hat)``; unvisited pairs are
@@ -55,7 +57,11 @@ from flax import struct
 
 from agents import estimated_model as em
 from agents.epochs import EpochSchedule, epoch_schedule, record_visit, start_epoch
-from agents.extended_value_iteration import colosseum_extended_value_iteration, extended_value_iteration
+from agents.extended_value_iteration import (
+    colosseum_extended_value_iteration,
+    extended_value_iteration,
+    sparse_extended_value_iteration,
+)
 from agents.tabular_common import discounted_greedy_policy, greedy_action, only_if, valid_counts
 from jaxmdp._checks import check_int, check_range
 from jaxmdp.dynamic_programming import PlanResult
@@ -215,19 +221,49 @@ def confidence_widths(state: UCRL2State) -> tuple[jax.Array, jax.Array, jax.Arra
     return p_hat, width_p, jnp.where(visited, r_tilde, state.hparams.r_max)
 
 
+def sparse_confidence(state: UCRL2State) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array, jax.Array]:
+    """:func:`confidence_widths` as boxes on each pair's observed next states: ``(states, lo, hi)`` at the slots
+    (``[S, A, K]``), ``room_other[S, A]`` (the upper bound at every other real state, whose ``p_hat`` is 0: there
+    the width is ``alpha_p 49 L / (3 N'')``, 1 for an unvisited pair) and ``r_tilde[S, A]``; the same boxes as
+    :func:`agents.extended_value_iteration.confidence_box` of :func:`confidence_widths`."""
+    N = state.schedule.visits
+    visited = N > 0
+    dtype = state.reward_mean.dtype
+    succ = state.successors
+    p = succ.counts.astype(dtype) / jnp.maximum(N, 1)[..., None]
+    width, r_tilde = plausible_set(
+        state.hparams, N, jnp.concatenate([p, jnp.zeros_like(p[..., :1])], axis=-1), state.reward_mean, state.t,
+        state.state_mask, state.action_mask,
+    )
+    width = jnp.where(visited[..., None], width, 1.0)
+    lo = jnp.maximum(p - width[..., :-1], 0.0)
+    hi = jnp.minimum(p + width[..., :-1], 1.0)
+    return succ.states, lo, hi, jnp.minimum(width[..., -1], 1.0), jnp.where(visited, r_tilde, state.hparams.r_max)
+
+
+def _dense_plan(state: UCRL2State) -> PlanResult:
+    """Extended value iteration on the dense counts (the fallback should the slots overflow)."""
+    p_hat, width_p, r_tilde = confidence_widths(state)
+    hp = state.hparams
+    return extended_value_iteration(
+        p_hat, width_p, r_tilde, state.state_mask, state.action_mask, u0=state.u, tol=hp.evi_tol,
+        max_iter=hp.evi_max_iter, aperiodicity=hp.aperiodicity, active=state.plan_due,
+    )
+
+
 def plan(key: jax.Array, state: UCRL2State) -> UCRL2State:
-    """Start an epoch: extended value iteration on the current plausible set (warm-started from the last bias).
+    """Start an epoch: extended value iteration on the current plausible set (warm-started from the last bias), its
+    boxes given on each pair's observed next states (:func:`sparse_confidence`,
+    :func:`agents.extended_value_iteration.sparse_extended_value_iteration`: ``O(S A K log S)`` per sweep instead of
+    ``O(S^2 A)``; the dense counts only should the slots overflow).
 
     A no-op unless :func:`needs_plan` (the runner keeps the result only for members that asked; skipping the
     iterations of the others keeps a batched EVI from waiting for them).
     """
     del key
-    p_hat, width_p, r_tilde = confidence_widths(state)
     hp = state.hparams
-    res = extended_value_iteration(
-        p_hat,
-        width_p,
-        r_tilde,
+    res = sparse_extended_value_iteration(
+        *sparse_confidence(state),
         state.state_mask,
         state.action_mask,
         u0=state.u,
@@ -236,6 +272,7 @@ def plan(key: jax.Array, state: UCRL2State) -> UCRL2State:
         aperiodicity=hp.aperiodicity,
         active=state.plan_due,
     )
+    res = only_if(state.successors.overflowed & state.plan_due, _dense_plan, res, state)
     return where_due(state.plan_due, _start_epoch(state, res.Q, res), state)
 
 

@@ -14,6 +14,7 @@ import pytest
 import jaxmdp
 from agents import estimated_model as em
 from agents import ucrl2
+from agents.extended_value_iteration import confidence_box
 from agents.tabular_common import discounted_greedy_policy
 from jaxmdp.experiment import runner
 from jaxmdp.experiment.agent_interface import Transition, spec_of
@@ -168,3 +169,42 @@ def test_ucrl2_policy_estimate_equals_the_dense_route(family, params):
         states = runner.run(ucrl2.UCRL2, grid, n_steps, log_period=n_steps).agent_state
         np.testing.assert_array_equal(jax.vmap(em.dense_counts)(states.successors), states.counts)
         np.testing.assert_array_equal(sparse_route(states), dense_route(states))
+
+
+def _dense_boxes(states, lo, hi, room_other, state_mask):
+    """Slot boxes written densely: ``[0, room_other]`` at real states outside the slots, the slots' bounds at theirs."""
+    S, A, K = states.shape
+    dense_lo = np.zeros((S, A, S), np.float32)
+    dense_hi = np.where(state_mask, np.asarray(room_other)[..., None], 0.0).astype(np.float32) * np.ones(S, np.float32)
+    for i, j, k in itertools.product(range(S), range(A), range(K)):
+        dense_lo[i, j, states[i, j, k]], dense_hi[i, j, states[i, j, k]] = lo[i, j, k], hi[i, j, k]
+    return dense_lo, dense_hi
+
+
+def test_ucrl2_plans_on_the_same_boxes_as_the_dense_counts():
+    """UCRL2's slot boxes are :func:`confidence_box` of its dense widths, entry for entry, and its plan matches the
+    dense planner's (same sweeps, optimistic ``Q`` within rounding); with understated slots the plan is the dense
+    planner's exactly (the fallback)."""
+    mdp = jaxmdp.make("MiniGridEmpty", episodic=False, seed=0, size=5, p_lazy=0.3, n_starting_states=2,
+                      make_reward_stochastic=True)
+    grid = runner.product([mdp], [ucrl2.UCRL2.default_hparams], [0, 1])
+    states = runner.run(ucrl2.UCRL2, grid, 2000, log_period=2000).agent_state
+    dense_plan = jax.jit(jax.vmap(ucrl2._dense_plan))
+    for m in range(2):
+        state = jax.tree.map(lambda x: x[m], states).replace(plan_due=jnp.ones((), bool))
+        st, lo, hi, room, r_tilde = map(np.asarray, ucrl2.sparse_confidence(state))
+        p_hat, width, r_dense = ucrl2.confidence_widths(state)
+        want_lo, want_hi = confidence_box(p_hat, width, state.state_mask)
+        got_lo, got_hi = _dense_boxes(st, lo, hi, room, np.asarray(state.state_mask))
+        np.testing.assert_array_equal(got_lo, want_lo)
+        np.testing.assert_array_equal(got_hi, want_hi)
+        np.testing.assert_array_equal(r_tilde, r_dense)
+        new = jax.jit(ucrl2.plan)(jax.random.key(0), state)
+        old = jax.tree.map(lambda x: x[0], dense_plan(jax.tree.map(lambda x: x[None], state)))
+        assert int(new.evi_iterations) == int(old.iterations) and bool(new.evi_converged)
+        np.testing.assert_allclose(new.Q, old.Q, rtol=1e-5, atol=1e-5)
+        # Slots overflowed: the plan falls back to the dense counts, bit for bit.
+        lost = state.successors.replace(counts=state.successors.counts.at[..., 1:].set(0), overflowed=jnp.ones((), bool))
+        broken = state.replace(successors=lost)
+        fallback = jax.jit(ucrl2.plan)(jax.random.key(0), broken)
+        np.testing.assert_array_equal(fallback.Q, old.Q)

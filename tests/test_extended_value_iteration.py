@@ -223,6 +223,72 @@ def test_sorted_inner_maximisation_matches_dense_and_linprog(seed):
         np.testing.assert_allclose(value[s, a], -res.fun, atol=2e-6)
 
 
+# --- boxes on each pair's slots (UCRL2's plan) against the dense boxes and an LP ---------------------------------
+
+
+def _slot_boxes(rng, S, A, K, n_real, empty=0.3):
+    """Boxes given on ``K`` slots per pair (distinct real states, some slots empty: box ``[0, c]``) and ``[0, c]`` at
+    every other real state, and the same boxes written densely, entry by entry."""
+    mask = np.arange(S) < n_real
+    states = np.stack([rng.choice(n_real, K, replace=False) for _ in range(S * A)]).reshape(S, A, K)
+    filled = rng.random((S, A, K)) > empty
+    filled[0, 0] = False  # a pair with no observation: its box is [0, c] everywhere
+    p = rng.random((S, A, K)) * filled
+    p = p / np.maximum(p.sum(-1, keepdims=True), 1e-9)
+    c = np.where(rng.random((S, A)) < 0.2, 1.0, rng.uniform(0.0, 0.2, (S, A)))
+    c[0, 0] = 1.0
+    w = np.where(filled, rng.uniform(0.0, 0.3, (S, A, K)), c[..., None])
+    lo = np.where(filled, np.maximum(p - w, 0.0), 0.0)
+    hi = np.where(filled, np.minimum(p + w, 1.0), c[..., None])
+    dense_lo = np.zeros((S, A, S))
+    dense_hi = np.where(mask, c[..., None], 0.0) * np.ones(S)
+    for i, j, k in itertools.product(range(S), range(A), range(K)):
+        dense_lo[i, j, states[i, j, k]], dense_hi[i, j, states[i, j, k]] = lo[i, j, k], hi[i, j, k]
+    assert np.all(dense_lo.sum(-1) <= 1.0) and np.all(dense_hi.sum(-1) >= 1.0 - 1e-12)
+    f32 = lambda x: jnp.asarray(x, jnp.float32)  # noqa: E731
+    return (jnp.asarray(states, jnp.int32), f32(lo), f32(hi), f32(c), jnp.asarray(mask)), dense_lo, dense_hi
+
+
+@pytest.mark.parametrize("S, K, n_real", [(7, 3, 5), (33, 5, 33), (230, 4, 200)])
+def test_slot_boxes_inner_maximisation_matches_dense_and_linprog(S, K, n_real):
+    rng = np.random.default_rng(S)
+    A = 2
+    slots, dense_lo, dense_hi = _slot_boxes(rng, S, A, K, n_real)
+    u = rng.normal(size=S) * 3
+    u[rng.random(S) < 0.3] = 0.5  # ties: lower index first
+    u = np.where(slots[-1], u, 0.0).astype(np.float32)
+    value = np.asarray(evi.sparse_optimistic_expectation(jnp.asarray(u), *slots))
+    dense = np.asarray(optimistic_expectation(jnp.asarray(dense_lo, jnp.float32), jnp.asarray(dense_hi, jnp.float32),
+                                              jnp.asarray(u)))
+    np.testing.assert_allclose(value, dense, atol=2e-6)
+    for s, a in [(0, 0), (S // 2, 1), (S - 1, 0)]:
+        res = linprog(-u.astype(np.float64), A_eq=np.ones((1, S)), b_eq=[1.0],
+                      bounds=list(zip(dense_lo[s, a], dense_hi[s, a])), method="highs")
+        assert res.status == 0
+        np.testing.assert_allclose(value[s, a], -res.fun, atol=2e-6)
+
+
+def test_slot_boxes_evi_plans_as_the_dense_one(rng=np.random.default_rng(11)):
+    """Same iterations, gain bounds and greedy policy (where not nearly tied) as the dense planner on the same boxes."""
+    S, A, K = 60, 3, 4
+    slots, dense_lo, dense_hi = _slot_boxes(rng, S, A, K, S - 3)
+    r = jnp.asarray(rng.uniform(size=(S, A)), jnp.float32)
+    masks = (slots[-1], jnp.ones(A, bool))
+    fast = evi.sparse_extended_value_iteration(*slots[:4], r, *masks, tol=1e-4)
+    p_hat, width = (dense_lo + dense_hi) / 2, (dense_hi - dense_lo) / 2
+    dense = extended_value_iteration(jnp.asarray(p_hat, jnp.float32), jnp.asarray(width, jnp.float32), r, *masks,
+                                     tol=1e-4)
+    assert bool(fast.converged) and bool(dense.converged)
+    assert int(fast.iterations) == int(dense.iterations)
+    np.testing.assert_allclose([fast.gain_lower, fast.gain_upper], [dense.gain_lower, dense.gain_upper], atol=1e-5)
+    real = np.asarray(slots[-1])
+    np.testing.assert_allclose(np.asarray(fast.Q)[real], np.asarray(dense.Q)[real], atol=1e-4)
+    Q = np.sort(np.asarray(dense.Q)[real], -1)
+    clear = Q[:, -1] - Q[:, -2] > 1e-3
+    greedy = lambda q: np.argmax(np.asarray(q)[real], -1)  # noqa: E731
+    np.testing.assert_array_equal(greedy(fast.Q)[clear], greedy(dense.Q)[clear])
+
+
 def test_eager_calls_compile_once_per_shape(caplog):
     # Both planners are jitted: a second eager call with other numbers of the same shapes compiles nothing.
     rng = np.random.default_rng(3)
