@@ -56,7 +56,8 @@ is), every backup pays ``psi`` Dirichlet draws of ``[S, A, S]``: a few per disco
 value iteration.
 
 Policy estimate (for regret), as the reference (docs/agents.md §4): posterior means (Dirichlet mean, ``mu``),
-``policy_discount``-discounted optimal values (0.99, solved exactly), greedy ``[S, A]``.
+``policy_discount``-discounted optimal values (0.99, solved exactly), greedy ``[S, A]``; the backups run on each
+pair's observed next states plus the prior's uniform part (:func:`posterior_mean_kernel`, ``O(S A K)``).
 
 Differences from the reference (Colosseum), each deliberate:
 
@@ -84,6 +85,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from agents import estimated_model as em
 from agents.epochs import EpochSchedule, epoch_schedule, record_visit, start_epoch
 from agents.posteriors import (
     COLOSSEUM_DIRICHLET_OFFSET,
@@ -170,9 +172,11 @@ class Constants(struct.PyTreeNode):
 
 
 class PSRLContinuousState(struct.PyTreeNode):
-    """Counts, epoch counters, reward posterior, the epoch's ``Q`` and bias ``u``, constants and masks."""
+    """Counts (dense, and per observed next state for the policy estimate), epoch counters, reward posterior, the
+    epoch's ``Q`` and bias ``u``, constants and masks."""
 
     counts: jax.Array
+    successors: em.SuccessorCounts
     schedule: EpochSchedule
     rewards: NormalGamma
     Q: jax.Array
@@ -252,6 +256,7 @@ def init(key: jax.Array, spec: MDPSpec, hparams: PSRLContinuousHParams) -> PSRLC
     consts = constants(hparams, jnp.sum(spec.state_mask), jnp.sum(spec.action_mask), spec.n_steps)
     return PSRLContinuousState(
         counts=jnp.zeros((S, A, S), jnp.int32),
+        successors=em.empty_counts(S, A, spec.max_successors),
         schedule=epoch_schedule(S, A),
         rewards=rewards,
         Q=jnp.zeros((S, A), dtype),
@@ -279,6 +284,7 @@ def update(state: PSRLContinuousState, tr: Transition) -> PSRLContinuousState:
     schedule, ends = record_visit(state.schedule, s, a)
     return state.replace(
         counts=state.counts.at[s, a, tr.next_obs].add(1),
+        successors=em.record(state.successors, s, a, tr.next_obs),
         schedule=schedule,
         rewards=normal_gamma_observe(state.rewards, (s, a), tr.reward),
         plan_due=state.plan_due | ends,
@@ -607,11 +613,35 @@ def plan(
     return where_due(state.plan_due, new, state)
 
 
-def policy(state: PSRLContinuousState) -> jax.Array:
-    """Greedy ``[S, A]`` policy of the discounted optimal values of the posterior-mean MDP."""
+def posterior_mean_kernel(state: PSRLContinuousState) -> em.SparseKernel:
+    """The posterior-mean kernel ``(1/S + N(s, a, s')) / (1 + N(s, a))`` on the observed next states
+    (:mod:`agents.estimated_model`): the counts over ``Z = 1 + N(s, a)`` at the slots and the prior's mass ``1 / Z``
+    spread uniformly over the real states. The dense mean (:func:`agents.posteriors.dirichlet_mean`) divides by the
+    concentrations' float sum instead, so the two agree to rounding."""
+    dtype = state.Q.dtype
+    n_real = jnp.sum(state.state_mask).astype(dtype)
+    prior_mass = (1.0 / n_real) * n_real
+    Z = prior_mass + state.schedule.visits.astype(dtype)
+    succ = state.successors
+    return em.SparseKernel(states=succ.states, probs=succ.counts.astype(dtype) / Z[..., None], uniform=prior_mass / Z,
+                           state_mask=state.state_mask)
+
+
+def _dense_policy(state: PSRLContinuousState) -> jax.Array:
+    """The policy estimate on the dense posterior mean (the fallback should the slots overflow)."""
     P = dirichlet_mean(_posterior_alpha(state))
     R = normal_gamma_mean(state.rewards)
     return discounted_greedy_policy(P, R, state.hparams.policy_discount, state.action_mask)
+
+
+def policy(state: PSRLContinuousState) -> jax.Array:
+    """Greedy ``[S, A]`` policy of the discounted optimal values of the posterior-mean MDP, its backups on the
+    observed next states (:func:`posterior_mean_kernel`, :func:`agents.estimated_model.discounted_greedy_policy`;
+    the dense posterior mean should the slots overflow)."""
+    R = normal_gamma_mean(state.rewards)
+    sparse = em.discounted_greedy_policy(posterior_mean_kernel(state), R, state.hparams.policy_discount,
+                                         state.action_mask)
+    return only_if(state.successors.overflowed, _dense_policy, sparse, state)
 
 
 PSRL_CONTINUOUS = Agent(

@@ -1,14 +1,15 @@
-"""Benchmark: UCRL2's per-log policy estimate on its observed next states against the dense route it replaced.
+"""Benchmark: the continuous model-based agents' per-log policy estimate on their observed next states against the
+dense route it replaced.
 
 At every log the runner asks each continuous model-based agent for its policy estimate: the greedy policy of the
-discounted (0.99) optimal values of its estimated MDP (docs/agents.md §3). The dense route
-(:func:`agents.tabular_common.discounted_greedy_policy` of :func:`agents.ucrl2.estimated_model`) backs up through
-``[S, A, S]`` kernels; :func:`agents.ucrl2.policy` backs up through the ``K`` observed next states of each pair
+discounted (0.99) optimal values of its estimated MDP (UCRL2: empirical; PSRL: posterior mean; docs/agents.md §3,
+§4). The dense route (:func:`agents.tabular_common.discounted_greedy_policy` of the dense kernel) backs up through
+``[S, A, S]`` kernels; the agents' ``policy`` backs up through the ``K`` observed next states of each pair
 (:mod:`agents.estimated_model`). For the largest MDP of each size bucket of "continuous ergodic", the agent's state
 after ``--steps`` uniformly random steps (``update`` only), both routes jitted on one member, called alternately
 ``--repeats`` times in one process (best of each); the table also counts the states whose greedy action differs.
 
-    python scripts/bench_policy_estimate.py --steps 300 5000 50000
+    python scripts/bench_policy_estimate.py --agents ucrl2 psrl_continuous --steps 300 5000 50000
 
 Prints the table and appends it, with the command, to ``--doc`` (docs/benchmarks/continuous_indicators.md).
 """
@@ -27,53 +28,67 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import profile_continuous_plans as pcp  # noqa: E402
 
-from agents import ucrl2  # noqa: E402
+from agents import psrl_continuous, ucrl2  # noqa: E402
 from agents.tabular_common import discounted_greedy_policy  # noqa: E402
 from hardness.benchmark import sets  # noqa: E402
 from jaxmdp.experiment import compilation  # noqa: E402
 
 
-def dense_policy(state: ucrl2.UCRL2State) -> jax.Array:
-    """The dense route (the policy estimate before :mod:`agents.estimated_model`)."""
+def dense_ucrl2_policy(state: ucrl2.UCRL2State) -> jax.Array:
+    """UCRL2's dense route (its policy estimate before :mod:`agents.estimated_model`)."""
     return discounted_greedy_policy(*ucrl2.estimated_model(state), state.hparams.policy_discount, state.action_mask)
+
+
+#: agent name -> (agent, dense route, route on the observed next states)
+ROUTES = {
+    "ucrl2": (ucrl2.UCRL2, dense_ucrl2_policy, ucrl2.policy),
+    "psrl_continuous": (psrl_continuous.PSRL_CONTINUOUS, psrl_continuous._dense_policy, psrl_continuous.policy),
+}
 
 
 def main(argv: list[str] | None = None) -> list[str]:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--set", default="continuous ergodic")
+    ap.add_argument("--agents", nargs="+", default=list(ROUTES), choices=list(ROUTES))
     ap.add_argument("--steps", type=int, nargs="+", default=[300, 5000, 50_000])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--doc", type=Path, default=Path("docs/benchmarks/continuous_indicators.md"))
     compilation.add_cache_flag(ap)
     args = ap.parse_args(argv)
     compilation.setup_compilation(args.no_compile_cache)
-    routes = {"dense": jax.jit(dense_policy), "sparse": jax.jit(ucrl2.policy)}
     rows = []
-    for label in pcp.bucket_labels(args.set):
-        mdp = next(i for i in sets.instances(args.set) if i.label == label).build(0)
-        for steps in args.steps:
-            state = jax.jit(lambda k: pcp.played(ucrl2.UCRL2, mdp, ucrl2.UCRL2.default_hparams, steps, k))(
-                jax.random.key(0))
-            out = {name: jax.block_until_ready(f(state)) for name, f in routes.items()}
-            best = dict.fromkeys(routes, np.inf)
-            for _ in range(args.repeats):
-                for name, f in routes.items():
-                    t0 = time.perf_counter()
-                    jax.block_until_ready(f(state))
-                    best[name] = min(best[name], time.perf_counter() - t0)
-            differ = int(np.sum(np.any(np.asarray(out["dense"]) != np.asarray(out["sparse"]), axis=-1)))
-            row = (f"| {label} | {mdp.n_states} | {mdp.max_successors} | {steps} | {1e3 * best['dense']:.1f} | "
-                   f"{1e3 * best['sparse']:.1f} | {best['dense'] / best['sparse']:.1f}x | {differ} |")
-            print(row, flush=True)
-            rows.append(row)
+    for name in args.agents:
+        agent, dense, sparse = ROUTES[name]
+        routes = {"dense": jax.jit(dense), "sparse": jax.jit(sparse)}
+        for label in pcp.bucket_labels(args.set):
+            mdp = next(i for i in sets.instances(args.set) if i.label == label).build(0)
+            hp = agent.default_hparams
+            if name == "psrl_continuous":  # the plan's buffer at the MDP's own psi, as the benchmark sizes it
+                hp = hp.replace(max_psi=psrl_continuous.psi(hp, mdp.n_states, mdp.n_actions))
+            for steps in args.steps:
+                state = jax.jit(lambda k: pcp.played(agent, mdp, hp, steps, k))(jax.random.key(0))
+                out = {r: jax.block_until_ready(f(state)) for r, f in routes.items()}
+                best = dict.fromkeys(routes, np.inf)
+                for _ in range(args.repeats):
+                    for r, f in routes.items():
+                        t0 = time.perf_counter()
+                        jax.block_until_ready(f(state))
+                        best[r] = min(best[r], time.perf_counter() - t0)
+                differ = int(np.sum(np.any(np.asarray(out["dense"]) != np.asarray(out["sparse"]), axis=-1)))
+                row = (f"| {name} | {label} | {mdp.n_states} | {mdp.max_successors} | {steps} | "
+                       f"{1e3 * best['dense']:.1f} | {1e3 * best['sparse']:.1f} | "
+                       f"{best['dense'] / best['sparse']:.1f}x | {differ} |")
+                print(row, flush=True)
+                rows.append(row)
     lines = [
         f"### {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}",
         "",
         f"`python {' '.join(sys.argv)}`: best of {args.repeats}, one member; jax {jax.__version__}, "
         f"{jax.default_backend()}, {platform.machine()}.",
         "",
-        "| MDP | S | K | random steps | dense ms | observed next states ms | speed-up | states whose action differs |",
-        "|---|---|---|---|---|---|---|---|",
+        "| agent | MDP | S | K | random steps | dense ms | observed next states ms | speed-up | states whose action "
+        "differs |",
+        "|---|---|---|---|---|---|---|---|---|",
         *rows,
         "",
     ]
