@@ -214,8 +214,9 @@ def sparse_optimistic_expectation(
     order = jnp.argsort(jnp.where(state_mask, -u, jnp.inf), stable=True)
     rank = jnp.zeros((S,), jnp.int32).at[order].set(jnp.arange(S, dtype=jnp.int32))
     u_sorted = jnp.where(state_mask[order], u[order], 0.0)
-    # U(m) for m = 0 .. S: blocked running sums (rounding error ~ (32 + S / 32) ulp rather than S ulp).
-    U = jnp.concatenate([_exclusive_running_sum(u_sorted[:, None])[:, 0], jnp.sum(u_sorted, keepdims=True)])
+    # U(m) for m = 0 .. S - 1 (m never reaches S: it is a position): blocked running sums, rounding error
+    # ~ (32 + S / 32) ulp rather than S ulp.
+    U = _exclusive_running_sum(u_sorted[:, None])[:, 0]
     n_real = jnp.sum(state_mask).astype(jnp.int32)
     r = rank[states]
     c = room_other[..., None]

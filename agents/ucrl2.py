@@ -315,17 +315,18 @@ def sparse_estimated_model(state: UCRL2State) -> tuple[em.SparseKernel, jax.Arra
     return kernel, jnp.where(visited, state.reward_mean, state.hparams.r_max)
 
 
+def _dense_policy(state: UCRL2State) -> jax.Array:
+    """The policy estimate on the dense counts (the fallback should the slots overflow)."""
+    return discounted_greedy_policy(*estimated_model(state), state.hparams.policy_discount, state.action_mask)
+
+
 def policy(state: UCRL2State) -> jax.Array:
     """Greedy ``[S, A]`` policy of the discounted optimal values of the estimated MDP (``O(S A K)`` backups on the
     observed next states, :func:`agents.estimated_model.discounted_greedy_policy`). Should the slots have overflowed
     (a spec whose ``max_successors`` is below the MDP's), the dense route on the dense counts, for that member only."""
     kernel, R = sparse_estimated_model(state)
     sparse = em.discounted_greedy_policy(kernel, R, state.hparams.policy_discount, state.action_mask)
-
-    def dense(st: UCRL2State) -> jax.Array:
-        return discounted_greedy_policy(*estimated_model(st), st.hparams.policy_discount, st.action_mask)
-
-    return only_if(state.successors.overflowed, dense, sparse, state)
+    return only_if(state.successors.overflowed, _dense_policy, sparse, state)
 
 
 UCRL2 = Agent(

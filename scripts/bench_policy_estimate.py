@@ -29,19 +29,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import profile_continuous_plans as pcp  # noqa: E402
 
 from agents import psrl_continuous, ucrl2  # noqa: E402
-from agents.tabular_common import discounted_greedy_policy  # noqa: E402
 from hardness.benchmark import sets  # noqa: E402
 from jaxmdp.experiment import compilation  # noqa: E402
 
 
-def dense_ucrl2_policy(state: ucrl2.UCRL2State) -> jax.Array:
-    """UCRL2's dense route (its policy estimate before :mod:`agents.estimated_model`)."""
-    return discounted_greedy_policy(*ucrl2.estimated_model(state), state.hparams.policy_discount, state.action_mask)
-
-
-#: agent name -> (agent, dense route, route on the observed next states)
+#: agent name -> (agent, dense route (the policy estimate before :mod:`agents.estimated_model`, kept as the overflow
+#: fallback), route on the observed next states)
 ROUTES = {
-    "ucrl2": (ucrl2.UCRL2, dense_ucrl2_policy, ucrl2.policy),
+    "ucrl2": (ucrl2.UCRL2, ucrl2._dense_policy, ucrl2.policy),
     "psrl_continuous": (psrl_continuous.PSRL_CONTINUOUS, psrl_continuous._dense_policy, psrl_continuous.policy),
 }
 

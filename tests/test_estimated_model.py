@@ -16,7 +16,6 @@ from agents import estimated_model as em
 from agents import psrl_continuous, ucrl2
 from agents.extended_value_iteration import confidence_box
 from agents.posteriors import dirichlet_mean, normal_gamma_mean
-from agents.tabular_common import discounted_greedy_policy
 from jaxmdp import dynamic_programming as dp
 from jaxmdp.experiment import runner
 from jaxmdp.experiment.agent_interface import Transition, spec_of
@@ -73,7 +72,7 @@ def test_overflow_is_flagged_and_ucrl2_falls_back_to_its_dense_counts():
                                           h=env_state.h, terminated=term))
         obs = obs2
     assert bool(state.successors.overflowed)
-    dense = discounted_greedy_policy(*ucrl2.estimated_model(state), state.hparams.policy_discount, state.action_mask)
+    dense = ucrl2._dense_policy(state)
     np.testing.assert_array_equal(jax.jit(ucrl2.policy)(state), dense)
     sparse = em.discounted_greedy_policy(*ucrl2.sparse_estimated_model(state), 0.99, state.action_mask)
     assert not np.array_equal(sparse, dense)  # the slots alone would have been wrong here
@@ -163,8 +162,7 @@ def test_ucrl2_policy_estimate_equals_the_dense_route(family, params):
     of several checkpoints (early: many unvisited pairs; later: most pairs visited)."""
     mdp = jaxmdp.make(family, episodic=False, seed=0, **params)
     assert spec_of(mdp, 10).max_successors == mdp.max_successors
-    dense_route = jax.jit(jax.vmap(
-        lambda st: discounted_greedy_policy(*ucrl2.estimated_model(st), st.hparams.policy_discount, st.action_mask)))
+    dense_route = jax.jit(jax.vmap(ucrl2._dense_policy))
     sparse_route = jax.jit(jax.vmap(ucrl2.policy))
     for n_steps in (30, 400, 3000):
         grid = runner.product([mdp], [ucrl2.UCRL2.default_hparams], [0, 1, 2])
