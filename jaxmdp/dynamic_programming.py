@@ -38,6 +38,8 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from jaxmdp.gth import BAND_BLOCK, GTH_BLOCK, gth_eliminate, gth_eliminate_banded
+from jaxmdp.gth import bandwidth as gth_bandwidth
 from jaxmdp.jaxlib_workarounds.linalg import solve as linear_solve
 from jaxmdp.mdp import MDP
 
@@ -652,125 +654,133 @@ def successor_reachability(succ: jax.Array, edge: jax.Array) -> jax.Array:
     return (jnp.right_shift(R[:, word], bit[None, :]) & jnp.uint32(1)) > 0
 
 
-#: States per block of :func:`chain_gain`'s elimination, and the stages whose shrinking leading windows its block
-#: loop runs on (see :func:`_gth_eliminate`; measured in docs/benchmarks/continuous_indicators.md).
-GTH_BLOCK = 32
-_GTH_STAGES = 4
-
-
-def _gth_eliminate(M: jax.Array, block: int = GTH_BLOCK, stages: int = _GTH_STAGES) -> tuple[jax.Array, jax.Array]:
-    """Grassmann-Taksar-Heyman elimination of positions ``S-1, ..., 1`` of a non-negative ``M``, ``block`` at a time.
-
-    Eliminating position ``k`` censors the chain to positions ``< k`` (Grassmann, Taksar & Heyman 1985): with the row
-    ``row_k = M[k, :k]`` and its sum ``s_k`` (the mass leaving ``k`` downwards, summed from the off-diagonal entries,
-    never taken as ``1 - M[k, k]``), ``M[:k, :k] += outer(col_k, row_k)`` where ``col_k = M[:k, k] / s_k``. Returns
-    ``M`` with ``col_k`` stored in column ``k`` above the diagonal and ``row_k`` left in row ``k``, and ``scale[k] =
-    s_k`` (0 when no mass leaves downwards; then ``col_k = 0``). Only non-negative numbers are added, multiplied and
-    divided, so every entry keeps a small relative error however slowly the chain mixes.
-
-    Blocked: eliminating a block ``B`` of ``b`` positions leaves the stochastic complement ``M_FF + M_FB (I -
-    M_BB)^{-1} M_BF`` on the positions ``F`` below it (Meyer 1989, "Stochastic complementation, uncoupling Markov
-    chains, and the theory of nearly reducible systems", SIAM Rev. 31; GTH and block elimination: Stewart 1994,
-    "Introduction to the Numerical Solution of Markov Chains", ch. 2). The scalar steps of the block update only the
-    ``b x b`` block, its rows on ``F`` (``[b, |F|]``) and its columns on ``F`` (``[|F|, b]``), each by the rank-one
-    term of the scalar algorithm, so these hold exactly the scalar algorithm's numbers (sums of non-negative terms,
-    bounded like them); the ``F x F`` part only receives, and the block's ``b`` rank-one updates of it are summed as
-    one product ``col[F] row[F]`` (``[|F|, b] x [b, |F|]``) at matrix-multiply speed, where the scalar steps made ``S``
-    sequential memory-bound passes over the whole matrix. (Carrying ``b x b`` coefficient matrices instead of the
-    panels, products of up to ``b`` factors ``1 / s_k``, overflows float32 on chains that drift towards higher
-    positions: RiverSwim's optimal chain.) The blocks run in ``stages`` loops, each on the leading window that its
-    blocks still touch (an equal share of the blocks each; 4 stages do about half the flops of one window of size
-    ``S``). ``M`` is padded at the end to whole blocks with zero rows and columns, which eliminate to nothing.
-    Products use ``Precision.HIGHEST`` (no reduced-precision float32 products on GPUs). ``O(S^3)`` flops, ``S``
-    sequential steps on ``b x |F|`` panels.
-    """
-    if block < 1 or stages < 1:
-        raise ValueError(f"block and stages must be at least 1, got block={block}, stages={stages}")
-    S = M.shape[0]
-    b = max(1, min(block, S))
-    n_blocks = -(-S // b)
-    Sp = n_blocks * b
-    M = jnp.pad(M, ((0, Sp - S), (0, Sp - S)))
-    loc = jnp.arange(b)
-    dot = functools.partial(jnp.matmul, precision=jax.lax.Precision.HIGHEST)
-
-    def step(t, small):
-        A, rows, cols, s_b = small  # block [b, b], its rows on F [b, W], its columns on F [W, b] (zero off F)
-        i = b - 1 - t
-        lower = loc < i
-        row = jnp.where(lower, A[i], 0.0)
-        s = jnp.sum(row) + jnp.sum(rows[i])
-        divisor = jnp.where(s > 0, s, 1.0)
-        col = jnp.where(lower & (s > 0), A[:, i] / divisor, 0.0)
-        col_f = jnp.where(s > 0, cols[:, i] / divisor, 0.0)
-        A = (A + jnp.outer(col, row)).at[:, i].set(jnp.where(lower, col, A[:, i]))
-        rows = rows + jnp.outer(col, rows[i])  # rows i' < i of the block, on F
-        cols = (cols + jnp.outer(col_f, row)).at[:, i].set(col_f)  # columns i' < i on F; column i normalised
-        return A, rows, cols, s_b.at[i].set(s)
-
-    def eliminate_block(W, j, carry):
-        M, scale = carry  # the leading W x W window
-        k0 = W - (j + 1) * b
-        rest = jnp.arange(W) < k0
-        old_rows, old_cols = jax.lax.dynamic_slice(M, (k0, 0), (b, W)), jax.lax.dynamic_slice(M, (0, k0), (W, b))
-        rows, cols = jnp.where(rest[None, :], old_rows, 0.0), jnp.where(rest[:, None], old_cols, 0.0)
-        small = (jax.lax.dynamic_slice(M, (k0, k0), (b, b)), rows, cols, jnp.zeros((b,), M.dtype))
-        A, rows, cols, s_b = jax.lax.fori_loop(0, b, step, small)
-        M = M + dot(cols, rows)  # only F x F: rows and cols vanish outside F
-        M = jax.lax.dynamic_update_slice(M, jnp.where(rest[None, :], rows, old_rows), (k0, 0))
-        M = jax.lax.dynamic_update_slice(M, jnp.where(rest[:, None], cols, old_cols), (0, k0))
-        M = jax.lax.dynamic_update_slice(M, A, (k0, k0))
-        return M, jax.lax.dynamic_update_slice(scale, s_b, (k0,))
-
-    scale = jnp.zeros((Sp,), M.dtype)
-    first = 0
-    for q in range(min(stages, n_blocks)):
-        last = round(n_blocks * (q + 1) / min(stages, n_blocks))
-        W = Sp - first * b  # the blocks first..last-1 only touch positions < W
-        window = jax.lax.fori_loop(0, last - first, functools.partial(eliminate_block, W), (M[:W, :W], scale[:W]))
-        M, scale, first = M.at[:W, :W].set(window[0]), scale.at[:W].set(window[1]), last
-    return M[:S, :S], scale[:S]
-
-
-@compiled("block")
-def chain_gain(P: jax.Array, r: jax.Array, reach: jax.Array | None = None, block: int = GTH_BLOCK) -> jax.Array:
+@compiled("block", "bandwidth")
+def chain_gain(
+    P: jax.Array,
+    r: jax.Array,
+    reach: jax.Array | None = None,
+    block: int = GTH_BLOCK,
+    order: jax.Array | None = None,
+    bandwidth: int | None = None,
+) -> jax.Array:
     """Long-run average reward ``g = P* r`` of a Markov chain from every state (``P*`` the Cesàro limit).
 
-    Uses Grassmann-Taksar-Heyman elimination (:func:`_gth_eliminate`, blocked: ``block`` states at a time, the
-    trailing updates as matrix products), which only adds non-negative numbers and so stays accurate however slowly
-    the chain mixes (a linear solve with ``I - P`` loses digits in proportion to the mixing time). States are ordered
-    recurrent first and transient last; eliminating from the last position down, a recurrent state with no mass left
-    towards lower positions is the root of its class. Back-substitution gives every class's stationary distribution
-    (hence its gain; each class is renormalised on the fly to stay inside the floating-point range), and transient
-    states average the gains they are absorbed into. ``O(S^3)`` plus the reachability of :func:`recurrent_classes`
-    (or none, given ``reach``: ``P``'s reflexive-transitive reachability as there); handles periodic and multichain
-    matrices. ``block = 1`` is the scalar elimination (larger blocks sum the same terms in another order).
+    Uses Grassmann-Taksar-Heyman elimination (:func:`jaxmdp.gth.gth_eliminate`, blocked: ``block`` states at a time,
+    the trailing updates as matrix products), which only adds non-negative numbers and so stays accurate however
+    slowly the chain mixes (a linear solve with ``I - P`` loses digits in proportion to the mixing time). States are
+    ordered recurrent first and transient last; eliminating from the last position down, a recurrent state with no
+    mass left towards lower positions is the root of its class. Back-substitution gives every class's stationary
+    distribution (hence its gain; each class is renormalised on the fly to stay inside the floating-point range), and
+    transient states average the gains they are absorbed into. ``O(S^3)`` plus the reachability of
+    :func:`recurrent_classes` (or none, given ``reach``: ``P``'s reflexive-transitive reachability as there); handles
+    periodic and multichain matrices. ``block = 1`` is the scalar elimination (larger blocks sum the same terms in
+    another order).
+
+    Banded (``order``, ``[S]``, a permutation of the states, and a static ``bandwidth``, e.g. from
+    :func:`jaxmdp.gth.band_order`): the recurrent states come first and the transient ones last, each in ``order``'s
+    order, and a transient state's mass into the recurrent states is one "absorbed" number (no recurrent state leads
+    to a transient one). If then every transition joins positions at most ``bandwidth`` apart (checked, ``O(S^2)``),
+    both parts are eliminated in one banded pass (:func:`jaxmdp.gth.gth_eliminate_banded`, ``O(S w^2)``), and a
+    transient state's gain adds ``c_k``, the recurrent gains it moves to, carried down the elimination like its
+    absorbed mass. Otherwise the dense elimination runs (a ``lax.cond``: use it per chain, not under ``vmap``).
     """
+    if (order is None) != (bandwidth is None):
+        raise ValueError("order and bandwidth go together: give both (jaxmdp.gth.band_order) or neither")
+    S = P.shape[0]
+    recurrent, same_class = recurrent_classes(P, reach)
+    perm = _recurrent_first(jnp.arange(S) if order is None else order, recurrent)
+    Pp, rec = P[perm][:, perm], recurrent[perm]
+    args = (Pp, r[perm], rec, jnp.argmax(same_class, axis=1)[perm])
+    if order is None:
+        g = _gain_after_elimination(*args, block, None)
+    else:
+        fits = gth_bandwidth(jnp.where(~rec[:, None] & rec[None, :], 0.0, Pp)) <= bandwidth
+        g = jax.lax.cond(
+            fits, lambda: _gain_after_elimination(*args, BAND_BLOCK, bandwidth),
+            lambda: _gain_after_elimination(*args, block, None),
+        )
+    return jnp.zeros((S,), P.dtype).at[perm].set(g)
+
+
+def _recurrent_first(order: jax.Array, recurrent: jax.Array) -> jax.Array:
+    """``order`` with its recurrent states first and its transient ones last, each in ``order``'s order."""
+    return order[jnp.argsort(~recurrent[order], stable=True)]
+
+
+def _window(x: jax.Array, k: jax.Array, width: int) -> tuple[jax.Array, jax.Array]:
+    """The ``width`` entries of ``x`` (leading axis) from position ``max(k - width, 0)`` and a mask of those below
+    ``k``: every position in ``[k - width, k)`` is among them."""
+    start = jnp.maximum(k - width, 0)
+    return jax.lax.dynamic_slice_in_dim(x, start, width), start + jnp.arange(width) < k
+
+
+def _gain_after_elimination(
+    P: jax.Array, r: jax.Array, rec: jax.Array, label: jax.Array, block: int, bandwidth: int | None
+) -> jax.Array:
+    """:func:`chain_gain` of a chain whose recurrent states (``rec``) come first; ``label`` is the same for the states
+    of a recurrent class. Banded (:func:`jaxmdp.gth.gth_eliminate_banded`) when ``bandwidth`` is given: then every
+    transition other than from a transient to a recurrent state must join positions at most ``bandwidth`` apart.
+
+    Back-substitution reads only the ``w`` positions below each state (``w`` the bandwidth, else ``S``). The
+    stationary masses can span more than float32's range within a class (ratios of 1e46 on a 50-state chain), so each
+    is kept as a mantissa and a power-of-two exponent (``frexp``): a new mass sums its terms scaled by the largest
+    term's power of two, and a class's masses are brought to its largest exponent before its gain is taken (scaling by
+    a power of two is exact)."""
     S = P.shape[0]
     dtype = P.dtype
-    recurrent, same_class = recurrent_classes(P, reach)
-    perm = jnp.argsort(~recurrent, stable=True)
-    rp, rec, Kp = r[perm], recurrent[perm], same_class[perm][:, perm].astype(dtype)
-    pos = jnp.arange(S)
-    M, scale = _gth_eliminate(P[perm][:, perm], block)
+    W = S if bandwidth is None else min(max(bandwidth, 1), S)
+    if bandwidth is None:
+        M, scale = gth_eliminate(P, block)
+        c = jnp.zeros((S,), dtype)  # the rows keep their recurrent columns
+    else:
+        into = ~rec[:, None] & rec[None, :]  # a transient state's moves into the recurrent ones: one absorbed mass
+        M, scale = gth_eliminate_banded(jnp.where(into, 0.0, P), jnp.sum(jnp.where(into, P, 0.0), axis=1), bandwidth,
+                                        block)
     root = rec & (scale == 0)
+    lowest = jnp.iinfo(jnp.int32).min
 
-    def stationary(k, pi):
-        # Unnormalised masses can span more than float32's range (ratios of 1e46 on a 50-state chain), so each class
-        # is rescaled as soon as its newest entry exceeds one.
-        val = jnp.where(root[k], 1.0, jnp.where(rec[k], pi @ jnp.where(pos < k, M[:, k], 0.0), 0.0))
-        pi = pi.at[k].set(val)
-        return jnp.where(Kp[k] > 0, pi / jnp.maximum(val, 1.0), pi)
+    def stationary(k, me):
+        mant, expo = me
+        m, below = _window(mant, k, W)
+        e, _ = _window(expo, k, W)
+        col = jax.lax.dynamic_slice(M, (jnp.maximum(k - W, 0), k), (W, 1))[:, 0]
+        tm, te = jnp.frexp(m * col)  # each term mant * col = tm 2^te, times 2^e
+        te = jnp.where(below & (tm > 0), te + e, lowest)
+        top = jnp.max(te)
+        val = jnp.sum(jnp.where(te > lowest, jnp.ldexp(tm, te - top), 0.0))
+        vm, ve = jnp.frexp(val)
+        vm = jnp.where(root[k], 0.5, jnp.where(rec[k], vm, 0.0))
+        ve = jnp.where(root[k], 1, jnp.where(rec[k] & (val > 0), ve + top, 0))
+        return mant.at[k].set(vm), expo.at[k].set(ve)
 
-    pi = jax.lax.fori_loop(0, S, stationary, jnp.zeros((S,), dtype))
-    class_gain = (Kp @ (pi * rp)) / jnp.where(rec, Kp @ pi, 1.0)
+    mant, expo = jax.lax.fori_loop(0, S, stationary, (jnp.zeros((S,), dtype), jnp.zeros((S,), jnp.int32)))
+    # Every class's masses on its largest exponent; class sums by label.
+    mass = rec & (mant > 0)
+    top = jax.ops.segment_max(jnp.where(mass, expo, lowest), label, num_segments=S)
+    pi = jnp.where(mass, jnp.ldexp(mant, expo - top[label]), 0.0)
+    num = jax.ops.segment_sum(pi * r, label, num_segments=S)
+    den = jax.ops.segment_sum(pi, label, num_segments=S)
+    g = jnp.where(rec, num[label] / jnp.where(rec, den[label], 1.0), 0.0)
+    if bandwidth is not None:
+        # c_k: the recurrent gains that transient k moves to, passed down like its absorbed mass (c_i += col_k[i] c_k
+        # when k is eliminated, last position first).
+        def carry_down(t, c):
+            k = S - 1 - t
+            start = jnp.maximum(k - W, 0)
+            part, below = _window(c, k, W)
+            col = jax.lax.dynamic_slice(M, (start, k), (W, 1))[:, 0]
+            return jax.lax.dynamic_update_slice_in_dim(c, part + jnp.where(below, col, 0.0) * c[k], start, 0)
+
+        c = jnp.where(into, P, 0.0) @ g
+        c = jax.lax.fori_loop(0, S, carry_down, c)
 
     def absorb(k, g):
-        trans = jnp.sum(jnp.where(pos < k, M[k], 0.0) * g) / jnp.where(scale[k] > 0, scale[k], 1.0)
+        part, below = _window(g, k, W)
+        row = jax.lax.dynamic_slice(M, (k, jnp.maximum(k - W, 0)), (1, W))[0]
+        trans = (jnp.sum(jnp.where(below, row, 0.0) * part) + c[k]) / jnp.where(scale[k] > 0, scale[k], 1.0)
         return g.at[k].set(jnp.where(rec[k], g[k], trans))
 
-    g = jax.lax.fori_loop(0, S, absorb, jnp.where(rec, class_gain, 0.0))
-    return jnp.zeros((S,), dtype).at[perm].set(g)
+    return jax.lax.fori_loop(0, S, absorb, g)
 
 
 @compiled("n_squarings")
@@ -809,16 +819,80 @@ def successor_policy_matrix(succ: jax.Array, succ_p: jax.Array, pi: jax.Array) -
     return jnp.zeros((S, S), succ_p.dtype).at[jnp.arange(S)[:, None], succ.reshape(S, -1)].add(w)
 
 
-@compiled()
-def gain_vector(model: Model, pi: jax.Array, rewards: jax.Array | None = None) -> jax.Array:
-    """Long-run average reward of ``pi`` from every state: ``g = P*_pi r_pi`` (an ``[S]`` array). An
-    :class:`~jaxmdp.MDP`'s reachability comes from its successor lists (:func:`successor_reachability`: the same edges
-    ``pi(a|s) P(s'|s,a) > 0`` as the dense ``P_pi``, without its ``O(S^3 log S)`` squarings)."""
-    P = policy_matrix(model, pi)
-    reach = None
-    if isinstance(model, MDP):
-        reach = successor_reachability(model.succ, pi[:, :, None].astype(P.dtype) * model.succ_p > 0)
-    return chain_gain(P, policy_rewards(model, pi, rewards), reach)
+@compiled("bandwidth")
+def gain_vector(
+    model: Model,
+    pi: jax.Array,
+    rewards: jax.Array | None = None,
+    order: jax.Array | None = None,
+    bandwidth: int | None = None,
+) -> jax.Array:
+    """Long-run average reward of ``pi`` from every state: ``g = P*_pi r_pi`` (an ``[S]`` array; :func:`chain_gain`).
+
+    An :class:`~jaxmdp.MDP`'s reachability comes from its successor lists (:func:`successor_reachability`: the same
+    edges ``pi(a|s) P(s'|s,a) > 0`` as the dense ``P_pi``, without its ``O(S^3 log S)`` squarings). With the MDP's
+    :func:`jaxmdp.gth.band_order` (``order``, and ``bandwidth`` static) the elimination is banded (``O(S w^2)``), the
+    chain is written straight into that order from the successor lists, and a chain that is irreducible on the real
+    states (two sweeps from one real state, forwards and backwards: every real state reaches it and is reached from
+    it; padding states stay absorbing) skips the ``O(S^2)`` recurrent classes. The band is checked on the successor
+    lists, and a chain outside it is eliminated densely."""
+    if (order is None) != (bandwidth is None):
+        raise ValueError("order and bandwidth go together: give both (jaxmdp.gth.band_order) or neither")
+    r = policy_rewards(model, pi, rewards)
+    if not isinstance(model, MDP):
+        return chain_gain(policy_matrix(model, pi), r, order=order, bandwidth=bandwidth)
+    S = model.n_states
+    w = pi[:, :, None].astype(r.dtype) * model.succ_p
+    edge = w > 0
+    if order is None:
+        return chain_gain(policy_matrix(model, pi), r, successor_reachability(model.succ, edge))
+    states = jnp.arange(S)
+    real = model.state_mask
+
+    def classes():
+        recurrent, same_class = recurrent_classes(jnp.zeros((S, S), r.dtype), successor_reachability(model.succ, edge))
+        return recurrent, jnp.argmax(same_class, axis=1)
+
+    def one_class():  # the real states, and each padding state alone
+        return jnp.ones((S,), bool), jnp.where(real, jnp.argmax(real), states)
+
+    recurrent, label = jax.lax.cond(_irreducible(model.succ, edge, real), one_class, classes)
+    perm = _recurrent_first(order, recurrent)
+    pos = jnp.zeros((S,), jnp.int32).at[perm].set(states.astype(jnp.int32))
+    src = jnp.broadcast_to(pos[:, None, None], w.shape)
+    dst = pos[model.succ]
+    rec = recurrent[perm]
+    P = jnp.zeros((S, S), r.dtype).at[src, dst].add(w)
+    # Transitions outside the band, other than from a transient state into a recurrent one.
+    inside = ~edge | (jnp.abs(src - dst) <= bandwidth) | (~recurrent[:, None, None] & recurrent[model.succ])
+    args = (P, r[perm], rec, label[perm])
+    g = jax.lax.cond(
+        jnp.all(inside), lambda: _gain_after_elimination(*args, BAND_BLOCK, bandwidth),
+        lambda: _gain_after_elimination(*args, GTH_BLOCK, None),
+    )
+    return g[pos]
+
+
+def _irreducible(succ: jax.Array, edge: jax.Array, real: jax.Array) -> jax.Array:
+    """Whether the real states form one closed communicating class: every real state reaches the first real state
+    and is reached from it, along the slots ``s -> succ[s, ...]`` whose ``edge`` holds (sweeps until nothing
+    changes; no edge leaves the real states, which padding states never enter)."""
+    S = succ.shape[0]
+    succ, edge = succ.reshape(S, -1), edge.reshape(S, -1)
+    start = jnp.arange(S) == jnp.argmax(real)
+
+    def sweep(step):
+        def body(c):
+            x, _ = c
+            x2 = step(x)
+            return x2, jnp.any(x2 != x)
+
+        return jax.lax.while_loop(lambda c: c[1], body, (start, jnp.asarray(True)))[0]
+
+    reaches = sweep(lambda x: x | jnp.any(edge & x[succ], axis=1))
+    reached = sweep(lambda x: x.at[succ].max(edge & x[:, None]))
+    closed = ~jnp.any(edge & real[:, None] & ~real[succ])
+    return closed & jnp.all(~real | (reaches & reached))
 
 
 class GainBounds(struct.PyTreeNode):

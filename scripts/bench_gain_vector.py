@@ -1,12 +1,14 @@
-"""Time ``dp.gain_vector`` (the runner's dense fallback for continuous indicators) on the benchmark's largest
-continuous MDPs, against the same function at a git revision (default ``main``), in one process.
+"""Time ``dp.gain_vector`` (the runner's exact gain for continuous indicators) on the benchmark's largest
+continuous MDPs, against the same function at a git revision (default ``main``), in one process: this tree's dense
+elimination, and its banded one on the MDP's ``jaxmdp.gth.band_order`` (what the runner uses on a CPU).
 
 For each MDP (``hardness.benchmark`` "continuous ergodic", seed 0) and each policy (a random deterministic one,
 the gain-optimal one from ``dp.optimal_gain``, and that one with a fraction of its states' actions redrawn at random,
 as a partly learnt Q-learning policy would be), both versions are compiled once and then called in alternation,
 ``--repeats`` times each; the best wall and the best process CPU time of each are reported, with the largest relative
 difference of the two gain vectors (over the largest gain). Under load the best-of times, the CPU times and their
-ratios are what to read (docs/benchmarks/continuous_indicators.md). ``--compile`` also reports each version's
+ratios are what to read (docs/benchmarks/continuous_indicators.md); the ratio columns are the baseline's time over
+this tree's banded one. ``--compile`` also reports each version's
 compile seconds (one ``jit(...).lower(...).compile()`` each, on the first MDP). ``--eliminate 32,1 32,4`` times
 the blocked elimination alone at those ``block,stages`` settings instead.
 
@@ -27,6 +29,7 @@ import numpy as np
 from hardness.benchmark import sets
 from baseline_module import load_revision  # scripts/ is on the path of a script run as python scripts/NAME.py
 from jaxmdp import dynamic_programming as dp
+from jaxmdp import gth
 
 
 def policies(mdp, rng: np.random.Generator, redrawn: float) -> dict[str, jax.Array]:
@@ -61,7 +64,7 @@ def eliminate_settings(args: argparse.Namespace) -> None:
         for setting in args.eliminate:
             block, stages = (int(x) for x in setting.split(","))
             t = time.perf_counter()
-            f = jax.jit(lambda P, block=block, stages=stages: dp._gth_eliminate(P, block, stages)).lower(P).compile()
+            f = jax.jit(lambda P, block=block, stages=stages: gth.gth_eliminate(P, block, stages)).lower(P).compile()
             compile_s = time.perf_counter() - t
             (wall, cpu), = best_times({setting: f}, (P,), args.repeats).values()
             print(f"| {label} | {mdp.n_states} | {block} | {stages} | {compile_s:.2f} | {wall:.4f} | {cpu:.4f} |",
@@ -78,7 +81,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--redrawn", type=float, default=0.2, help="fraction of redrawn actions (%(default)s)")
     p.add_argument("--compile", action="store_true", help="also time each version's compilation")
     p.add_argument("--eliminate", nargs="*", default=[], metavar="BLOCK,STAGES",
-                   help="only time dp._gth_eliminate on each MDP's random policy matrix at these settings "
+                   help="only time jaxmdp.gth.gth_eliminate on each MDP's random policy matrix at these settings "
                         "(compile and best CPU seconds), e.g. 32,1 32,4 32,8")
     args = p.parse_args(argv)
     jax.config.update("jax_enable_compilation_cache", False)  # compile times are of real compilations
@@ -86,14 +89,21 @@ def main(argv: list[str] | None = None) -> None:
         eliminate_settings(args)
         return
     base = load_revision(args.baseline, "jaxmdp/dynamic_programming.py", "baseline_dynamic_programming")
-    fns = {args.baseline: jax.jit(base.gain_vector), "this tree": jax.jit(dp.gain_vector)}
     instances = {inst.label: inst for inst in sets.instances(args.set)}
     rng = np.random.default_rng(0)
-    print(f"| MDP | S | policy | {args.baseline} wall s | this tree wall s | ratio | {args.baseline} CPU s | "
-          "this tree CPU s | ratio | max rel. diff |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    names = (args.baseline, "dense", "banded")
+    print("| MDP | S | bandwidth | policy | " + " | ".join(f"{k} wall s" for k in names) + " | ratio | "
+          + " | ".join(f"{k} CPU s" for k in names) + " | ratio | max rel. diff |")
+    print("|---" * (2 * len(names) + 7) + "|")
     for q, label in enumerate(args.labels):
-        mdp = instances[label].build(0)
+        mdp = instances[label].build(0).strip()
+        order, width = gth.band_order(mdp)
+        order = jnp.asarray(order)
+        fns = {
+            args.baseline: jax.jit(lambda m, pi: base.gain_vector(m, pi)),
+            "dense": jax.jit(lambda m, pi: dp.gain_vector(m, pi)),
+            "banded": jax.jit(lambda m, pi, width=width: dp.gain_vector(m, pi, order=order, bandwidth=width)),
+        }
         if args.compile and q == 0:
             pi = jax.nn.one_hot(jnp.zeros(mdp.n_states, int), mdp.n_actions, dtype=mdp.R.dtype)
             for k, f in fns.items():
@@ -103,11 +113,13 @@ def main(argv: list[str] | None = None) -> None:
         for name, pi in policies(mdp, rng, args.redrawn).items():
             out = {k: np.asarray(f(mdp, pi)) for k, f in fns.items()}  # compiles
             times = best_times(fns, (mdp, pi), args.repeats)
-            a, b = out[args.baseline], out["this tree"]
+            a, b = out[args.baseline], out["banded"]
             diff = float(np.max(np.abs(a - b)) / np.max(np.abs(a)))
-            (t0, c0), (t1, c1) = times[args.baseline], times["this tree"]
-            print(f"| {label} | {mdp.n_states} | {name} | {t0:.4f} | {t1:.4f} | {t0 / t1:.1f} | {c0:.4f} | {c1:.4f} | "
-                  f"{c0 / c1:.1f} | {diff:.1e} |", flush=True)
+            walls = [times[k][0] for k in names]
+            cpus = [times[k][1] for k in names]
+            print(f"| {label} | {mdp.n_states} | {width} | {name} | " + " | ".join(f"{t:.4f}" for t in walls)
+                  + f" | {walls[0] / walls[2]:.1f} | " + " | ".join(f"{t:.4f}" for t in cpus)
+                  + f" | {cpus[0] / cpus[2]:.1f} | {diff:.1e} |", flush=True)
 
 
 if __name__ == "__main__":

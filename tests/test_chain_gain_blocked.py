@@ -11,6 +11,7 @@ import scipy.linalg
 
 import numpy_reference as ref
 from jaxmdp import dynamic_programming as dp
+from jaxmdp import gth
 
 
 def _normalise(P):
@@ -104,7 +105,7 @@ def chain(kind, S, seed):
 TOL = 1e-6
 
 chain_gain = jax.jit(dp.chain_gain, static_argnames="block")
-eliminate = jax.jit(dp._gth_eliminate, static_argnames=("block", "stages"))
+eliminate = jax.jit(gth.gth_eliminate, static_argnames=("block", "stages"))
 
 
 def test_reference_gain_matches_the_null_space():

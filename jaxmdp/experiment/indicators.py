@@ -94,6 +94,8 @@ class IndicatorConstants(struct.PyTreeNode):
     ``optimal``, ``worst``, ``random``: per-step expected reward of the optimal, worst and uniformly random policies
     (continuous: gains from ``P0``; episodic: ``sum_s P0(s) V_0(s) / H``). ``optimal_start_values`` and
     ``worst_start_values``: ``V*_0`` and ``V^-_0`` of every state (episodic; gains of those policies when continuous).
+    ``state_order``: the MDP's :func:`jaxmdp.gth.band_order` for the banded exact gain of :func:`policy_values`
+    (continuous; the runner sets it on a CPU), or ``None``.
     """
 
     optimal: jax.Array
@@ -101,6 +103,7 @@ class IndicatorConstants(struct.PyTreeNode):
     random: jax.Array
     optimal_start_values: jax.Array
     worst_start_values: jax.Array
+    state_order: jax.Array | None = None
 
 
 class Instant(struct.PyTreeNode):
@@ -155,6 +158,8 @@ def policy_values(
     iterative_sweeps: int = 0,
     rows: jax.Array | None = None,
     member: jax.Array | None = None,
+    order: jax.Array | None = None,
+    bandwidth: int | None = None,
 ) -> jax.Array:
     """The expensive half of an indicator: ``V^pi_0(s)`` for every state (episodic, finite-horizon evaluation on the
     successor lists) or the gain ``rho^pi(s)`` from every state (continuous), ``[S]``.
@@ -171,7 +176,8 @@ def policy_values(
     policy); continuous, the certified bounds sweep the chosen actions' successor slots only (``K`` a state instead
     of ``A K``) and the dense fallback takes its one-hot policy. ``rows`` and ``member`` (episodic action indices
     only, else ignored): a stacked MDP's :func:`~jaxmdp.dynamic_programming.successor_rows` and this MDP's index in
-    it, read instead of the MDP's own rows (see that function)."""
+    it, read instead of the MDP's own rows (see that function). ``order`` and ``bandwidth`` (static): the MDP's
+    :func:`jaxmdp.gth.band_order`, for the banded elimination of the dense fallback (continuous; ``O(S w^2)``)."""
     integer = jnp.issubdtype(policy.dtype, jnp.integer)
     if integer and mdp.episodic:
         actions = policy if policy.ndim == 2 else jnp.broadcast_to(policy, (mdp.H, *policy.shape))
@@ -180,7 +186,8 @@ def policy_values(
         return dp.finite_horizon_start_values(mdp, policy)
 
     def dense() -> jax.Array:
-        return dp.gain_vector(mdp, jax.nn.one_hot(policy, mdp.n_actions, dtype=mdp.R.dtype) if integer else policy)
+        pi = jax.nn.one_hot(policy, mdp.n_actions, dtype=mdp.R.dtype) if integer else policy
+        return dp.gain_vector(mdp, pi, order=order, bandwidth=bandwidth)
 
     if iterative_sweeps <= 0:
         return dense()

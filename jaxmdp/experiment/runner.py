@@ -53,6 +53,7 @@ from flax import struct
 
 from jaxmdp import dynamic_programming as dp
 from jaxmdp import env
+from jaxmdp.gth import band_order
 from jaxmdp._checks import VARIANTS, Variant, check_int, check_variant
 from jaxmdp.experiment.agent_interface import Agent, Transition, spec_of, where_due
 from jaxmdp.experiment.checkpoints import fingerprint, load_checkpoint, save_checkpoint
@@ -152,7 +153,7 @@ def _plan_keys(key_data: jax.Array, t: jax.Array) -> jax.Array:
 
 def _evaluate_changed(
     dyn: MDP, mdp_index: jax.Array, policy: jax.Array, changed: jax.Array, cache: jax.Array,
-    rows: jax.Array | None = None,
+    rows: jax.Array | None = None, orders: jax.Array | None = None, bandwidth: int | None = None,
 ) -> jax.Array:
     """:func:`policy_values` of the members whose policy ``changed``, ``cache`` for the others.
 
@@ -174,6 +175,9 @@ def _evaluate_changed(
     cost 35 times more on Taxi (960 against 27 us an evaluation): the while loops then run as long as the slowest
     member, 128 sweeps whenever one member of the shard does not certify. Elsewhere (GPU) the members stay in
     lockstep with the dense solve.
+
+    ``orders`` (``[B, S]``) and ``bandwidth`` (static): each member's :func:`jaxmdp.gth.band_order`, for the banded
+    elimination of the member-by-member dense solve (:func:`_band`).
     """
     dtype = cache.dtype
 
@@ -184,11 +188,15 @@ def _evaluate_changed(
         return jnp.where(changed[:, None], values.astype(dtype), cache)
 
     def one(args):
-        i, p, ch, old = args
-        evaluate = lambda: policy_values(member_mdp(dyn, i), p, ITERATIVE_GAIN_SWEEPS).astype(dtype)  # noqa: E731
+        i, p, ch, old, order = args
+
+        def evaluate():
+            band = {} if orders is None else dict(order=order, bandwidth=bandwidth)
+            return policy_values(member_mdp(dyn, i), p, ITERATIVE_GAIN_SWEEPS, **band).astype(dtype)
+
         return jax.lax.cond(ch, evaluate, lambda: old)
 
-    return jax.lax.map(one, (mdp_index, policy, changed, cache))
+    return jax.lax.map(one, (mdp_index, policy, changed, cache, mdp_index if orders is None else orders))
 
 
 def _policy_of(agent: Agent) -> Callable:
@@ -255,9 +263,12 @@ def _chunk_program(
     carry_treedef: Any,
     record_visits: bool = False,
     plan_slots: int | None = None,
+    bandwidth: int | None = None,
 ) -> Callable:
     """``chunk(carry, mdps, mdp_index, consts, schedule, n) -> (carry, steps[capacity], values[capacity, B, 4],
     n_written)``: ``n`` more steps (traced), recording at most ``capacity`` snapshots.
+
+    ``bandwidth``: the members' band orders' (``consts.state_order``, :func:`_band`), for the banded exact gains.
 
     With ``n_shards > 1`` the members are split over that many local devices with ``shard_map``; each shard runs its
     own loop (its own "some member needs to plan" predicate), so shards never communicate. A grid whose stacked MDPs
@@ -350,7 +361,7 @@ def _chunk_program(
 
             def evaluate(cache: jax.Array) -> jax.Array:
                 current = jax.vmap(_policy_of(agent))(c.agent_state) if agent.fixed_policy else policy
-                return _evaluate_changed(dyn, mdp_index, current, changed, cache, rows)
+                return _evaluate_changed(dyn, mdp_index, current, changed, cache, rows, consts.state_order, bandwidth)
 
             values = jax.lax.cond(jnp.any(changed), evaluate, lambda cache: cache, c.value_cache)
             inst = jax.vmap(lambda i, k, v, s, s0: instant_from_values(member_mdp(dyn, i), k, v, s, s0, variant))(
@@ -619,6 +630,20 @@ def _validated_settings(
     )
 
 
+def _band(mdps: MDP | BlockMDP, mdp_index: np.ndarray) -> tuple[jax.Array | None, int | None]:
+    """Each member's band order (``[B, S]``) and their bandwidth (:func:`jaxmdp.gth.band_order`, host side) when the
+    exact continuous gains are taken member by member (a CPU) and the band is under half the states; else ``(None,
+    None)``: under ``vmap`` (GPU) the banded and dense eliminations would both run."""
+    dyn = dynamics(mdps)
+    if dyn.episodic or jax.default_backend() != "cpu":
+        return None, None
+    order, width = band_order(dyn)
+    if 2 * width >= dyn.n_states:
+        return None, None
+    order = order.reshape(-1, dyn.n_states)
+    return jax.device_put(order[np.asarray(mdp_index) if len(order) > 1 else np.zeros(len(mdp_index), int)]), width
+
+
 def _compile(agent: Agent, grid: Grid, settings: _Settings) -> _Program:
     """Compute the indicator constants and compile the initialisation and chunk programs (timed together); raise
     :class:`~jaxmdp.experiment.memory.ProgramTooLarge` before anything runs if one of them would not fit in memory."""
@@ -634,6 +659,8 @@ def _compile(agent: Agent, grid: Grid, settings: _Settings) -> _Program:
     )
     t0 = time.perf_counter()
     consts = _constants_program(settings.variant)(mdps, mdp_index)
+    orders, bandwidth = _band(mdps, grid.mdp_index)
+    consts = consts.replace(state_order=orders)
     init_jit = _init_program(agent, settings.record_visits)
     init_fn = init_jit.lower(mdps, mdp_index, hparams, key_data, sched.n_steps).compile()
     carry_shape = jax.eval_shape(init_jit, mdps, mdp_index, hparams, key_data, sched.n_steps)
@@ -641,7 +668,7 @@ def _compile(agent: Agent, grid: Grid, settings: _Settings) -> _Program:
     carry_layout = (treedef, tuple(x.ndim for x in leaves))
     chunk_fn = _chunk_program(
         agent, settings.variant, settings.capacity, settings.n_shards, carry_layout, settings.record_visits,
-        settings.plan_slots,
+        settings.plan_slots, bandwidth,
     )
     chunk_exe = chunk_fn.lower(carry_shape, mdps, mdp_index, consts, sched, jnp.int32(0)).compile()
     jax.block_until_ready(consts)
