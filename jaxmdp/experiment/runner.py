@@ -630,12 +630,19 @@ def _validated_settings(
     )
 
 
+#: Fewest states for which the runner eliminates on a band (:func:`_band`). Below it the dense elimination costs about
+#: the same (continuous RiverSwim, 30 states: 0.18 against 0.19 ms an evaluation; 80 states: 1.0 against 0.37 ms),
+#: and a banded fallback costs 0.5-0.9 s more to compile per runner (docs/benchmarks/continuous_indicators.md).
+BAND_MIN_STATES = 64
+
+
 def _band(mdps: MDP | BlockMDP, mdp_index: np.ndarray) -> tuple[jax.Array | None, int | None]:
     """Each member's band order (``[B, S]``) and their bandwidth (:func:`jaxmdp.gth.band_order`, host side) when the
-    exact continuous gains are taken member by member (a CPU) and the band is under half the states; else ``(None,
-    None)``: under ``vmap`` (GPU) the banded and dense eliminations would both run."""
+    exact continuous gains are taken member by member (a CPU), the MDPs have at least :data:`BAND_MIN_STATES` states
+    and the band is under half of them; else ``(None, None)``: under ``vmap`` (GPU) the banded and dense eliminations
+    would both run."""
     dyn = dynamics(mdps)
-    if dyn.episodic or jax.default_backend() != "cpu":
+    if dyn.episodic or jax.default_backend() != "cpu" or dyn.n_states < BAND_MIN_STATES:
         return None, None
     order, width = band_order(dyn)
     if 2 * width >= dyn.n_states:
