@@ -850,7 +850,7 @@ def gain_vector(
     real = model.state_mask
 
     def classes():
-        recurrent, same_class = recurrent_classes(jnp.zeros((S, S), r.dtype), successor_reachability(model.succ, edge))
+        recurrent, same_class = _classes_from_reach(successor_reachability(model.succ, edge))
         return recurrent, jnp.argmax(same_class, axis=1)
 
     def one_class():  # the real states, and each padding state alone
@@ -863,7 +863,7 @@ def gain_vector(
     dst = pos[model.succ]
     rec = recurrent[perm]
     P = jnp.zeros((S, S), r.dtype).at[src, dst].add(w)
-    # Transitions outside the band, other than from a transient state into a recurrent one.
+    # Every transition within the band, but for a transient state's moves into recurrent ones (its absorbed mass).
     inside = ~edge | (jnp.abs(src - dst) <= bandwidth) | (~recurrent[:, None, None] & recurrent[model.succ])
     args = (P, r[perm], rec, label[perm])
     g = jax.lax.cond(
@@ -874,9 +874,10 @@ def gain_vector(
 
 
 def _irreducible(succ: jax.Array, edge: jax.Array, real: jax.Array) -> jax.Array:
-    """Whether the real states form one closed communicating class: every real state reaches the first real state
-    and is reached from it, along the slots ``s -> succ[s, ...]`` whose ``edge`` holds (sweeps until nothing
-    changes; no edge leaves the real states, which padding states never enter)."""
+    """Whether the real states form one closed communicating class and every padding state is absorbing (the chain's
+    classes are then the real states and each padding state alone): every real state reaches the first real state and
+    is reached from it along the slots ``s -> succ[s, ...]`` whose ``edge`` holds (sweeps until nothing changes), no
+    edge leaves the real states, and a padding state's edges lead to itself."""
     S = succ.shape[0]
     succ, edge = succ.reshape(S, -1), edge.reshape(S, -1)
     start = jnp.arange(S) == jnp.argmax(real)
@@ -892,6 +893,7 @@ def _irreducible(succ: jax.Array, edge: jax.Array, real: jax.Array) -> jax.Array
     reaches = sweep(lambda x: x | jnp.any(edge & x[succ], axis=1))
     reached = sweep(lambda x: x.at[succ].max(edge & x[:, None]))
     closed = ~jnp.any(edge & real[:, None] & ~real[succ])
+    closed &= ~jnp.any(edge & ~real[:, None] & (succ != jnp.arange(S)[:, None]))
     return closed & jnp.all(~real | (reaches & reached))
 
 

@@ -210,7 +210,8 @@ def _irreducible_numpy(succ, edge, real):
     reach = ref.reachability(adj.astype(float))
     x = int(np.argmax(real))
     leaves = np.any(adj[real][:, ~real])
-    return bool(not leaves and np.all(reach[real, x]) and np.all(reach[x, real]))
+    padding_moves = np.any(adj[~real] & ~np.eye(S, dtype=bool)[~real])
+    return bool(not leaves and not padding_moves and np.all(reach[real, x]) and np.all(reach[x, real]))
 
 
 def test_irreducible_matches_the_closure():
@@ -225,6 +226,8 @@ def test_irreducible_matches_the_closure():
         if trial % 3 == 0:  # a ring over the real states: irreducible unless an edge leaves them
             n = int(real.sum())
             succ[:n, 0], edge[:n, 0] = (np.arange(n) + 1) % n, True
+            if trial % 2 == 0:  # absorbing padding states
+                succ[n:] = np.arange(n, S)[:, None]
         want = _irreducible_numpy(succ, edge, real)
         seen.add(want)
         assert bool(f(jnp.asarray(succ), jnp.asarray(edge), jnp.asarray(real))) == want, (succ, edge, real)
