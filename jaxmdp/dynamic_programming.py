@@ -714,6 +714,11 @@ def _window(x: jax.Array, k: jax.Array, width: int) -> tuple[jax.Array, jax.Arra
     return jax.lax.dynamic_slice_in_dim(x, start, width), start + jnp.arange(width) < k
 
 
+def _column_window(M: jax.Array, k: jax.Array, width: int) -> jax.Array:
+    """Column ``k`` of ``M`` at the rows of :func:`_window`."""
+    return jax.lax.dynamic_slice(M, (jnp.maximum(k - width, 0), k), (width, 1))[:, 0]
+
+
 def _gain_after_elimination(
     P: jax.Array, r: jax.Array, rec: jax.Array, label: jax.Array, block: int, bandwidth: int | None
 ) -> jax.Array:
@@ -743,7 +748,7 @@ def _gain_after_elimination(
         mant, expo = me
         m, below = _window(mant, k, W)
         e, _ = _window(expo, k, W)
-        col = jax.lax.dynamic_slice(M, (jnp.maximum(k - W, 0), k), (W, 1))[:, 0]
+        col = _column_window(M, k, W)
         tm, te = jnp.frexp(m * col)  # each term mant * col = tm 2^te, times 2^e
         te = jnp.where(below & (tm > 0), te + e, lowest)
         top = jnp.max(te)
@@ -768,7 +773,7 @@ def _gain_after_elimination(
             k = S - 1 - t
             start = jnp.maximum(k - W, 0)
             part, below = _window(c, k, W)
-            col = jax.lax.dynamic_slice(M, (start, k), (W, 1))[:, 0]
+            col = _column_window(M, k, W)
             return jax.lax.dynamic_update_slice_in_dim(c, part + jnp.where(below, col, 0.0) * c[k], start, 0)
 
         c = jnp.where(into, P, 0.0) @ g
@@ -862,7 +867,7 @@ def gain_vector(
     src = jnp.broadcast_to(pos[:, None, None], w.shape)
     dst = pos[model.succ]
     rec = recurrent[perm]
-    P = jnp.zeros((S, S), r.dtype).at[src, dst].add(w)
+    P = successor_policy_matrix(dst[perm], model.succ_p[perm], pi[perm].astype(r.dtype))  # row i: state perm[i]
     # Every transition within the band, but for a transient state's moves into recurrent ones (its absorbed mass).
     inside = ~edge | (jnp.abs(src - dst) <= bandwidth) | (~recurrent[:, None, None] & recurrent[model.succ])
     args = (P, r[perm], rec, label[perm])
