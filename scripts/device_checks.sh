@@ -7,9 +7,9 @@
 #   SMALL=1 PY=.venv/bin/python OUT=/tmp/dc bash scripts/device_checks.sh   # a few-minute dry run on a CPU
 #   PARTS="env agents" bash scripts/device_checks.sh   # only some parts (after info, which always runs)
 #
-# Parts, in the order they run (PARTS, default "hlo split beta buckets", what the H200 lease could not finish: see
-# docs/benchmarks/gpu_h200.md, "What to do with the next GPU lease"; the H100 lease ran "env agents hardness wall",
-# docs/benchmarks/gpu_h100.md):
+# Parts, in the order they run (PARTS, default "hlo split splitc": the costs per step that the extrapolation to the
+# full benchmark on a GPU still lacks; the first H200 lease ran "split beta buckets deep", docs/benchmarks/gpu_h200.md,
+# the H100 lease "env agents hardness wall", docs/benchmarks/gpu_h100.md):
 #   env, agents, hardness: bench_env, bench_agents --ratio, bench_hardness;
 #   wall: the largest bucket of every tabular agent of the two ergodic settings, 500 steps (benchmark_wall_time.py);
 #   hlo: the optimised programs of episodic Q-learning's and the random agent's largest batch (XLA's dump, 100 steps),
@@ -17,13 +17,13 @@
 #   split: the largest bucket of SPLIT_AGENTS (default episodic PSRL; episodic ergodic) at 500 and 5 000 steps and of
 #     UCRL2 (continuous ergodic) at 500 and 2 000 steps (benchmark_wall_time.py --steps N1 N2 --scaling
 #     lockstep-step): the difference of the two runs is the cost of a step without the fixed cost of a call;
+#   splitc: as split, for continuous Q-learning, the random agent and PSRL (continuous ergodic, 500 and 2 000 steps);
 #   beta: the step's Beta draw with 1, 2 or 3 rounds before its loop (bench_beta_rounds.py), BETA_MEMBERS members;
 #   buckets: episodic Q-learning on all 20 episodic ergodic MDPs in one batch (--buckets 1, 400 members) against the
 #     default 4 buckets, 2 000 steps (each part's limit also holds the process start, the report's hardness measures
 #     and the compiles, about 25-35 s on the H200);
 #   deep: DQN on two continuous ergodic MDPs (RiverSwim (1), SimpleGrid (1)) through StateInfo, 2 000 steps, 20 seeds.
-# The default parts' limits add up to 560 s (the device's per-call limit is 600 s): run it with timeout_s=600, which
-# leaves time for a slow start.
+# The default parts' limits add up to 545 s (the device's per-call limit is 600 s): run it with timeout_s=600.
 # Each part's log goes to results/device/logs/; after every part the logs and results (without checkpoints) are packed
 # into $OUT/results.tgz, so a call stopped at its limit still brings back what finished (the device returns at most 8
 # files, so the logs travel packed).
@@ -81,7 +81,7 @@ print(\"smoke run ok\", r.column(\"normalized_cumulative_regret\")[-1])
 '" || { echo "smoke failed"; exit 1; }
 grep -q "smoke run ok" results/device/logs/info.log || { echo "smoke failed: see info.log"; exit 1; }
 
-want() { [[ " ${PARTS:-hlo split beta buckets} " == *" $1 "* ]]; }
+want() { [[ " ${PARTS:-hlo split splitc} " == *" $1 "* ]]; }
 
 want env && part env 90 $PY scripts/bench_env.py --quick --envs $ENVS --out results/device/env \
     --doc results/device/env/bench_env.md
@@ -107,6 +107,12 @@ if want split; then
     part split_ucrl2 150 $PY scripts/benchmark_wall_time.py --out results/device/split_c --which largest \
         --seeds $WALL_SEEDS --steps $SPLIT_STEPS_UCRL2 --scaling lockstep-step --measure "continuous ergodic" \
         --agents ucrl2
+fi
+if want splitc; then
+    # The continuous agents the H200 lease did not measure: Q-learning, the random agent and PSRL, largest bucket.
+    part split_continuous 200 $PY scripts/benchmark_wall_time.py --out results/device/split_cc --which largest \
+        --seeds $WALL_SEEDS --steps $SPLIT_STEPS_UCRL2 --scaling lockstep-step --measure "continuous ergodic" \
+        --agents q_learning_continuous random_continuous psrl_continuous
 fi
 want beta && part beta 60 $PY scripts/bench_beta_rounds.py --members $BETA_MEMBERS --repeats 3 \
     --doc results/device/bench_beta_rounds.md
