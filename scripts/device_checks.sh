@@ -17,7 +17,8 @@
 #   split: the largest bucket of SPLIT_AGENTS (default episodic PSRL; episodic ergodic) at 500 and 5 000 steps and of
 #     UCRL2 (continuous ergodic) at 500 and 2 000 steps (benchmark_wall_time.py --steps N1 N2 --scaling
 #     lockstep-step): the difference of the two runs is the cost of a step without the fixed cost of a call;
-#   splitc: as split, for continuous Q-learning, the random agent and PSRL (continuous ergodic, 500 and 2 000 steps);
+#   splitc: as split, for continuous Q-learning, the random agent and PSRL (continuous ergodic, 500 and 2 000 steps;
+#     SPLITC_AGENTS, SPLITC_STEPS and SPLITC_LIMIT change them);
 #   beta: the step's Beta draw with 1, 2 or 3 rounds before its loop (bench_beta_rounds.py), BETA_MEMBERS members;
 #   buckets: episodic Q-learning on all 20 episodic ergodic MDPs in one batch (--buckets 1, 400 members) against the
 #     default 4 buckets, 2 000 steps (each part's limit also holds the process start, the report's hardness measures
@@ -110,9 +111,9 @@ if want split; then
 fi
 if want splitc; then
     # The continuous agents the H200 lease did not measure: Q-learning, the random agent and PSRL, largest bucket.
-    part split_continuous 200 $PY scripts/benchmark_wall_time.py --out results/device/split_cc --which largest \
-        --seeds $WALL_SEEDS --steps $SPLIT_STEPS_UCRL2 --scaling lockstep-step --measure "continuous ergodic" \
-        --agents q_learning_continuous random_continuous psrl_continuous
+    part split_continuous "${SPLITC_LIMIT:-200}" $PY scripts/benchmark_wall_time.py --out results/device/split_cc \
+        --which largest --seeds $WALL_SEEDS --steps ${SPLITC_STEPS:-$SPLIT_STEPS_UCRL2} --scaling lockstep-step \
+        --measure "continuous ergodic" --agents ${SPLITC_AGENTS:-q_learning_continuous random_continuous psrl_continuous}
 fi
 want beta && part beta 60 $PY scripts/bench_beta_rounds.py --members $BETA_MEMBERS --repeats 3 \
     --doc results/device/bench_beta_rounds.md
