@@ -46,18 +46,33 @@ def plan_due(
     ``due`` is ``bool[B]``, ``keys`` ``[B]`` keys and ``states`` a pytree with the member axis first. Rounds of
     ``slots`` members (static): each round plans the first ``slots`` members still waiting (an empty slot repeats the
     round's first member, whose copy is dropped) and scatters their plans back; the rounds go on until none waits, so
-    the result does not depend on ``slots``. When more than half the members wait, all ``B`` are planned in one batch
+    the result does not depend on ``slots``. A round with one member waiting plans it alone (a second, one-slot copy
+    of ``plan``): late in a continuous run, where epochs end member by member, most rounds are such, and on a CPU a
+    round of 5 slots costs 4.5-11 times a round of one (PSRL continuous, 108-948 states, 2-core CPU;
+    docs/benchmarks/continuous_planning.md). When more than half the members wait, all ``B`` are planned in one batch
     instead (the result kept where due): a round has a fixed cost (the plan's loops and their dispatch: about 0.5 ms
     a round for PSRL on a CPU core, measured), so when every member's episode ends at the same step (one MDP, many
     seeds) many rounds of small plans cost more than one batch. ``whole_batch=False`` (static) always plans in
     rounds and compiles no whole-batch copy of ``plan``: for large batches, whose rounds of ``slots`` plans are at
     least as fast (a whole batch's working set leaves the caches), and for agents whose members seldom ask together.
     """
+    def plan_slots(k, st, valid):
+        if slots == 1:
+            return jax.vmap(plan)(k, st)
+
+        # A lone member waiting is planned alone, not with slots - 1 copies of itself. Only the slots' states pass
+        # through the cond: with the batch's in it, XLA copied them at every round.
+        def one(k, st):
+            lone = jax.vmap(plan)(k[:1], jax.tree.map(lambda x: x[:1], st))
+            return jax.tree.map(lambda y: jnp.broadcast_to(y, (slots,) + y.shape[1:]), lone)
+
+        return jax.lax.cond(jnp.sum(valid) == 1, one, jax.vmap(plan), k, st)
+
     def round_(carry):
         states, waiting = carry
         index, valid = compact(waiting, slots)  # empty slots hold B + s: distinct and dropped by the scatter
         take = jnp.where(valid, index, index[0])
-        planned = jax.vmap(plan)(keys[take], jax.tree.map(lambda x: x[take], states))
+        planned = plan_slots(keys[take], jax.tree.map(lambda x: x[take], states), valid)
         put = lambda x, y: x.at[index].set(y, mode="drop", unique_indices=True)  # noqa: E731
         return jax.tree.map(put, states, planned), waiting.at[index].set(False, mode="drop", unique_indices=True)
 
