@@ -27,15 +27,16 @@ def _toy_plan(key, state):
     return {"x": x * 2.0 + jax.random.uniform(key, x.shape) + n, "n": n + 1}
 
 
+@pytest.mark.parametrize("lone_rounds", [True, False])
 @pytest.mark.parametrize("whole_batch", [True, False])
 @pytest.mark.parametrize("slots", [1, 2, 3, 7])
-def test_plan_due_equals_planning_the_whole_batch(slots, whole_batch):
+def test_plan_due_equals_planning_the_whole_batch(slots, whole_batch, lone_rounds):
     B = 7
     states = {"x": jnp.arange(B * 3, dtype=jnp.float32).reshape(B, 3), "n": jnp.arange(B, dtype=jnp.int32) * 10}
     keys = jax.random.split(jax.random.key(3), B)
     patterns = [np.zeros(B, bool), np.ones(B, bool), np.eye(B, dtype=bool)[B - 1], np.eye(B, dtype=bool)[0]]
     patterns += [np.random.default_rng(i).random(B) < 0.5 for i in range(4)]
-    run = jax.jit(lambda due: plan_due(_toy_plan, slots, due, keys, states, whole_batch))
+    run = jax.jit(lambda due: plan_due(_toy_plan, slots, due, keys, states, whole_batch, lone_rounds))
     for due in patterns:
         due = jnp.asarray(due)
         want = where_due(due, jax.vmap(_toy_plan)(keys, states), states)

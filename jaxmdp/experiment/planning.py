@@ -40,24 +40,28 @@ def plan_due(
     keys: jax.Array,
     states: Any,
     whole_batch: bool = True,
+    lone_rounds: bool = True,
 ) -> Any:
     """``plan(keys[i], states[i])`` for every member ``i`` with ``due[i]``, ``states[i]`` for the others.
 
     ``due`` is ``bool[B]``, ``keys`` ``[B]`` keys and ``states`` a pytree with the member axis first. Rounds of
-    ``slots`` members (static): each round plans the first ``slots`` members still waiting (an empty slot repeats the
-    round's first member, whose copy is dropped) and scatters their plans back; the rounds go on until none waits, so
-    the result does not depend on ``slots``. A round with one member waiting plans it alone (a second, one-slot copy
-    of ``plan``): late in a continuous run, where epochs end member by member, most rounds are such, and on a CPU a
-    round of 5 slots costs 4.5-11 times a round of one (PSRL continuous, 108-948 states, 2-core CPU;
-    docs/benchmarks/continuous_planning.md). When more than half the members wait, all ``B`` are planned in one batch
-    instead (the result kept where due): a round has a fixed cost (the plan's loops and their dispatch: about 0.5 ms
-    a round for PSRL on a CPU core, measured), so when every member's episode ends at the same step (one MDP, many
-    seeds) many rounds of small plans cost more than one batch. ``whole_batch=False`` (static) always plans in
-    rounds and compiles no whole-batch copy of ``plan``: for large batches, whose rounds of ``slots`` plans are at
-    least as fast (a whole batch's working set leaves the caches), and for agents whose members seldom ask together.
+    ``slots`` members (static): each round plans the first ``slots`` members still waiting (an empty slot repeats
+    the round's first member, whose copy is dropped) and scatters their plans back; the rounds go on until none
+    waits, so the result does not depend on ``slots``. ``lone_rounds`` (static): a round with one member waiting
+    plans it alone (a second, one-slot copy of ``plan``): late in a continuous run, where epochs end member by
+    member, most rounds are such, and on a CPU a round of 5 slots costs 4.5-11 times a round of one (PSRL
+    continuous, 108-948 states, 2-core CPU; docs/benchmarks/continuous_planning.md). The runner leaves it off for
+    episodic agents, whose members of one MDP end their episodes together: there it seldom runs and costs 3-5 s more
+    compiling. When more than half the members wait, all ``B`` are planned in one batch instead (the result kept
+    where due): a round has a fixed cost (the plan's loops and their dispatch: about 0.5 ms a round for PSRL on a
+    CPU core, measured), so when every member's episode ends at the same step (one MDP, many seeds) many rounds of
+    small plans cost more than one batch. ``whole_batch=False`` (static) always plans in rounds and compiles no
+    whole-batch copy of ``plan``: for large batches, whose rounds of ``slots`` plans are at least as fast (a whole
+    batch's working set leaves the caches), and for agents whose members seldom ask together.
     """
+
     def plan_slots(k, st, valid):
-        if slots == 1:
+        if slots == 1 or not lone_rounds:
             return jax.vmap(plan)(k, st)
 
         # A lone member waiting is planned alone, not with slots - 1 copies of itself. Only the slots' states pass

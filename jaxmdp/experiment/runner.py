@@ -298,7 +298,9 @@ def _chunk_program(
                 do_plan = lambda state: where_due(needs, jax.vmap(agent.plan)(keys(), state), state)  # noqa: E731
             else:
                 whole = agent.whole_batch_plans is None or B <= agent.whole_batch_plans
-                do_plan = lambda state: plan_due(agent.plan, slots, needs, keys(), state, whole)  # noqa: E731
+                do_plan = lambda state: plan_due(  # noqa: E731
+                    agent.plan, slots, needs, keys(), state, whole, lone_rounds=not agent.episodic
+                )
             return c.replace(agent_state=jax.lax.cond(jnp.any(needs), do_plan, lambda s: s, c.agent_state))
 
         # A grid of several plain MDPs steps each member on the stack itself; a BlockMDP grid, or a single MDP (no
