@@ -188,7 +188,7 @@ def main(argv: list[str] | None = None) -> dict:
                 row[key] = value * row["slots"] if key == "c_round" else value
                 row[f"{key}_interpolated"] = True
     for row in rows:
-        if "c_round" not in row:
+        if "c_round" not in row or "c_one" not in row:  # c_one: absent from a measured.json of before it existed
             continue
         steps_s = row.get("c_step", 0.0) * row["members"] * T_FULL
         per_shard = row["plans"] / row["shards"]
