@@ -19,8 +19,8 @@ first visits), later epochs are rare. So the run time of a batch (one agent on o
   (``sum N = T``); the ``1`` is the initial plan. (Jaksch et al. 2010, Prop. 18, bound the same count by the looser
   ``S A log2(8 T / (S A))``.) An upper bound: unreachable pairs and uneven visits give fewer plans.
 
-Extrapolated run seconds of a batch: ``c_step * members * T + plans / shards * c_round / slots`` (every round full)
-and, as an upper bound, ``... + plans / shards * c_one`` (every round plans one member, which
+Extrapolated run seconds of a batch (:func:`extrapolate`): ``c_step * members * T + plans / shards * c_round / slots``
+(every round full) and, at the other extreme, ``... + plans / shards * c_one`` (every round plans one member, which
 :func:`~jaxmdp.experiment.planning.plan_due` plans alone: ``c_one`` is a round of one slot). Buckets of a set not
 measured use the rates of the same agent's measured buckets, interpolated linearly in the largest state count (each
 of ``c_step`` and ``c_round`` apart, so that two calls with the same ``--out`` can measure the plans of every bucket
@@ -143,6 +143,40 @@ def round_cost(set_name: str, agent_name: str, labels: list[str], slots: int, pl
     return dict(plan_mdp=labels[largest], slots=slots, c_round=c_round, c_one=best_of(1) if slots > 1 else c_round)
 
 
+def extrapolate(rows: list[dict], T: int = T_FULL) -> dict:
+    """The batches' run seconds at ``T`` steps from their measured costs (module docstring), in place on ``rows``.
+
+    Each row holds ``agent``, ``members``, ``shards``, ``slots``, ``max_states``, ``plans`` (the plan-count bound
+    over the batch's members) and, where measured, ``c_round``, ``c_one`` and ``c_step``. A cost missing from a row
+    is interpolated linearly in ``max_states`` between the same agent's measured rows (clipped at the ends;
+    ``c_round`` per slot, since buckets differ in their slots) and flagged ``<cost>_interpolated``. A row with
+    ``c_round`` and ``c_one`` gets ``steps_s = c_step members T`` (``c_step`` 0 if none), ``plans_s_packed =
+    plans / shards c_round / slots``, ``plans_s_one_per_round = plans / shards c_one``, ``run_s_low`` and
+    ``run_s_high`` (steps plus each); a row without them (e.g. a ``measured.json`` written before ``c_one``) is left
+    out of the totals. Returns ``{"T", "seeds", "rows", "run_s_low", "run_s_high"}``; the totals sum the rows done.
+    """
+    per_slot = lambda r: r["c_round"] / r["slots"]  # noqa: E731
+    for key, rate in (("c_round", per_slot), ("c_one", lambda r: r["c_one"]), ("c_step", lambda r: r["c_step"])):
+        for row in rows:
+            same = sorted((r for r in rows if key in r and not r.get(f"{key}_interpolated")
+                           and r["agent"] == row["agent"]), key=lambda r: r["max_states"])
+            if key not in row and same:
+                value = float(np.interp(row["max_states"], [r["max_states"] for r in same], [rate(r) for r in same]))
+                row[key] = value * row["slots"] if key == "c_round" else value
+                row[f"{key}_interpolated"] = True
+    for row in rows:
+        if "c_round" not in row or "c_one" not in row:
+            continue
+        steps_s = row.get("c_step", 0.0) * row["members"] * T
+        per_shard = row["plans"] / row["shards"]
+        row.update(steps_s=steps_s, plans_s_packed=per_shard * row["c_round"] / row["slots"],
+                   plans_s_one_per_round=per_shard * row["c_one"])
+        row.update(run_s_low=steps_s + row["plans_s_packed"], run_s_high=steps_s + row["plans_s_one_per_round"])
+    done = [r for r in rows if "run_s_low" in r]
+    return dict(T=T, seeds=SEEDS, rows=rows, run_s_low=sum(r["run_s_low"] for r in done),
+                run_s_high=sum(r["run_s_high"] for r in done))
+
+
 def main(argv: list[str] | None = None) -> dict:
     args = build_parser().parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -176,32 +210,14 @@ def main(argv: list[str] | None = None) -> dict:
             print(b.id, json.dumps(m), file=sys.stderr, flush=True)
         row.update(measured.get(b.id, {}), slots=default_plan_slots(len(b.members) // shards))
         rows.append(row)
-    # Buckets not measured: the same agent's rates interpolated in the states (a round's cost per slot, c_round / slots,
-    # since buckets differ in their slots).
-    per_slot = lambda r: r["c_round"] / r["slots"]  # noqa: E731
-    for key, rate in (("c_round", per_slot), ("c_one", lambda r: r["c_one"]), ("c_step", lambda r: r["c_step"])):
-        for row in rows:
-            same = sorted((r for r in rows if key in r and not r.get(f"{key}_interpolated")
-                           and r["agent"] == row["agent"]), key=lambda r: r["max_states"])
-            if key not in row and same:
-                value = float(np.interp(row["max_states"], [r["max_states"] for r in same], [rate(r) for r in same]))
-                row[key] = value * row["slots"] if key == "c_round" else value
-                row[f"{key}_interpolated"] = True
-    for row in rows:
-        if "c_round" not in row or "c_one" not in row:  # c_one: absent from a measured.json of before it existed
-            continue
-        steps_s = row.get("c_step", 0.0) * row["members"] * T_FULL
-        per_shard = row["plans"] / row["shards"]
-        row.update(steps_s=steps_s, plans_s_packed=per_shard * row["c_round"] / row["slots"],
-                   plans_s_one_per_round=per_shard * row["c_one"])
-        row.update(run_s_low=steps_s + row["plans_s_packed"], run_s_high=steps_s + row["plans_s_one_per_round"])
-        print(f"{row['batch']}: {row['members']} members, S <= {row['max_states']}, plans <= {row['plans']:.3g}, "
-              f"round of {row['slots']} {row['c_round'] * 1e3:.1f} ms, step {row.get('c_step', 0.0):.2e} s: "
-              f"{row['run_s_low'] / 3600:.1f} h (rounds full) / {row['run_s_high'] / 3600:.1f} h (one member a round)",
-              file=sys.stderr)
+    result = extrapolate(rows)
+    for row in result["rows"]:
+        if "run_s_low" in row:
+            print(f"{row['batch']}: {row['members']} members, S <= {row['max_states']}, plans <= {row['plans']:.3g}, "
+                  f"round of {row['slots']} {row['c_round'] * 1e3:.1f} ms, step {row.get('c_step', 0.0):.2e} s: "
+                  f"{row['run_s_low'] / 3600:.1f} h (rounds full) / {row['run_s_high'] / 3600:.1f} h (one member a "
+                  "round)", file=sys.stderr)
     done = [r for r in rows if "run_s_low" in r]
-    result = dict(T=T_FULL, seeds=SEEDS, rows=rows, run_s_low=sum(r["run_s_low"] for r in done),
-                  run_s_high=sum(r["run_s_high"] for r in done))
     (args.out / "continuous_plan_wall_time.json").write_text(json.dumps(result, indent=1) + "\n")
     print(f"continuous epoch agents, {len(done)} of {len(rows)} batches: {result['run_s_low'] / 3600:.1f} h (rounds "
           f"full) / {result['run_s_high'] / 3600:.1f} h (one member a round)", file=sys.stderr)

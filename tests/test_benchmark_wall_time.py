@@ -58,3 +58,44 @@ def test_continuous_plan_count_bound_by_hand():
     assert cp.plans_bound(108, 6) == pytest.approx(1 + 648 * math.log2(1e6 / 648))  # 6 864.4
     assert cp.plans_bound(2, 2, T=3) == pytest.approx(1 + 3 * math.log2(2.0))  # V = 3 pairs visited at most: 4
     assert cp.plans_bound(1, 2, T=4) == pytest.approx(1 + 2 * math.log2(4.0))  # 5 <= 1 + T
+
+
+def test_continuous_plan_extrapolation_by_hand():
+    """Two measured buckets of agent ``a`` (100 and 300 states), one between them and one past the end, unmeasured;
+    agent ``b`` measured only for its plans; a row of an older ``measured.json`` (no ``c_one``) left out."""
+    cp = load_script("continuous_plan_wall_time")
+    rows = [
+        dict(batch="a0", agent="a", members=20, shards=2, slots=2, max_states=100, plans=1000.0,
+             c_round=0.02, c_one=0.015, c_step=1e-6),  # 0.01 s a slot
+        dict(batch="a1", agent="a", members=40, shards=2, slots=4, max_states=200, plans=4000.0),
+        dict(batch="a2", agent="a", members=10, shards=2, slots=1, max_states=300, plans=3000.0,
+             c_round=0.03, c_one=0.03, c_step=3e-6),  # 0.03 s a slot
+        dict(batch="a3", agent="a", members=10, shards=2, slots=1, max_states=500, plans=100.0),
+        dict(batch="b0", agent="b", members=4, shards=2, slots=1, max_states=50, plans=10.0, c_round=1.0, c_one=1.0),
+        dict(batch="b1", agent="b", members=4, shards=2, slots=1, max_states=60, plans=10.0, c_round=1.0),
+    ]
+    T = 1000
+    result = cp.extrapolate(rows, T=T)
+    a0, a1, a2, a3, b0, b1 = result["rows"]
+    # a1, halfway in states: 0.02 s a slot x 4 slots, c_one 0.0225, c_step 2e-6; a3 clipped at a2's rates.
+    assert a1["c_round"] == pytest.approx(0.08) and a1["c_one"] == pytest.approx(0.0225)
+    assert a1["c_step"] == pytest.approx(2e-6) and a1["c_round_interpolated"] and not a0.get("c_round_interpolated")
+    assert (a3["c_round"], a3["c_one"], a3["c_step"]) == pytest.approx((0.03, 0.03, 3e-6))
+    assert a0["run_s_low"] == pytest.approx(1e-6 * 20 * T + 1000 / 2 * 0.02 / 2)  # 0.02 + 5
+    assert a0["run_s_high"] == pytest.approx(1e-6 * 20 * T + 1000 / 2 * 0.015)  # 0.02 + 7.5
+    assert a1["run_s_low"] == pytest.approx(2e-6 * 40 * T + 4000 / 2 * 0.08 / 4)  # 0.08 + 40
+    assert a1["run_s_high"] == pytest.approx(2e-6 * 40 * T + 4000 / 2 * 0.0225)  # 0.08 + 45
+    assert b0["steps_s"] == 0.0 and b0["run_s_low"] == b0["run_s_high"] == pytest.approx(5.0)  # no step cost: 0
+    # b1's c_one is missing but another row of b has one: it is interpolated (clipped at b0's), so b1 counts.
+    assert b1["c_one_interpolated"] and b1["run_s_low"] == pytest.approx(5.0)
+    total_low = sum(r["run_s_low"] for r in (a0, a1, a2, a3, b0, b1))
+    assert result["run_s_low"] == pytest.approx(total_low) and result["T"] == T
+
+
+def test_continuous_plan_extrapolation_leaves_out_rows_it_cannot_cost():
+    cp = load_script("continuous_plan_wall_time")
+    rows = [dict(batch="a0", agent="a", members=2, shards=1, slots=1, max_states=10, plans=5.0, c_round=1.0),
+            dict(batch="b0", agent="b", members=2, shards=1, slots=1, max_states=10, plans=5.0, c_step=1e-3)]
+    result = cp.extrapolate(rows, T=100)
+    assert "run_s_low" not in result["rows"][0] and "run_s_low" not in result["rows"][1]
+    assert result["run_s_low"] == result["run_s_high"] == 0
