@@ -11,7 +11,9 @@ first visits), later epochs are rare. So the run time of a batch (one agent on o
 * **plans**: one round of the runner's compacted planning, ``slots = default_plan_slots(members per shard)`` members
   planned under ``vmap`` (:mod:`jaxmdp.experiment.planning`), on the bucket's largest MDP padded to the bucket's
   shapes, after ``--play`` uniformly random steps, a cold plan and ``--more`` further steps (so the timed plan is
-  warm-started from the previous epoch's values, as in a run): ``c_round`` seconds, best of ``--repeats``;
+  warm-started from the previous epoch's values, as in a run): ``c_round`` seconds a round inside one compiled
+  program, as the runner pays it (:func:`profile_continuous_plans.in_program_seconds`; a round called as a program
+  of its own, ``c_round_call``, costs more on a CPU and is recorded beside it), best of ``--repeats``;
 * **plan count**: per member at most ``1 + S A log2(2 T / (S A))`` plans over ``T`` steps (``S``, ``A`` the member's
   real states and actions). Why: both agents re-plan when the pair just played has as many visits in the epoch as
   before it (:mod:`agents.epochs`); a pair that ends ``j`` epochs has at least doubled its count each time from 1,
@@ -60,7 +62,7 @@ from hardness.benchmark import run, sets  # noqa: E402
 from jaxmdp.experiment.planning import default_plan_slots  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from profile_continuous_plans import played  # noqa: E402
+from profile_continuous_plans import in_program_seconds, played  # noqa: E402
 
 T_FULL = 500_000
 SEEDS = 20
@@ -137,10 +139,12 @@ def round_cost(set_name: str, agent_name: str, labels: list[str], slots: int, pl
             t = time.perf_counter()
             jax.block_until_ready(plan(k, st))
             best = min(best, time.perf_counter() - t)
-        return best
+        return best, in_program_seconds(plan, k, st, repeats=repeats)
 
-    c_round = best_of(slots)
-    return dict(plan_mdp=labels[largest], slots=slots, c_round=c_round, c_one=best_of(1) if slots > 1 else c_round)
+    (call, c_round) = best_of(slots)
+    (one_call, c_one) = best_of(1) if slots > 1 else (call, c_round)
+    return dict(plan_mdp=labels[largest], slots=slots, c_round=c_round, c_one=c_one, c_round_call=call,
+                c_one_call=one_call)
 
 
 def extrapolate(rows: list[dict], T: int = T_FULL) -> dict:
@@ -201,7 +205,7 @@ def main(argv: list[str] | None = None) -> dict:
                    plans=sum(plans_bound(*real[m]) for m, _ in b.members))
         if b.set_name in args.sets and (args.buckets is None or bucket in args.buckets):
             m = measured.setdefault(b.id, {})
-            if "c_one" not in m and not args.skip_plans:
+            if "c_round_call" not in m and not args.skip_plans:  # absent: not measured, or per call (before)
                 slots = default_plan_slots(len(b.members) // shards)
                 m.update(round_cost(b.set_name, b.agent, labels, slots, args.play, args.more, args.repeats))
             if "c_step" not in m and not args.skip_steps:

@@ -85,6 +85,30 @@ def best_of(fn, *args, repeats: int) -> tuple[float, object]:
     return best, out
 
 
+def in_program_seconds(fn, keys, states, *, calls: int = 4, repeats: int = 3) -> float:
+    """Seconds of one call ``fn(keys, states)`` (e.g. a ``vmap``-ed plan) inside one compiled program, as the runner
+    pays it: ``(t(1 + calls) - t(1)) / calls``, with ``t(m)`` the best of ``repeats`` runs of a loop of ``m`` calls.
+
+    A call of its own program costs more on a CPU: XLA allocates its temporary buffer afresh at each call, and one of
+    more than about 32 MB (PSRL continuous's plan at 948 states: 90-250 MB) comes from the system zeroed, page by
+    page, at every call. The runner's plans run inside its chunk programs and reuse one buffer. Call ``i`` of the loop
+    uses ``fold_in(key, i)`` of each key and passes the states through an optimisation barrier with ``i``, so that
+    XLA cannot hoist the key-independent work (e.g. a model built from the counts) out of the loop."""
+
+    def loop(keys, states, m):
+        def body(i, acc):
+            k, st, _ = jax.lax.optimization_barrier((keys, states, i))
+            out = fn(jax.vmap(lambda kk: jax.random.fold_in(kk, i))(k), st)
+            return acc + sum(jnp.sum(x.astype(jnp.float32)) for x in jax.tree.leaves(out)
+                             if jnp.issubdtype(x.dtype, jnp.floating))
+
+        return jax.lax.fori_loop(0, m, body, jnp.zeros((), jnp.float32))
+
+    run_loop = jax.jit(loop)
+    times = {m: best_of(run_loop, keys, states, jnp.asarray(m), repeats=repeats)[0] for m in (1, 1 + calls)}
+    return max(times[1 + calls] - times[1], 0.0) / calls
+
+
 def profile(agent_name: str, label: str, args) -> dict:
     agent = AGENTS[agent_name]
     inst = next(i for i in sets.instances(args.set) if i.label == label)

@@ -99,3 +99,26 @@ def test_continuous_plan_extrapolation_leaves_out_rows_it_cannot_cost():
     result = cp.extrapolate(rows, T=100)
     assert "run_s_low" not in result["rows"][0] and "run_s_low" not in result["rows"][1]
     assert result["run_s_low"] == result["run_s_high"] == 0
+
+
+def test_in_program_seconds_loops_over_calls_with_fresh_keys():
+    """The plan timing of scripts/continuous_plan_wall_time.py: each run of the loop of ``m`` calls passes
+    ``fold_in(key, i)``, ``i < m``, and both loop lengths run ``1 + repeats`` times (a first, compiling run)."""
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    pcp = load_script("profile_continuous_plans")
+    seen = []
+
+    def fn(keys, states):
+        jax.debug.callback(lambda k: seen.append(tuple(np.asarray(k).ravel())), jax.random.key_data(keys))
+        return dict(x=states["x"] * 2.0, n=states["n"] + 1)
+
+    keys = jax.random.split(jax.random.key(0), 2)
+    t = pcp.in_program_seconds(fn, keys, dict(x=jnp.ones(3), n=jnp.zeros(3, jnp.int32)), calls=3, repeats=2)
+    assert t >= 0.0 and math.isfinite(t)
+    assert len(seen) == (1 + 2) * (1 + 4)
+    expected = {tuple(np.asarray(jax.random.key_data(jax.vmap(lambda k: jax.random.fold_in(k, i))(keys))).ravel())
+                for i in range(4)}
+    assert set(seen) == expected
