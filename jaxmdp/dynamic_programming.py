@@ -73,6 +73,7 @@ def compiled(*static_argnames: str) -> Callable[[Callable], Callable]:
 _UNROLLED_GREEDY_MAX_ACTIONS = 16
 
 __all__ = [
+    "discounted_jump_chain_values",
     "expected_next_values",
     "q_values",
     "greedy",
@@ -330,6 +331,37 @@ def discounted_chain_values(P: jax.Array, r: jax.Array, gamma: float | jax.Array
     """Discounted values ``V = (I - gamma P)^{-1} r`` of a Markov reward chain ``P[S, S]``, ``r[S]`` (Puterman 1994
     §6.1): one linear solve (:func:`jaxmdp.jaxlib_workarounds.linalg.solve`, one system at a time under ``vmap``)."""
     return linear_solve(jnp.eye(P.shape[0], dtype=P.dtype) - gamma * P, r)
+
+
+def discounted_jump_chain_values(
+    P: jax.Array, r: jax.Array, gamma: float | jax.Array, jump: jax.Array, size: int
+) -> tuple[jax.Array, jax.Array]:
+    """:func:`discounted_chain_values` of a chain whose rows with ``jump[s] >= 0`` move deterministically to
+    ``jump[s]`` (``P[s] = e_jump[s]``), by eliminating those states: ``(V, fits)``.
+
+    With ``K`` the states with ``jump < 0`` and every state jumped to, a jumping state outside ``K`` has ``V_j = r_j +
+    gamma V_jump[j]``, ``jump[j]`` in ``K``. Substituting it into the rows of ``K`` (Puterman 1994 §6.1's equations,
+    restricted) leaves ``(I - gamma G) V_K = r_K + gamma P[K, ~K] r_~K`` with ``G[k, k'] = P[k, k'] + gamma sum_{j not
+    in K, jump[j] = k'} P[k, j]``: one ``|K| x |K|`` solve and ``O(|K| S)`` work instead of an ``S x S`` solve.
+    ``size`` (static) bounds ``|K|``; ``fits`` is False when ``|K| > size``, and ``V`` is then meaningless (solve
+    the whole chain instead). Only the rows of ``K`` are read."""
+    S = P.shape[0]
+    jumps = jump >= 0
+    target = jnp.where(jumps, jump, S)
+    in_k = ~jumps | jnp.zeros((S + 1,), bool).at[target].set(True)[:S]
+    (idx,) = jnp.nonzero(in_k, size=size, fill_value=S)
+    real = idx < S
+    pos = jnp.full((S + 1,), size, jnp.int32).at[idx].set(jnp.arange(size, dtype=jnp.int32), mode="drop")[:S]
+    # Column j of P[K] counts for column pos[j] of G (j in K), or gamma times for pos[jump[j]] (j jumps, not in K).
+    col = jnp.where(in_k, pos, pos[jnp.minimum(target, S - 1)])
+    weight = jnp.where(in_k, 1.0, gamma).astype(P.dtype)
+    rows = jnp.where(real[:, None], P[jnp.minimum(idx, S - 1)], 0.0)
+    G = jax.ops.segment_sum((rows * weight).T, col, num_segments=size + 1).T[:, :size]
+    rhs = jnp.where(real, r[jnp.minimum(idx, S - 1)], 0.0) + gamma * (rows @ jnp.where(in_k, 0.0, r))
+    V_k = linear_solve(jnp.eye(size, dtype=P.dtype) - gamma * G, rhs)
+    V_k = jnp.concatenate([V_k, jnp.zeros((1,), V_k.dtype)])
+    V = jnp.where(in_k, V_k[pos], r + gamma * V_k[pos[jnp.minimum(target, S - 1)]])
+    return V, jnp.sum(in_k) <= size
 
 
 def _policy_values(model: Model, pi: jax.Array, gamma: float | jax.Array, R: jax.Array) -> jax.Array:

@@ -99,14 +99,18 @@ CASES = [(v, c) for v in ("paper", "colosseum") for c in ("none", "some", "all")
 
 
 @pytest.mark.statistical(p=0.0)
+@pytest.mark.parametrize("jump_states", [pc.JUMP_STATES, 5, 2])
 @pytest.mark.parametrize("variant,case", CASES)
-def test_discounted_plan_equals_policy_iteration_on_the_dense_extended_mdp(variant, case):
+def test_discounted_plan_equals_policy_iteration_on_the_dense_extended_mdp(variant, case, jump_states):
     # For every key (a deterministic comparison, p = 0): the structured plan's values equal those of the dense
     # planner on the same draws to float32 precision, and lie within policy iteration's guarantee of the float64
     # optimum (0 <= V* - V <= eps / (1 - gamma), eps = 1e-5 (1 + max|V|), plus float32 evaluation error, see
     # test_psrl_continuous.test_discounted_planning_matches_exact_solution).
+    # jump_states below S = 8: the evaluations eliminate the jumping states when at most that many others remain (5:
+    # often in case "none", where every pair is below eta with at most 4 visits, so p^- = 0), else solve the whole
+    # chain (2: mostly).
     agent, state = _state(variant, case)
-    plan = jax.jit(agent.plan)
+    plan = jax.jit(functools.partial(agent.plan, jump_states=jump_states))
     gamma, K = 0.99, state.hparams.max_psi
     for k in jax.random.split(key(21), N_KEYS):
         new = plan(k, state)

@@ -1,0 +1,65 @@
+"""``dp.discounted_jump_chain_values``: the values of a chain with deterministic rows, by eliminating the jumping
+states, against the dense solve and a hand-worked chain."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxmdp import dynamic_programming as dp
+
+
+def _chain(seed: int, S: int, jump_fraction: float, targets: int):
+    """A random chain: a ``jump_fraction`` of the states move deterministically to one of ``targets`` random states,
+    the others have random rows with a few successors."""
+    rng = np.random.default_rng(seed)
+    jumps = rng.random(S) < jump_fraction
+    pool = rng.choice(S, size=targets, replace=False)
+    jump = np.where(jumps, rng.choice(pool, size=S), -1)
+    P = np.zeros((S, S), np.float32)
+    for s in range(S):
+        if jumps[s]:
+            P[s, jump[s]] = 1.0
+        else:
+            succ = rng.choice(S, size=4, replace=False)
+            P[s, succ] = rng.dirichlet(np.ones(4))
+    r = rng.normal(size=S).astype(np.float32)
+    return jnp.asarray(P), jnp.asarray(r), jnp.asarray(jump, jnp.int32)
+
+
+def test_hand_worked_chain():
+    """0 -> 1 -> 2 by jumps, 2 loops on itself through an ordinary row: V_2 = r_2 / (1 - g), V_1 = r_1 + g V_2,
+    V_0 = r_0 + g V_1 (K = {1, 2}: the non-jumping state and the states jumped to)."""
+    g = 0.5
+    P = jnp.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0]])
+    r = jnp.array([1.0, 2.0, 4.0])
+    V, fits = dp.discounted_jump_chain_values(P, r, g, jnp.array([1, 2, -1]), size=2)
+    assert bool(fits)
+    np.testing.assert_allclose(V, [1.0 + 0.5 * 6.0, 2.0 + 0.5 * 8.0, 8.0], rtol=1e-6)
+    assert not bool(dp.discounted_jump_chain_values(P, r, g, jnp.array([1, 2, -1]), size=1)[1])  # |K| = 2 > 1
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("jump_fraction,targets", [(1.0, 5), (0.9, 8), (0.5, 20), (0.0, 1)])
+def test_against_the_dense_solve(seed, jump_fraction, targets):
+    S, g = 60, 0.95
+    P, r, jump = _chain(seed, S, jump_fraction, targets)
+    j = np.asarray(jump)
+    k = len(set(np.flatnonzero(j < 0)) | set(j[j >= 0]))  # |K|: the non-jumping states and the targets
+    expected = dp.discounted_chain_values(P, r, g)
+    for size in (k, k + 7):
+        V, fits = jax.jit(dp.discounted_jump_chain_values, static_argnums=4)(P, r, g, jump, size)
+        assert bool(fits)
+        np.testing.assert_allclose(V, expected, rtol=2e-5, atol=2e-5 * float(jnp.max(jnp.abs(expected))))
+    if k > 1:
+        assert not bool(dp.discounted_jump_chain_values(P, r, g, jump, k - 1)[1])
+
+
+def test_vmap_matches_one_chain_at_a_time():
+    S, g = 40, 0.9
+    chains = [_chain(seed, S, 0.8, 6) for seed in range(3)]
+    P, r, jump = (jnp.stack(x) for x in zip(*chains))
+    V, fits = jax.vmap(lambda p, rr, j: dp.discounted_jump_chain_values(p, rr, g, j, 24))(P, r, jump)
+    assert bool(jnp.all(fits))
+    for i in range(3):
+        np.testing.assert_allclose(V[i], dp.discounted_chain_values(P[i], r[i], g), rtol=2e-5, atol=2e-5 * 10)
