@@ -89,9 +89,10 @@ def in_program_seconds(fn, keys, states, *, calls: int = 4, repeats: int = 3) ->
     """Seconds of one call ``fn(keys, states)`` (e.g. a ``vmap``-ed plan) inside one compiled program, as the runner
     pays it: ``(t(1 + calls) - t(1)) / calls``, with ``t(m)`` the best of ``repeats`` runs of a loop of ``m`` calls.
 
-    A call of its own program costs more on a CPU: XLA allocates its temporary buffer afresh at each call, and one of
-    more than about 32 MB (PSRL continuous's plan at 948 states: 90-250 MB) comes from the system zeroed, page by
-    page, at every call. The runner's plans run inside its chunk programs and reuse one buffer. Call ``i`` of the loop
+    A call of its own program costs more on a CPU (PSRL continuous at 948 states: a plan 155 ms per call, 75-85 ms
+    in a loop; docs/benchmarks/continuous_planning.md). Likely, not proven: XLA allocates the program's temporary
+    buffer (29-92 MB there) at each call, and a buffer that large comes from the system afresh, page by page. The
+    runner's plans run inside its chunk programs, which reuse one buffer. Call ``i`` of the loop
     uses ``fold_in(key, i)`` of each key and passes the states through an optimisation barrier with ``i``, so that
     XLA cannot hoist the key-independent work (e.g. a model built from the counts) out of the loop."""
 
