@@ -473,8 +473,12 @@ def _best_candidates(
     best_opt = jnp.max(q_opt, axis=0)
 
     pairs = jnp.minimum(d.pairs, S * A - 1)
-    q_kept = R_ext.reshape(K, S * A)[:, pairs] + gamma * expected(d.kept)  # [max_psi, M]
-    q_kept = jnp.where(d.active[:, None], q_kept, -jnp.inf)
+
+    def kept_values(V):  # [max_psi, M]; skipped unless some pair is at eta (never at the benchmark's largest sizes)
+        q = R_ext.reshape(K, S * A)[:, pairs] + gamma * jnp.sum(d.kept * V, axis=-1)
+        return jnp.where(d.active[:, None], q, -jnp.inf)
+
+    q_kept = only_if(d.any_posterior, kept_values, jnp.full((K, M), -jnp.inf, dtype), V)
     k_kept = jnp.argmax(q_kept, axis=0).astype(jnp.int32)
 
     def scatter(fill, x):  # [M] values of the kept pairs -> [S, A], fill elsewhere
