@@ -466,8 +466,8 @@ def _best_candidates(
     K, S, A = d.z.shape
     M = d.pairs.shape[0]
     dtype = V.dtype
-    expected = lambda rows: jnp.sum(rows * V, axis=-1)  # noqa: E731  (one formula for kept and redrawn rows)
-    q_opt = R_ext + gamma * (expected(d.p_minus) + d.missing * V[d.z])  # [max_psi, S, A]
+    expected = lambda rows, values: jnp.sum(rows * values, axis=-1)  # noqa: E731  (kept and redrawn rows alike)
+    q_opt = R_ext + gamma * (expected(d.p_minus, V) + d.missing * V[d.z])  # [max_psi, S, A]
     q_opt = jnp.where(d.active[:, None, None], q_opt, -jnp.inf)
     k_opt = jnp.argmax(q_opt, axis=0).astype(jnp.int32)
     best_opt = jnp.max(q_opt, axis=0)
@@ -475,7 +475,7 @@ def _best_candidates(
     pairs = jnp.minimum(d.pairs, S * A - 1)
 
     def kept_values(V):  # [max_psi, M]; skipped unless some pair is at eta (never at the benchmark's largest sizes)
-        q = R_ext.reshape(K, S * A)[:, pairs] + gamma * jnp.sum(d.kept * V, axis=-1)
+        q = R_ext.reshape(K, S * A)[:, pairs] + gamma * expected(d.kept, V)
         return jnp.where(d.active[:, None], q, -jnp.inf)
 
     q_kept = only_if(d.any_posterior, kept_values, jnp.full((K, M), -jnp.inf, dtype), V)
@@ -492,7 +492,7 @@ def _best_candidates(
 
         def better(carry, k):
             q, kk = carry
-            q_k = R_ext[k] + gamma * expected(d.draw(k))
+            q_k = R_ext[k] + gamma * expected(d.draw(k), V)
             up = q_k > q
             return jnp.where(up, q_k, q), jnp.where(up, k, kk)
 
@@ -578,6 +578,21 @@ def extended_policy_iteration(
     return dp.policy_iteration_by(evaluate, improve, _greedy(d, R_ext, V0, gamma, action_mask)[1])
 
 
+def extended_draws(
+    key: jax.Array,
+    state: PSRLContinuousState,
+    *,
+    variant: Variant = "paper",
+    reward_variant: Variant | None = None,
+    keep_limit: int = KEEP_LIMIT,
+) -> tuple[jax.Array, Draws]:
+    """The extended MDP that :func:`plan` draws with ``key``: its rewards ``R_ext[max_psi, S, A]`` (one Normal-Gamma
+    draw per pair, :func:`_extended_rewards`) and its candidates (:func:`draws`)."""
+    k_r, k_p = jax.random.split(key)
+    R_ext = _extended_rewards(normal_gamma_sample(k_r, state.rewards), state, reward_variant or variant)
+    return R_ext, draws(k_p, state, variant=variant, keep_limit=keep_limit)
+
+
 def plan(
     key: jax.Array,
     state: PSRLContinuousState,
@@ -603,9 +618,7 @@ def plan(
     if reward_variant not in (None, *VARIANTS):
         raise ValueError(f"reward_variant must be None, 'paper' or 'colosseum'; got {reward_variant!r}")
     hp = state.hparams
-    k_r, k_p = jax.random.split(key)
-    R_ext = _extended_rewards(normal_gamma_sample(k_r, state.rewards), state, reward_variant or variant)
-    d = draws(k_p, state, variant=variant, keep_limit=keep_limit)
+    R_ext, d = extended_draws(key, state, variant=variant, reward_variant=reward_variant, keep_limit=keep_limit)
     mask = state.action_mask
     gamma = jnp.asarray(hp.discount, R_ext.dtype)
 

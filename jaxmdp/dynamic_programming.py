@@ -347,21 +347,17 @@ def discounted_jump_chain_values(
     the whole chain instead). Only the rows of ``K`` are read."""
     S = P.shape[0]
     jumps = jump >= 0
-    target = jnp.where(jumps, jump, S)
-    in_k = ~jumps | jnp.zeros((S + 1,), bool).at[target].set(True)[:S]
-    (idx,) = jnp.nonzero(in_k, size=size, fill_value=S)
-    real = idx < S
-    pos = jnp.full((S + 1,), size, jnp.int32).at[idx].set(jnp.arange(size, dtype=jnp.int32), mode="drop")[:S]
-    # Column j of P[K] counts for column pos[j] of G (j in K), or gamma times for pos[jump[j]] (j jumps, not in K).
-    col = jnp.where(in_k, pos, pos[jnp.minimum(target, S - 1)])
+    in_k = ~jumps | jnp.zeros((S,), bool).at[jnp.where(jumps, jump, S)].set(True, mode="drop")
+    (idx,) = jnp.nonzero(in_k, size=size, fill_value=S)  # K's states, then S (an empty slot)
+    pos = jnp.full((S,), size, jnp.int32).at[idx].set(jnp.arange(size, dtype=jnp.int32), mode="drop")
+    # V_j = r_j + gamma V_K[via[j]] for j outside K; column j of P[K] adds to column via[j] of G, gamma-weighted.
+    via = jnp.where(in_k, pos, pos[jnp.maximum(jump, 0)])
     weight = jnp.where(in_k, 1.0, gamma).astype(P.dtype)
-    rows = jnp.where(real[:, None], P[jnp.minimum(idx, S - 1)], 0.0)
-    G = jax.ops.segment_sum((rows * weight).T, col, num_segments=size + 1).T[:, :size]
-    rhs = jnp.where(real, r[jnp.minimum(idx, S - 1)], 0.0) + gamma * (rows @ jnp.where(in_k, 0.0, r))
-    V_k = linear_solve(jnp.eye(size, dtype=P.dtype) - gamma * G, rhs)
-    V_k = jnp.concatenate([V_k, jnp.zeros((1,), V_k.dtype)])
-    V = jnp.where(in_k, V_k[pos], r + gamma * V_k[pos[jnp.minimum(target, S - 1)]])
-    return V, jnp.sum(in_k) <= size
+    rows = P.at[idx].get(mode="fill", fill_value=0.0)
+    G = jax.ops.segment_sum((rows * weight).T, via, num_segments=size + 1).T[:, :size]
+    rhs = r.at[idx].get(mode="fill", fill_value=0.0) + gamma * (rows @ jnp.where(in_k, 0.0, r))
+    V_k = jnp.append(linear_solve(jnp.eye(size, dtype=P.dtype) - gamma * G, rhs), 0.0)  # V_k[size]: empty slots
+    return jnp.where(in_k, V_k[pos], r + gamma * V_k[via]), jnp.sum(in_k) <= size
 
 
 def _policy_values(model: Model, pi: jax.Array, gamma: float | jax.Array, R: jax.Array) -> jax.Array:

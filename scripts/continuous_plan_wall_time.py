@@ -48,7 +48,6 @@ import dataclasses  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import sys  # noqa: E402
-import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import jax  # noqa: E402
@@ -62,7 +61,7 @@ from hardness.benchmark import run, sets  # noqa: E402
 from jaxmdp.experiment.planning import default_plan_slots  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from profile_continuous_plans import in_program_seconds, played  # noqa: E402
+from profile_continuous_plans import best_of, in_program_seconds, warm_state  # noqa: E402
 
 T_FULL = 500_000
 SEEDS = 20
@@ -122,27 +121,17 @@ def round_cost(set_name: str, agent_name: str, labels: list[str], slots: int, pl
     hp = benchmark_hparams.fit_static_sizes(agent_name, [agent.default_hparams], mdps)[0]
     largest = max(range(len(mdps)), key=lambda i: int(np.sum(np.asarray(mdps[i].state_mask))))
     mdp = jax.tree.map(lambda x: x[largest], jaxmdp.stack(mdps))
-    state = jax.jit(lambda k: played(agent, mdp, hp, play, k))(jax.random.key(0))
+    state = warm_state(agent, mdp, hp, play, more)
     keys = jax.random.split(jax.random.key(1), slots)
     plan = jax.jit(jax.vmap(agent.plan))
-    one = lambda x: jax.tree.map(lambda y: y[None], x)  # noqa: E731
-    first = jax.tree.map(lambda y: y[0], plan(keys[:1], one(state)))  # the cold plan
-    # The next epoch's plan: warm-started from the first one's values after --more further steps.
-    state = jax.jit(lambda k, st: played(agent, mdp, hp, more, k, st))(jax.random.key(2), first)
     again = jax.tree.map(lambda y: jnp.broadcast_to(y[None], (slots,) + y.shape), state)
 
-    def best_of(n):
+    def timed(n):  # (per call, inside one program) for a round of n slots
         k, st = keys[:n], jax.tree.map(lambda y: y[:n], again)
-        jax.block_until_ready(plan(k, st))
-        best = math.inf
-        for _ in range(repeats):
-            t = time.perf_counter()
-            jax.block_until_ready(plan(k, st))
-            best = min(best, time.perf_counter() - t)
-        return best, in_program_seconds(plan, k, st, repeats=repeats)
+        return best_of(plan, k, st, repeats=repeats)[0], in_program_seconds(plan, k, st, repeats=repeats)
 
-    (call, c_round) = best_of(slots)
-    (one_call, c_one) = best_of(1) if slots > 1 else (call, c_round)
+    call, c_round = timed(slots)
+    one_call, c_one = timed(1) if slots > 1 else (call, c_round)
     return dict(plan_mdp=labels[largest], slots=slots, c_round=c_round, c_one=c_one, c_round_call=call,
                 c_one_call=one_call)
 

@@ -21,10 +21,9 @@ import numpy as np
 
 import agents
 import agents.psrl_continuous as pc
-from agents.posteriors import normal_gamma_sample
 from hardness.benchmark import sets
 
-from profile_continuous_plans import played  # scripts/ is on the path of a script run as python scripts/NAME.py
+from profile_continuous_plans import warm_state  # scripts/ is on the path of a script run as python scripts/NAME.py
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -39,9 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
 @jax.jit
 def _final_choice(state, key):
     """Policy iteration of :func:`pc.plan` with ``key``: its evaluations, and its final policy's chosen rows."""
-    k_r, k_p = jax.random.split(key)
-    R = pc._extended_rewards(normal_gamma_sample(k_r, state.rewards), state, "paper")
-    d = pc.draws(k_p, state)
+    R, d = pc.extended_draws(key, state)
     gamma = jnp.asarray(state.hparams.discount, R.dtype)
     res = pc.extended_policy_iteration(d, R, gamma, state.u, state.action_mask)
     _, choice = pc._greedy(d, R, res.V, gamma, state.action_mask)
@@ -68,9 +65,7 @@ def main(argv: list[str] | None = None) -> list[dict]:
         S, A = int(np.sum(np.asarray(mdp.state_mask))), int(np.sum(np.asarray(mdp.action_mask)))
         hp = agent.default_hparams.replace(max_psi=pc.psi(agent.default_hparams, S, A))
         for steps in args.steps:
-            state = jax.jit(lambda k: played(agent, mdp, hp, steps, k))(jax.random.key(0))
-            state = jax.jit(lambda k, st: played(agent, mdp, hp, 200, k, st))(
-                jax.random.key(2), jax.jit(pc.plan)(jax.random.key(1), state))
+            state = warm_state(agent, mdp, hp, steps, 200)
             for i in range(args.keys):
                 row = dict(mdp=label, steps=steps, key=i, **probe(state, jax.random.key(10 + i)))
                 print(json.dumps(row), flush=True)

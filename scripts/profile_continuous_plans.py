@@ -75,6 +75,14 @@ def played(agent, mdp, hp, n_steps: int, key, state=None):
     return state.replace(plan_due=jnp.ones((), bool))
 
 
+def warm_state(agent, mdp, hp, play: int, more: int):
+    """The agent's state before the plan of its second epoch: ``play`` uniformly random steps, a cold plan, ``more``
+    further steps (so that a plan from it is warm-started from the previous epoch's values, as in a run)."""
+    state = jax.jit(lambda k: played(agent, mdp, hp, play, k))(jax.random.key(0))
+    first = jax.jit(agent.plan)(jax.random.key(1), state)
+    return jax.jit(lambda k, st: played(agent, mdp, hp, more, k, st))(jax.random.key(2), first)
+
+
 def best_of(fn, *args, repeats: int) -> tuple[float, object]:
     out = jax.block_until_ready(fn(*args))  # compile
     best = np.inf
