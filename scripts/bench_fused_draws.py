@@ -9,11 +9,14 @@ with counts):
 * :func:`jaxmdp.sampling.beta_sampling.trial_deviates`: one written-out Threefry hash per entry, ``erf_inv`` included;
 * :func:`agents.posteriors.dirichlet_sample`: the whole draw that the agents make;
 * ``H`` backups of the drawn model (:func:`jaxmdp.dynamic_programming.finite_horizon_value_iteration`, as episodic
-  PSRL plans): the rest of a plan, for scale.
+  PSRL plans): the rest of a plan, for scale;
+* with ``--baseline PATH`` (another version of ``jaxmdp/sampling/beta_sampling.py``, e.g. main's), the whole draw
+  with this tree's sampler and with the baseline's, each timed inside one compiled program as the runner pays it
+  (``profile_continuous_plans.in_program_seconds``), alternating, best of ``--repeats`` rounds.
 
 Usage: ``python scripts/bench_fused_draws.py [--batch 8] [--states 400] [--actions 3] [--horizon 40] [--repeats 5]
-[--doc PATH]`` (``--doc`` appends a dated section); numbers are nanoseconds per entry of the ``[B, S, A, S]``
-array, wall time over all cores.
+[--baseline PATH] [--doc PATH]`` (``--doc`` appends a dated section); numbers are nanoseconds per entry of the
+``[B, S, A, S]`` array, wall time over all cores.
 """
 
 from __future__ import annotations
@@ -24,9 +27,11 @@ import jax
 import jax.numpy as jnp
 
 from agents.posteriors import dirichlet_sample
+from baseline_module import load_file
 from bench_doc import append_section, best_seconds
 from jaxmdp import dynamic_programming as dp
-from jaxmdp.sampling.beta_sampling import trial_deviates
+from jaxmdp.sampling.beta_sampling import sample_log_gamma, trial_deviates
+from profile_continuous_plans import in_program_seconds
 
 
 def main() -> None:
@@ -36,6 +41,7 @@ def main() -> None:
     parser.add_argument("--actions", type=int, default=3)
     parser.add_argument("--horizon", type=int, default=40)
     parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--baseline", help="another beta_sampling.py, timed against this tree's in one program")
     parser.add_argument("--doc", help="append the table to this Markdown file")
     args = parser.parse_args()
     B, S, A, H = args.batch, args.states, args.actions, args.horizon
@@ -61,6 +67,15 @@ def main() -> None:
         ("dirichlet_sample (whole draw)", best_seconds(lambda: dirichlet(keys, alpha), args.repeats)),
         (f"{H} backups of the drawn model", best_seconds(lambda: vi(model, rewards), args.repeats)),
     ]
+    if args.baseline:
+        baseline = load_file(args.baseline, "baseline_beta").sample_log_gamma
+        samplers = {"this tree": sample_log_gamma, "baseline": baseline}
+        best = dict.fromkeys(samplers, float("inf"))
+        for _ in range(args.repeats):
+            for name, sampler in samplers.items():
+                draw = lambda k, a, f=sampler: jax.vmap(lambda kk, aa: dirichlet_sample(kk, aa, f))(k, a)  # noqa: E731
+                best[name] = min(best[name], in_program_seconds(draw, keys, alpha, repeats=1))
+        rows += [(f"dirichlet_sample in one program, {name}", t) for name, t in best.items()]
     lines = [f"`[B, S, A, S] = {list(shape)}`, best of {args.repeats}", "", "| what | ms | ns per entry |",
              "|---|---|---|"]
     lines += [f"| {name} | {t * 1e3:.1f} | {t / n * 1e9:.2f} |" for name, t in rows]

@@ -14,7 +14,7 @@ from scipy import stats
 
 import jaxmdp.sampling.beta_sampling as bs
 from jaxmdp.sampling.beta_sampling import buffer_sizes, sample_beta, sample_log_gamma
-from jaxmdp.sampling.compaction import compact
+from jaxmdp.sampling.compaction import compact, compact_with_count
 from stat_checks import Checks, key
 from stat_checks import seed as stat_seed
 
@@ -37,6 +37,9 @@ def test_compact_matches_nonzero(n, p):
         np.testing.assert_array_equal(valid, np.arange(size) < count)
         np.testing.assert_array_equal(index[:count], true[:count])
         np.testing.assert_array_equal(index[count:], n + np.arange(count, size))  # distinct, out of range
+        with_count = jax.jit(compact_with_count, static_argnums=1)(jnp.asarray(flags), size)
+        np.testing.assert_array_equal(with_count[0], index)
+        assert int(with_count[2]) == len(true)  # all of them, also past size
 
 
 def test_compact_under_vmap_is_per_member():
@@ -100,6 +103,26 @@ def test_log_gamma_exact_on_large_arrays(buffers):
         # Entries are independent: disjoint neighbour pairs on the same side of the exact median, Binomial(k/2, 1/2).
         median = stats.loggamma(shape).median()
         checks.independent_signs(ys[0:-1:2], ys[1::2], median, median, f"neighbours, shape {shape}")
+
+
+@pytest.mark.parametrize("which", ["first", "second"])
+def test_an_overflowing_buffer_sends_its_entries_to_the_fallback(which):
+    # The compacted pass reports an overflow from the compactions' counts; then whole-array rounds finish the
+    # entries it left. "first": both buffers overflow; "second": only the second one (its m2 = 1 slot holds one of
+    # the first buffer's rejections, far fewer than m1 = 400 first-round rejections at most). Without the flag (or
+    # with one buffer's count left out) entries stay NaN.
+    a = jnp.asarray(np.random.default_rng(3).uniform(0.05, 3.0, 8000), jnp.float32)
+    buffers = (16, 1) if which == "first" else (400, 1)
+    k = jax.random.key(31)
+    stream = jax.random.fold_in(k, bs._STREAM)
+    first = bs._trial(jax.random.fold_in(stream, 0), bs.shape_terms(a))
+    rejected = int(jnp.isnan(first).sum())
+    assert (rejected > 16) if which == "first" else (40 < rejected < 400)  # about 4% of 8000: wide margins
+    y = np.asarray(sample_log_gamma(k, a, buffers=buffers))
+    assert np.all(np.isfinite(y))
+    default = np.asarray(sample_log_gamma(k, a))
+    accepted = ~np.isnan(np.asarray(first))
+    np.testing.assert_array_equal(y[accepted], default[accepted])  # the first round's values are kept
 
 
 @pytest.mark.statistical(p=5.3e-6)

@@ -24,8 +24,9 @@ trial's ``x`` and ``w`` (:func:`trial_deviates`). The hash is :func:`jaxmdp.samp
 out, which XLA fuses with the trial's arithmetic; ``jax.random`` evaluates each 32-bit word's hash in a rolled loop
 over memory, which cost most of a Dirichlet draw on CPU (30.6 against 12.6 ns per entry, ``[8, 400, 3, 400]``,
 docs/benchmarks/bench_fused_draws.md; 1.5x on the earlier sessions' machine). The whole-array round uses tag 0
-of the sampler's key; pass ``p`` over the rejected entries uses the key ``fold_in(., p + 1)``, its first buffer that
-key's tag 0 and its second buffer's rounds tags 1, 2, ...; small arrays run rounds on tags 0, 1, 2, ... . A buffer
+of the sampler's key; the compacted pass over the rejected entries uses the key ``fold_in(., 1)``, its first buffer
+that key's tag 0 and its second buffer's rounds tags 1, 2, ...; the fallback's whole-array rounds use tags 0, 1, 2,
+... of ``fold_in(., 2)``, as do small arrays' rounds of the sampler's key itself. A buffer
 slot draws its own deviates: which entry sits in a slot was decided by earlier trials only, so the slot's fresh draws
 are independent of it. ``x = sqrt(2) erf_inv(v)`` with ``v`` uniform on the float grid of ``(-1, 1)``: the deviates
 stop at about 5.2-5.4, which truncates the normal's tails at ``P(|x| > 5.2) ~ 2e-7``, as ``jax.random.normal`` (and
@@ -35,8 +36,11 @@ stop at about 5.2-5.4, which truncates the normal's tails at ``P(|x| > 5.2) ~ 2e
 entries are compacted (:func:`jaxmdp.sampling.compaction.compact`) into a buffer of ``m1 = n // 16 + 64`` slots that
 runs one more trial each; the entries it rejects go to a buffer of ``m2 = m1 // 16 + 64`` slots that runs rounds of four
 trials until every one is accepted; the results are scattered back. At most 4.83% of the entries are rejected per trial,
-so a buffer overflows with probability below ``1e-16`` whatever ``n`` (binomial tails, worst shape); if one does, the
-whole pass (compaction, both buffers) repeats on the entries still rejected, with a fresh key, until none is left. The
+so a buffer overflows with probability below ``1e-16`` whatever ``n`` (binomial tails, worst shape); if one does (the
+compactions' counts say so), whole-array rounds with a fresh key give the entries still rejected their first accepted
+trial. Until 2026-11-29 the pass itself was a loop on "some entry is still rejected", which under ``vmap`` read and
+selected every member's whole array: 11.6 -> 9.1 ns per entry of a Dirichlet draw without it, with the same values
+(docs/benchmarks/bench_fused_draws.md). The
 earlier sampler ran whole-array rounds until every entry was accepted: for ``n ~ 10^6`` about five rounds of three
 random words per entry, where this one runs one round (two words per entry) and then trials for the ~5% it rejected.
 ``jax.random.gamma`` runs a ``while_loop`` per entry that splits its key at every trial. Small arrays (below 1024
@@ -71,7 +75,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxmdp.sampling.compaction import compact
+from jaxmdp.sampling.compaction import compact_with_count
 from jaxmdp.sampling.threefry import join_words, threefry2x32, unit_floats
 
 __all__ = ["sample_log_gamma", "sample_beta", "buffer_sizes", "shape_terms", "trial_log_gamma", "trial_deviates",
@@ -196,18 +200,22 @@ def _rounds(key: jax.Array, tag0: int, shape: ShapeTerms, count: int, log_g: jax
     return _first_of(trials, count, log_g)
 
 
-def _compacted_pass(key: jax.Array, log_g: jax.Array, a: jax.Array, m1: int, m2: int) -> jax.Array:
+def _compacted_pass(
+    key: jax.Array, log_g: jax.Array, a: jax.Array, m1: int, m2: int
+) -> tuple[jax.Array, jax.Array]:
     """A pass over the rejected (NaN) entries of ``log_g`` (shapes ``a``) with the pass's own ``key``: two compacted
-    buffers. Entries left NaN (a buffer overflowed) wait for the next pass."""
-    idx1, in1 = compact(jnp.isnan(log_g), m1)
+    buffers. Returns ``log_g`` and whether a buffer overflowed, leaving some entries NaN (from the compactions'
+    counts, without reading ``log_g`` again)."""
+    idx1, in1, rejected1 = compact_with_count(jnp.isnan(log_g), m1)
     shape1 = shape_terms(jnp.take(a, idx1, mode="clip"))
     log_g1 = jnp.where(in1, _trial(jax.random.fold_in(key, 0), shape1), 0.0)  # empty slots: 0, never retried
-    idx2, in2 = compact(jnp.isnan(log_g1), m2)
+    idx2, in2, rejected2 = compact_with_count(jnp.isnan(log_g1), m2)
     shape2 = _candidates(_FINE_CANDIDATES, shape1.take(idx2))
     pending2 = jnp.where(in2, jnp.nan, 0.0).astype(log_g.dtype)  # empty slots: 0, never retried
     log_g2 = _rounds(key, 1, shape2, _FINE_CANDIDATES, pending2)
     log_g1 = log_g1.at[idx2].set(log_g2, mode="drop", unique_indices=True)
-    return log_g.at[idx1].set(log_g1, mode="drop", unique_indices=True)
+    log_g = log_g.at[idx1].set(log_g1, mode="drop", unique_indices=True)
+    return log_g, (rejected1 > m1) | (rejected2 > m2)
 
 
 def buffer_sizes(n: int) -> tuple[int, int]:
@@ -258,19 +266,25 @@ def sample_log_gamma(
     proper = (flat > 0) & (flat < jnp.inf)
     flat_ok = jnp.where(proper, flat, 1.0)
     stream = jax.random.fold_in(key, _STREAM)
-    shape = shape_terms(flat_ok)
+    shape = shape_terms(flat_ok)  # a producer of the first round's fusion, never materialised (see fallback)
     if compacted:
-        # One round over the whole array, then passes over its rejected entries until none is left.
+        # One round over the whole array, one compacted pass over its rejected entries and, only if a buffer
+        # overflowed, whole-array rounds for the entries still rejected. The overflow flag comes from the
+        # compactions' counts: a loop on "some entry is NaN" read the whole array twice and, under vmap, selected
+        # every member's array after its body (module docstring).
         log_g = _first_of(_trial(jax.random.fold_in(stream, 0), _candidates(candidates, shape)), candidates,
                           jnp.full((n,), jnp.nan, work))
+        log_g, left = _compacted_pass(jax.random.fold_in(stream, 1), log_g, flat_ok, m1, m2)
 
-        # (Pass 0 outside the loop saved ~7% of the time under vmap, where a loop body also re-checks and selects
-        # every member's state, but cost 40% more compile time.)
-        def body(carry):
-            p, log_g = carry
-            return p + 1, _compacted_pass(jax.random.fold_in(stream, p + 1), log_g, flat_ok, m1, m2)
+        # The fallback computes its own shape terms behind a barrier: shared with the first round, or hoisted out of
+        # the loop, they are four arrays the size of ``a`` written and read back instead of terms of the first
+        # round's fusion (seen in the compiled HLO: 4 [8, 480000] operands of that fusion).
+        def fallback(carry):
+            _, log_g, a = carry
+            a = jax.lax.optimization_barrier(a)
+            return jnp.zeros((), bool), _rounds(jax.random.fold_in(stream, 2), 0, shape_terms(a), 1, log_g), a
 
-        log_g = jax.lax.while_loop(lambda c: jnp.any(jnp.isnan(c[1])), body, (jnp.int32(0), log_g))[1]
+        log_g = jax.lax.while_loop(lambda c: c[0], fallback, (left, log_g, flat_ok))[1]
     else:
         log_g = _rounds(stream, 0, _candidates(candidates, shape), candidates, jnp.full((n,), jnp.nan, work))
     improper = jnp.where(flat == 0, -jnp.inf, jnp.where(flat == jnp.inf, jnp.inf, jnp.nan))

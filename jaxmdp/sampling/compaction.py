@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["compact"]
+__all__ = ["compact", "compact_with_count"]
 
 _U32 = jnp.uint32
 _BIT = np.left_shift(np.uint32(1), np.arange(32, dtype=np.uint32))  # bit b of a word holds flag 32 * word + b
@@ -25,6 +25,13 @@ def compact(flags: jax.Array, size: int) -> tuple[jax.Array, jax.Array]:
     Slots past the count hold ``n + s``: distinct and out of range, so a ``gather(mode="clip")`` reads something
     harmless and a ``scatter(mode="drop")`` ignores them. True entries past the first ``size`` are left out.
     """
+    index, valid, _ = compact_with_count(flags, size)
+    return index, valid
+
+
+def compact_with_count(flags: jax.Array, size: int) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """:func:`compact` and the number of true entries (``int32``), which exceeds ``size`` exactly when some were
+    left out; it comes from the packed words' counts, without another pass over ``flags``."""
     n = flags.shape[0]
     if n >= 2**31 - 64 - size:
         raise ValueError(f"compact: flags has {n} entries; at most 2**31 - 64 - size are supported")
@@ -50,4 +57,4 @@ def compact(flags: jax.Array, size: int) -> tuple[jax.Array, jax.Array]:
         k = jnp.where(skip, k - low, k)
         position = position + jnp.where(skip, width, 0)
     valid = slot < total
-    return jnp.where(valid, 32 * word + position, n + slot), valid
+    return jnp.where(valid, 32 * word + position, n + slot), valid, total
