@@ -188,9 +188,11 @@ PSRL_EPISODIC = Agent(
     plan=plan,
     check_hparams=check_hparams,
     # A whole batch of plans pays only when its members' episodes end together (one horizon) and it is small: on
-    # MiniGridEmpty 1.7x faster than rounds at 48 seeds, 1.5x slower at 96; three horizons in one batch, rounds were
-    # faster from 24 seeds on (docs/benchmarks/bench_whole_batch_plans.md).
+    # MiniGridEmpty (100 states) 1.1x faster than rounds at 32 seeds, even at 64, 1.2x slower at 96; at 400 states
+    # rounds were 1.3x faster already at 50 seeds, all asking (docs/benchmarks/bench_whole_batch_plans.md). 64 seeds
+    # of 100 states are 9 MB of agent state; a whole batch's draws then leave the caches.
     whole_batch_plans=64,
+    whole_batch_bytes=8 * 2**20,
 )
 
 

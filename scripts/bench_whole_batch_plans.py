@@ -1,15 +1,16 @@
 """Benchmark: planning a lockstep batch whole, or in rounds of planning slots, when most of its members ask at once.
 
 The runner's planning step (:func:`jaxmdp.experiment.planning.plan_due`) plans the members that asked in rounds of
-``plan_slots``; an agent's ``whole_batch_plans`` is the largest batch that it instead plans whole, in one ``vmap``,
-when more than half its members ask. For each agent and batch size this script runs the agent twice, as ``whole``
-(``whole_batch_plans=None``: the whole-batch copy of ``plan`` compiled beside the rounds) and as ``rounds``
-(``whole_batch_plans=0``: rounds only), whatever the agent's own setting, on one host device (one shard, so a
-shard is the batch), and reports the cold compile time and the best of ``--repeats`` warm runs. The two must give
-the same records and final agent states bit for bit (the script stops otherwise).
+``plan_slots``; an agent's ``whole_batch_plans`` (members) and ``whole_batch_bytes`` (bytes of agent state) bound
+the batch that it instead plans whole, in one ``vmap``, when more than half its members ask. For each agent and batch
+size this script runs the agent twice, as ``whole`` (both ``None``: the whole-batch copy of ``plan`` compiled beside
+the rounds) and as ``rounds`` (``whole_batch_plans=0``: rounds only), whatever the agent's own setting, on one host
+device (one shard, so a shard is the batch), and reports the cold compile time and the best of ``--repeats`` warm
+runs. The two must give the same records and final agent states bit for bit (the script stops otherwise).
 
 Grids: ``sync``, one episodic MiniGridEmpty (size 5) with every member's episodes ending at the same steps (one MDP,
-many seeds, as in a hyperparameter search); ``mixed``, three MiniGridEmpty sizes (4, 5, 6: horizons 11, 13, 15) in
+many seeds, as in a hyperparameter search); ``sync400``, the same with MiniGridEmpty size 10 (400 states, as the
+benchmark's largest episodic MDPs); ``mixed``, three MiniGridEmpty sizes (4, 5, 6: horizons 11, 13, 15) in
 one stack, as in a benchmark batch, where at most a third of the members ask at once after the first step;
 ``river``, continuous RiverSwim-10 (UCRL2 and continuous PSRL, whose epochs end member by member).
 
@@ -31,15 +32,15 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 DEFAULT_CASES = "psrl_episodic:sync,psrl_episodic:mixed,ucrl2:river,psrl_continuous:river"
-STEPS = {"sync": 600, "mixed": 600, "river": 3000}
+STEPS = {"sync": 600, "sync400": 600, "mixed": 600, "river": 3000}
 
 
 def _grid(kind: str, members: int, hparams):
     import jaxmdp
     from jaxmdp.experiment import runner
 
-    if kind == "sync":
-        mdps = [jaxmdp.make("MiniGridEmpty", episodic=True, seed=0, size=5)]
+    if kind in ("sync", "sync400"):
+        mdps = [jaxmdp.make("MiniGridEmpty", episodic=True, seed=0, size=5 if kind == "sync" else 10)]
     elif kind == "mixed":
         mdps = [jaxmdp.make("MiniGridEmpty", episodic=True, seed=0, size=n) for n in (4, 5, 6)]
     else:
@@ -62,7 +63,7 @@ def measure(name: str, kind: str, members: int, repeats: int) -> list[dict]:
     grid = _grid(kind, members, base.default_hparams)
     rows, values = [], None
     for mode, limit in (("whole", None), ("rounds", 0)):
-        agent = dataclasses.replace(base, whole_batch_plans=limit)
+        agent = dataclasses.replace(base, whole_batch_plans=limit, whole_batch_bytes=None)
         # One shard whatever XLA_FLAGS says, so that the batch is the shard that whole_batch_plans bounds.
         run = lambda: runner.run(agent, grid, STEPS[kind], log_period=100, n_records=5, shards=1)  # noqa: E731
         first = run()
@@ -85,7 +86,8 @@ def measure(name: str, kind: str, members: int, repeats: int) -> list[dict]:
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--cases", default=DEFAULT_CASES, help="comma-separated agent:grid pairs (grids: sync, mixed, river)")
+    p.add_argument("--cases", default=DEFAULT_CASES,
+                   help="comma-separated agent:grid pairs (grids: sync, sync400, mixed, river)")
     p.add_argument("--members", default="24,48,96,192", help="comma-separated batch sizes")
     p.add_argument("--repeats", type=int, default=2, help="warm runs per measurement (best kept)")
     p.add_argument("--doc", default=str(ROOT / "docs" / "benchmarks" / "bench_whole_batch_plans.md"),
@@ -107,7 +109,8 @@ def main() -> None:
             body.append(f"| {w['agent']} | {w['grid']} | {w['members']} | {w['steps']} | {w['compile_s']:.1f} | "
                         f"{w['run_s']:.2f} | {r['compile_s']:.1f} | {r['run_s']:.2f} | "
                         f"{r['run_s'] / w['run_s']:.2f}x |")
-        append_section(args.doc, "Planning a batch whole or in rounds (`Agent.whole_batch_plans`)", None, body)
+        title = "Planning a batch whole or in rounds (`Agent.whole_batch_plans`, `whole_batch_bytes`)"
+        append_section(args.doc, title, None, body)
         print(f"appended to {args.doc}")
 
 

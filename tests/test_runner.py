@@ -19,7 +19,7 @@ from flax import struct
 import agents
 import jaxmdp
 from jaxmdp.experiment import runner
-from jaxmdp.experiment.agent_interface import Agent
+from jaxmdp.experiment.agent_interface import Agent, plans_whole, spec_of
 from jaxmdp.experiment.indicators import CSV_COLUMNS
 from conftest import random_mdp
 from numpy_reference import finite_horizon_eval, finite_horizon_optimal, one_hot
@@ -177,11 +177,25 @@ def test_a_shard_above_the_agents_whole_batch_plans_compiles_one_copy_of_plan_wi
     np.testing.assert_array_equal(whole.agent_state.plans, 1 + 59 // np.array([3, 3, 4, 4, 6, 6]))
 
 
-def test_a_bad_whole_batch_plans_is_refused_before_compiling():
+def test_the_whole_batch_bytes_bound_the_agent_states_of_a_shard():
+    # The scripted agent's state for two members is some hundred bytes: a bound at or above it plans whole, one
+    # byte below it plans in rounds, as does a member bound below two members.
+    states = jax.vmap(lambda k: SCRIPTED[False].init(k, spec_of(river_swim(False), 10), ScriptedHParams()))(
+        jax.random.split(jax.random.key(0), 2))
+    size = sum(x.size * x.dtype.itemsize for x in jax.tree.leaves(states))
+    agent = lambda **kw: dataclasses.replace(SCRIPTED[False], **kw)  # noqa: E731
+    assert plans_whole(agent(), states) and plans_whole(agent(whole_batch_bytes=size), states)
+    assert not plans_whole(agent(whole_batch_bytes=size - 1), states)
+    assert not plans_whole(agent(whole_batch_bytes=size, whole_batch_plans=1), states)
+    assert plans_whole(agent(whole_batch_bytes=size, whole_batch_plans=2), states)
+
+
+@pytest.mark.parametrize("field", ["whole_batch_plans", "whole_batch_bytes"])
+def test_a_bad_whole_batch_limit_is_refused_before_compiling(field):
     g = runner.product([river_swim(False)], [ScriptedHParams()], seeds=[0])
     for bad in (-1, 2.5, "64", True):
-        agent = dataclasses.replace(SCRIPTED[False], whole_batch_plans=bad)
-        with pytest.raises(ValueError, match=r"Agent.whole_batch_plans must be an integer >= 0 or None \(agent "):
+        agent = dataclasses.replace(SCRIPTED[False], **{field: bad})
+        with pytest.raises(ValueError, match=rf"Agent.{field} must be an integer >= 0 or None \(agent "):
             runner.run(agent, g, 10)
 
 

@@ -25,6 +25,8 @@ hyperparameter sets and drives them in lockstep:
 * ``whole_batch_plans`` (an int, default ``None``: no limit): the largest batch the runner plans whole when most of
   its members ask at once; larger ones plan in rounds (:mod:`jaxmdp.experiment.planning`). An agent whose members
   seldom ask together (epochs that end member by member) sets 0, and its runner compiles the plan once, not twice.
+  ``whole_batch_bytes`` (default ``None``: no limit) bounds the same by the batch's agent states' bytes, for an
+  agent whose plan's working set grows with its state (a whole batch that leaves the caches plans slower).
 * ``diagnostics(state) -> {name: int scalar}`` (optional): counters of silent degradation kept in the state, e.g.
   plans that stopped at their iteration cap; the runner writes each as a column of its per-record CSV and warns at
   the end of a run where one is non-zero.
@@ -57,7 +59,7 @@ from flax import struct
 
 from jaxmdp.mdp import MDP
 
-__all__ = ["MDPSpec", "Transition", "Agent", "spec_of", "where_due"]
+__all__ = ["MDPSpec", "Transition", "Agent", "spec_of", "plans_whole", "where_due"]
 
 
 class MDPSpec(struct.PyTreeNode):
@@ -163,11 +165,24 @@ class Agent:
     #: (:func:`jaxmdp.experiment.planning.plan_due`) and compile no whole-batch copy of ``plan``. 0 for an agent
     #: whose members seldom ask together (docs/benchmarks/bench_whole_batch_plans.md).
     whole_batch_plans: int | None = None
+    #: The largest total size in bytes of a lockstep batch's agent states that the runner plans whole (``None``: any);
+    #: a batch above it plans in rounds like one above ``whole_batch_plans``.
+    whole_batch_bytes: int | None = None
 
     @property
     def plans(self) -> bool:
         """Whether the agent has a planning step (``plan`` given); the runner compiles none for one without."""
         return self.plan is not _no_plan
+
+
+def plans_whole(agent: Agent, states: Any) -> bool:
+    """Whether the runner may plan a lockstep batch of ``states`` (member axis first) whole: at most
+    ``agent.whole_batch_plans`` members and at most ``agent.whole_batch_bytes`` bytes of state (static shapes)."""
+    leaves = jax.tree.leaves(states)
+    members = leaves[0].shape[0] if leaves else 0
+    nbytes = sum(x.size * x.dtype.itemsize for x in leaves)
+    return ((agent.whole_batch_plans is None or members <= agent.whole_batch_plans)
+            and (agent.whole_batch_bytes is None or nbytes <= agent.whole_batch_bytes))
 
 
 def where_due(due: jax.Array, new: Any, old: Any) -> Any:

@@ -55,7 +55,7 @@ from jaxmdp import dynamic_programming as dp
 from jaxmdp import env
 from jaxmdp.gth import band_order
 from jaxmdp._checks import VARIANTS, Variant, check_int, check_variant
-from jaxmdp.experiment.agent_interface import Agent, Transition, spec_of, where_due
+from jaxmdp.experiment.agent_interface import Agent, Transition, plans_whole, spec_of, where_due
 from jaxmdp.experiment.checkpoints import fingerprint, load_checkpoint, save_checkpoint
 from jaxmdp.experiment.memory import ProgramTooLarge, check_fits
 from jaxmdp.experiment.indicators import (
@@ -275,8 +275,9 @@ def _chunk_program(
     have no Beta reward anywhere (static ``MDP.stochastic_rewards``) compiles no reward draw. ``plan_slots``: members
     planned at once (:func:`jaxmdp.experiment.planning.plan_due`; default
     :func:`~jaxmdp.experiment.planning.default_plan_slots` of a shard's members); at least a shard's members, the
-    whole shard is planned whenever one member asks and the result kept for those that did. A shard larger than
-    ``agent.whole_batch_plans`` plans in rounds only.
+    whole shard is planned whenever one member asks and the result kept for those that did. A shard of more than
+    ``agent.whole_batch_plans`` members, or of more than ``agent.whole_batch_bytes`` bytes of agent state, plans in
+    rounds only.
     """
 
     def chunk(
@@ -297,9 +298,8 @@ def _chunk_program(
             if slots >= B:
                 do_plan = lambda state: where_due(needs, jax.vmap(agent.plan)(keys(), state), state)  # noqa: E731
             else:
-                whole = agent.whole_batch_plans is None or B <= agent.whole_batch_plans
                 do_plan = lambda state: plan_due(  # noqa: E731
-                    agent.plan, slots, needs, keys(), state, whole, lone_rounds=not agent.episodic
+                    agent.plan, slots, needs, keys(), state, plans_whole(agent, state), lone_rounds=not agent.episodic
                 )
             return c.replace(agent_state=jax.lax.cond(jnp.any(needs), do_plan, lambda s: s, c.agent_state))
 
@@ -477,8 +477,9 @@ def _n_shards(n_members: int, shards: int | None) -> int:
 def _validate(agent: Agent, g: Grid, variant: str) -> None:
     if not isinstance(agent, Agent):
         raise ValueError(f"agent must be a jaxmdp.experiment.agent_interface.Agent; got {type(agent).__name__}")
-    if agent.whole_batch_plans is not None:
-        check_int("Agent.whole_batch_plans", agent.whole_batch_plans, 0, context=f" or None (agent {agent.name!r})")
+    for field in ("whole_batch_plans", "whole_batch_bytes"):
+        if getattr(agent, field) is not None:
+            check_int(f"Agent.{field}", getattr(agent, field), 0, context=f" or None (agent {agent.name!r})")
     if not isinstance(g, Grid):
         raise ValueError("grid must be a jaxmdp.experiment.runner.Grid (see runner.grid and runner.product)")
     check_variant(variant)
@@ -816,7 +817,7 @@ def run(
       ValueError: before anything compiles, for an episodic agent on continuous MDPs (or the reverse), an agent
         whose policy or action does not fit the MDPs' ``S``/``A``/``H``, non-positive ``n_steps``, ``log_period`` or
         ``n_records``, hyperparameters outside their domain (``agent.check_hparams``), an ``agent.whole_batch_plans``
-        that is neither ``None`` nor an integer >= 0, or a checkpoint of another run.
+        or ``agent.whole_batch_bytes`` that is neither ``None`` nor an integer >= 0, or a checkpoint of another run.
       ProgramTooLarge: after compiling, before anything runs, when a program needs more memory than
         ``memory_limit`` (a ``MemoryError``; split the members over several calls).
     """
