@@ -39,7 +39,7 @@ trials until every one is accepted; the results are scattered back. At most 4.83
 so a buffer overflows with probability below ``1e-16`` whatever ``n`` (binomial tails, worst shape); if one does (the
 compactions' counts say so), whole-array rounds with a fresh key give the entries still rejected their first accepted
 trial. Until 2026-11-29 the pass itself was a loop on "some entry is still rejected", which under ``vmap`` read and
-selected every member's whole array: 11.6 -> 9.1 ns per entry of a Dirichlet draw without it, with the same values
+selected every member's whole array: 10.6-11.6 -> 8.1-9.1 ns per entry of a Dirichlet draw without it, the same values
 (docs/benchmarks/bench_fused_draws.md). The
 earlier sampler ran whole-array rounds until every entry was accepted: for ``n ~ 10^6`` about five rounds of three
 random words per entry, where this one runs one round (two words per entry) and then trials for the ~5% it rejected.
