@@ -106,9 +106,9 @@ def test_log_gamma_exact_on_large_arrays(buffers):
 
 
 @pytest.mark.parametrize("which", ["first", "second"])
-def test_an_overflowing_buffer_sends_its_entries_to_the_fallback(which):
-    # The compacted pass reports an overflow from the compactions' counts; then whole-array rounds finish the
-    # entries it left. "first": both buffers overflow; "second": only the second one (its m2 = 1 slot holds one of
+def test_an_overflowing_buffer_sends_its_entries_to_another_pass(which):
+    # The compacted pass reports an overflow from the compactions' counts; then further passes finish the entries
+    # it left. "first": both buffers overflow; "second": only the second one (its m2 = 1 slot holds one of
     # the first buffer's rejections, far fewer than m1 = 400 first-round rejections at most). Without the flag (or
     # with one buffer's count left out) entries stay NaN.
     a = jnp.asarray(np.random.default_rng(3).uniform(0.05, 3.0, 8000), jnp.float32)

@@ -24,9 +24,8 @@ trial's ``x`` and ``w`` (:func:`trial_deviates`). The hash is :func:`jaxmdp.samp
 out, which XLA fuses with the trial's arithmetic; ``jax.random`` evaluates each 32-bit word's hash in a rolled loop
 over memory, which cost most of a Dirichlet draw on CPU (30.6 against 12.6 ns per entry, ``[8, 400, 3, 400]``,
 docs/benchmarks/bench_fused_draws.md; 1.5x on the earlier sessions' machine). The whole-array round uses tag 0
-of the sampler's key; the compacted pass over the rejected entries uses the key ``fold_in(., 1)``, its first buffer
-that key's tag 0 and its second buffer's rounds tags 1, 2, ...; the fallback's whole-array rounds use tags 0, 1, 2,
-... of ``fold_in(., 2)``, as do small arrays' rounds of the sampler's key itself. A buffer
+of the sampler's key; pass ``p`` over the rejected entries uses the key ``fold_in(., p + 1)``, its first buffer that
+key's tag 0 and its second buffer's rounds tags 1, 2, ...; small arrays run rounds on tags 0, 1, 2, ... . A buffer
 slot draws its own deviates: which entry sits in a slot was decided by earlier trials only, so the slot's fresh draws
 are independent of it. ``x = sqrt(2) erf_inv(v)`` with ``v`` uniform on the float grid of ``(-1, 1)``: the deviates
 stop at about 5.2-5.4, which truncates the normal's tails at ``P(|x| > 5.2) ~ 2e-7``, as ``jax.random.normal`` (and
@@ -37,10 +36,10 @@ entries are compacted (:func:`jaxmdp.sampling.compaction.compact`) into a buffer
 runs one more trial each; the entries it rejects go to a buffer of ``m2 = m1 // 16 + 64`` slots that runs rounds of four
 trials until every one is accepted; the results are scattered back. At most 4.83% of the entries are rejected per trial,
 so a buffer overflows with probability below ``1e-16`` whatever ``n`` (binomial tails, worst shape); if one does (the
-compactions' counts say so), whole-array rounds with a fresh key give the entries still rejected their first accepted
-trial. Until 2026-11-29 the pass itself was a loop on "some entry is still rejected", which under ``vmap`` read and
-selected every member's whole array: 10.6-11.6 -> 8.1-9.1 ns per entry of a Dirichlet draw without it, the same values
-(docs/benchmarks/bench_fused_draws.md). The
+compactions' counts say so), the whole pass (compaction, both buffers) repeats on the entries still rejected, with a
+fresh key, until no buffer overflows. Until 2026-11-29 the passes looped on "some entry is still rejected", which
+under ``vmap`` read every member's whole array twice: 10.6-11.6 -> 8.1-9.1 ns per entry of a Dirichlet draw without
+it, the same values (docs/benchmarks/bench_fused_draws.md). The
 earlier sampler ran whole-array rounds until every entry was accepted: for ``n ~ 10^6`` about five rounds of three
 random words per entry, where this one runs one round (two words per entry) and then trials for the ~5% it rejected.
 ``jax.random.gamma`` runs a ``while_loop`` per entry that splits its key at every trial. Small arrays (below 1024
@@ -266,25 +265,20 @@ def sample_log_gamma(
     proper = (flat > 0) & (flat < jnp.inf)
     flat_ok = jnp.where(proper, flat, 1.0)
     stream = jax.random.fold_in(key, _STREAM)
-    shape = shape_terms(flat_ok)  # a producer of the first round's fusion, never materialised (see fallback)
+    shape = shape_terms(flat_ok)
     if compacted:
-        # One round over the whole array, one compacted pass over its rejected entries and, only if a buffer
-        # overflowed, whole-array rounds for the entries still rejected. The overflow flag comes from the
-        # compactions' counts: a loop on "some entry is NaN" read the whole array twice and, under vmap, selected
-        # every member's array after its body (module docstring).
+        # One round over the whole array, then compacted passes over its rejected entries while a buffer overflowed
+        # (the compactions' counts say so; the first pass always runs). A loop on "some entry is NaN" read every
+        # member's whole array twice under vmap (module docstring).
         log_g = _first_of(_trial(jax.random.fold_in(stream, 0), _candidates(candidates, shape)), candidates,
                           jnp.full((n,), jnp.nan, work))
-        log_g, left = _compacted_pass(jax.random.fold_in(stream, 1), log_g, flat_ok, m1, m2)
 
-        # The fallback computes its own shape terms behind a barrier: shared with the first round, or hoisted out of
-        # the loop, they are four arrays the size of ``a`` written and read back instead of terms of the first
-        # round's fusion (seen in the compiled HLO: 4 [8, 480000] operands of that fusion).
-        def fallback(carry):
-            _, log_g, a = carry
-            a = jax.lax.optimization_barrier(a)
-            return jnp.zeros((), bool), _rounds(jax.random.fold_in(stream, 2), 0, shape_terms(a), 1, log_g), a
+        def body(carry):
+            p, _, log_g = carry
+            log_g, left = _compacted_pass(jax.random.fold_in(stream, p + 1), log_g, flat_ok, m1, m2)
+            return p + 1, left, log_g
 
-        log_g = jax.lax.while_loop(lambda c: c[0], fallback, (left, log_g, flat_ok))[1]
+        log_g = jax.lax.while_loop(lambda c: c[1], body, (jnp.int32(0), jnp.ones((), bool), log_g))[2]
     else:
         log_g = _rounds(stream, 0, _candidates(candidates, shape), candidates, jnp.full((n,), jnp.nan, work))
     improper = jnp.where(flat == 0, -jnp.inf, jnp.where(flat == jnp.inf, jnp.inf, jnp.nan))
