@@ -188,9 +188,9 @@ PSRL_EPISODIC = Agent(
     plan=plan,
     check_hparams=check_hparams,
     # A whole batch of plans pays only when its members' episodes end together (one horizon) and it is small: on
-    # MiniGridEmpty (100 states) 1.1x faster than rounds at 32 seeds, even at 64, 1.2x slower at 96; at 400 states
-    # rounds were 1.3x faster already at 50 seeds, all asking (docs/benchmarks/bench_whole_batch_plans.md). 64 seeds
-    # of 100 states are 9 MB of agent state; a whole batch's draws then leave the caches.
+    # MiniGridEmpty (100 states) 1.2x faster than rounds at 32 seeds, rounds 1.2x faster at 64 and 1.5x at 96; at
+    # 400 states rounds were 1.2-1.3x faster from 32 seeds on (docs/benchmarks/bench_whole_batch_plans.md, 2026-11-29).
+    # 64 seeds of 100 states are 9 MB of agent state; a whole batch's draws then leave the caches.
     whole_batch_plans=64,
     whole_batch_bytes=8 * 2**20,
 )

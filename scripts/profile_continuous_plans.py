@@ -15,6 +15,7 @@ and, when kept, the posterior Dirichlet draws; the dense candidate kernels befor
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 import time
@@ -103,6 +104,15 @@ def in_program_seconds(fn, keys, states, *, calls: int = 4, repeats: int = 3) ->
     runner's plans run inside its chunk programs, which reuse one buffer. Call ``i`` of the loop
     uses ``fold_in(key, i)`` of each key and passes the states through an optimisation barrier with ``i``, so that
     XLA cannot hoist the key-independent work (e.g. a model built from the counts) out of the loop."""
+    run_loop = _program_loop(fn)
+    times = {m: best_of(run_loop, keys, states, jnp.asarray(m), repeats=repeats)[0] for m in (1, 1 + calls)}
+    return max(times[1 + calls] - times[1], 0.0) / calls
+
+
+@functools.cache
+def _program_loop(fn):
+    """The jitted loop of ``m`` calls of ``fn`` that :func:`in_program_seconds` times, one per ``fn`` (so that timing
+    the same ``fn`` again, e.g. alternating with a baseline, does not compile it again)."""
 
     def loop(keys, states, m):
         def body(i, acc):
@@ -113,9 +123,7 @@ def in_program_seconds(fn, keys, states, *, calls: int = 4, repeats: int = 3) ->
 
         return jax.lax.fori_loop(0, m, body, jnp.zeros((), jnp.float32))
 
-    run_loop = jax.jit(loop)
-    times = {m: best_of(run_loop, keys, states, jnp.asarray(m), repeats=repeats)[0] for m in (1, 1 + calls)}
-    return max(times[1 + calls] - times[1], 0.0) / calls
+    return jax.jit(loop)
 
 
 def profile(agent_name: str, label: str, args) -> dict:

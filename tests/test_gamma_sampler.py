@@ -118,6 +118,10 @@ def test_an_overflowing_buffer_sends_its_entries_to_another_pass(which):
     first = bs._trial(jax.random.fold_in(stream, 0), bs.shape_terms(a))
     rejected = int(jnp.isnan(first).sum())
     assert (rejected > 16) if which == "first" else (40 < rejected < 400)  # about 4% of 8000: wide margins
+    # The first pass (key fold_in(stream, 1)) leaves entries NaN and says so; with the default buffers it does not.
+    for m, overflow in ((buffers, True), (buffer_sizes(a.size), False)):
+        after, left = bs._compacted_pass(jax.random.fold_in(stream, 1), first, a, *m)
+        assert bool(left) == overflow == bool(jnp.isnan(after).any())
     y = np.asarray(sample_log_gamma(k, a, buffers=buffers))
     assert np.all(np.isfinite(y))
     default = np.asarray(sample_log_gamma(k, a))

@@ -155,24 +155,30 @@ def test_every_member_plans_once_before_its_first_action_with_its_initialisation
         np.testing.assert_array_equal(res.agent_state.first_key[b], jax.random.key_data(jax.random.fold_in(sub[3], 2)))
 
 
-def test_a_shard_above_the_agents_whole_batch_plans_compiles_one_copy_of_plan_with_the_same_results():
+def test_a_shard_above_the_agents_whole_batch_limits_compiles_one_copy_of_plan_with_the_same_results():
     # Six members asking every 3, 4 or 6 updates: at c = 6 four ask and at c = 12 all six, more than half, which a
     # shard of at most whole_batch_plans members plans whole. Above it, rounds only: plan is traced once per chunk
     # program instead of twice (whole batch and rounds), and the records and plan counts are the same.
     traced = []
 
-    def counting(limit):
+    def counting(limit, nbytes=None):
         def plan(key, state):
-            traced.append(limit)
+            traced.append((limit, nbytes))
             return SCRIPTED[False].plan(key, state)
 
-        return dataclasses.replace(SCRIPTED[False], name=f"scripted_{limit}", plan=plan, whole_batch_plans=limit)
+        return dataclasses.replace(SCRIPTED[False], name=f"scripted_{limit}_{nbytes}", plan=plan,
+                                   whole_batch_plans=limit, whole_batch_bytes=nbytes)
 
     g = runner.product([river_swim(False)], [ScriptedHParams(3), ScriptedHParams(4), ScriptedHParams(6)], seeds=[0, 1])
-    whole, rounds = (runner.run(counting(limit), g, 60, log_period=10, n_records=2, shards=1) for limit in (6, 5))
-    assert traced.count(5) >= 1 and traced.count(6) == 2 * traced.count(5)
-    np.testing.assert_array_equal(rounds.values, whole.values)
-    np.testing.assert_array_equal(rounds.agent_state.plans, whole.agent_state.plans)
+    # Whole: at most 6 members and no byte bound. Rounds: 5 members, or 6 members above a byte bound of 1 byte.
+    limits = [(6, None), (5, None), (6, 1)]
+    whole, rounds, by_bytes = (runner.run(counting(*lim), g, 60, log_period=10, n_records=2, shards=1)
+                               for lim in limits)
+    once = traced.count(limits[1])
+    assert once >= 1 and traced.count(limits[0]) == 2 * once and traced.count(limits[2]) == once
+    for res in (rounds, by_bytes):
+        np.testing.assert_array_equal(res.values, whole.values)
+        np.testing.assert_array_equal(res.agent_state.plans, whole.agent_state.plans)
     # The first plan, then one before every step at which c is a positive multiple (c = 60 is after the last step).
     np.testing.assert_array_equal(whole.agent_state.plans, 1 + 59 // np.array([3, 3, 4, 4, 6, 6]))
 
@@ -182,7 +188,7 @@ def test_the_whole_batch_bytes_bound_the_agent_states_of_a_shard():
     # byte below it plans in rounds, as does a member bound below two members.
     states = jax.vmap(lambda k: SCRIPTED[False].init(k, spec_of(river_swim(False), 10), ScriptedHParams()))(
         jax.random.split(jax.random.key(0), 2))
-    size = sum(x.size * x.dtype.itemsize for x in jax.tree.leaves(states))
+    size = sum(np.asarray(x).nbytes for x in jax.tree.leaves(states))  # numpy's count, on the host
     agent = lambda **kw: dataclasses.replace(SCRIPTED[False], **kw)  # noqa: E731
     assert plans_whole(agent(), states) and plans_whole(agent(whole_batch_bytes=size), states)
     assert not plans_whole(agent(whole_batch_bytes=size - 1), states)

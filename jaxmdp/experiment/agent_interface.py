@@ -180,7 +180,7 @@ def plans_whole(agent: Agent, states: Any) -> bool:
     ``agent.whole_batch_plans`` members and at most ``agent.whole_batch_bytes`` bytes of state (static shapes)."""
     leaves = jax.tree.leaves(states)
     members = leaves[0].shape[0] if leaves else 0
-    nbytes = sum(x.size * x.dtype.itemsize for x in leaves)
+    nbytes = sum(x.nbytes for x in leaves)  # static: tracers carry their shapes
     return ((agent.whole_batch_plans is None or members <= agent.whole_batch_plans)
             and (agent.whole_batch_bytes is None or nbytes <= agent.whole_batch_bytes))
 
