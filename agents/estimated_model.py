@@ -12,6 +12,12 @@ live in ``K`` slots per pair (:class:`SuccessorCounts`, filled in order of first
 costs ``O(S A K)`` instead of the dense ``O(S A S)``. At the benchmark's largest MDP (MiniGridRooms, 948 states,
 ``K = 4``) the dense policy estimate took 124 ms a log per member on the 2-core CPU, the value iteration's ~600 dense
 sweeps most of it (docs/benchmarks/continuous_indicators.md, "Sparse policy estimate").
+
+The observed next states are among the MDP's successors, so in a state order where every transition of the MDP joins
+positions at most ``w`` apart (``MDPSpec.state_order``, :func:`jaxmdp.gth.band_order`) the observed part of a policy's
+kernel is banded, and the uniform part is one rank-one term. A policy's evaluation is then a banded elimination
+(:func:`~jaxmdp.dynamic_programming.discounted_chain_values_banded`, ``O(S w^2)``) and a Sherman-Morrison correction
+instead of a dense ``O(S^3)`` solve (:func:`policy_values`).
 """
 
 from __future__ import annotations
@@ -22,7 +28,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from agents.tabular_common import copy_action_zero
+from agents.tabular_common import copy_action_zero, only_if
 from jaxmdp import dynamic_programming as dp
 
 __all__ = [
@@ -33,6 +39,7 @@ __all__ = [
     "SparseKernel",
     "expected_next_values",
     "policy_matrix",
+    "policy_values",
     "discounted_greedy_policy",
 ]
 
@@ -46,15 +53,28 @@ class SuccessorCounts(struct.PyTreeNode):
     states: jax.Array
     counts: jax.Array
     overflowed: jax.Array
+    #: The MDP's band order (``[S]``) and its static bandwidth (``MDPSpec.state_order``, ``MDPSpec.bandwidth``), or
+    #: ``None``: passed on to :class:`SparseKernel` for banded policy evaluations.
+    order: jax.Array | None = None
+    bandwidth: int | None = struct.field(pytree_node=False, default=None)
 
 
-def empty_counts(n_states: int, n_actions: int, max_successors: int | None) -> SuccessorCounts:
-    """No observation yet; ``max_successors`` ``K`` slots per pair (``None``: ``n_states``, which never overflows)."""
+def empty_counts(
+    n_states: int, n_actions: int, max_successors: int | None, state_order: jax.Array | None = None,
+    bandwidth: int | None = None,
+) -> SuccessorCounts:
+    """No observation yet; ``max_successors`` ``K`` slots per pair (``None``: ``n_states``, which never overflows);
+    ``state_order`` and ``bandwidth``: the MDP's band order (both or neither, e.g. from the agent's
+    :class:`~jaxmdp.experiment.agent_interface.MDPSpec`)."""
+    if (state_order is None) != (bandwidth is None):
+        raise ValueError("state_order and bandwidth go together: give both (jaxmdp.gth.band_order) or neither")
     K = n_states if max_successors is None else min(max_successors, n_states)
     return SuccessorCounts(
         states=jnp.zeros((n_states, n_actions, K), jnp.int32),
         counts=jnp.zeros((n_states, n_actions, K), jnp.int32),
         overflowed=jnp.zeros((), bool),
+        order=None if state_order is None else jnp.asarray(state_order, jnp.int32),
+        bandwidth=bandwidth,
     )
 
 
@@ -85,12 +105,31 @@ def dense_counts(table: SuccessorCounts) -> jax.Array:
 
 class SparseKernel(struct.PyTreeNode):
     """``P(s'|s, a) = sum_k probs[s, a, k] [s' = states[s, a, k]] + uniform[s, a] state_mask[s'] / S_real`` (module
-    docstring): ``states``/``probs`` ``[S, A, K]``, ``uniform[S, A]``, ``state_mask[S]``."""
+    docstring): ``states``/``probs`` ``[S, A, K]``, ``uniform[S, A]``, ``state_mask[S]``; ``order`` (``[S]``) and
+    static ``bandwidth``: a state order in which every slot of positive probability joins positions at most
+    ``bandwidth`` apart (the MDP's band order, :attr:`SuccessorCounts.order`), or ``None``."""
 
     states: jax.Array
     probs: jax.Array
     uniform: jax.Array
     state_mask: jax.Array
+    order: jax.Array | None = None
+    bandwidth: int | None = struct.field(pytree_node=False, default=None)
+
+    @classmethod
+    def of(cls, table: SuccessorCounts, probs: jax.Array, uniform: jax.Array, state_mask: jax.Array) -> "SparseKernel":
+        """The kernel on ``table``'s observed next states, with its band order: ``probs[S, A, K]`` at the slots and
+        ``uniform[S, A]``."""
+        return cls(states=table.states, probs=probs, uniform=uniform, state_mask=state_mask, order=table.order,
+                   bandwidth=table.bandwidth)
+
+    def in_band(self) -> jax.Array:
+        """Whether every slot of positive probability joins positions at most ``bandwidth`` apart in ``order``
+        (``O(S A K)``; True without an order)."""
+        if self.order is None:
+            return jnp.ones((), bool)
+        pos = _positions(self.order)
+        return jnp.all((self.probs == 0) | (jnp.abs(pos[:, None, None] - pos[self.states]) <= self.bandwidth))
 
     def copy_action_zero(self, action_mask: jax.Array) -> "SparseKernel":
         """Padded actions' rows replaced by action 0's (:func:`~agents.tabular_common.copy_action_zero`)."""
@@ -122,12 +161,58 @@ def policy_matrix(kernel: SparseKernel, pi: jax.Array) -> jax.Array:
     return sparse + jnp.sum(pi * kernel.uniform, axis=-1)[:, None] * _uniform_row(kernel, dtype)
 
 
+def _positions(order: jax.Array) -> jax.Array:
+    """``pos[s]``: the position of state ``s`` in ``order`` (the inverse permutation)."""
+    S = order.shape[0]
+    return jnp.zeros((S,), jnp.int32).at[order].set(jnp.arange(S, dtype=jnp.int32))
+
+
+def policy_values(kernel: SparseKernel, pi: jax.Array, R: jax.Array, discount: Any) -> jax.Array:
+    """Discounted values ``V = (I - gamma P_pi)^{-1} r_pi`` of a policy ``pi[S, A]`` (Puterman 1994 §6.1).
+
+    Without a band order: :func:`policy_matrix` and a dense solve (``O(S^3)``). With one (``kernel.order``, which
+    must hold, :meth:`SparseKernel.in_band`): ``P_pi = B + u m^T``, with ``B`` the slots' part (banded in the order),
+    ``u[s] = sum_a pi(a|s) uniform[s, a]`` its missing row mass and ``m`` the uniform distribution on the real
+    states. With ``x, y, z = (I - gamma B)^{-1} [r_pi, u, 1]`` (one banded elimination,
+    :func:`~jaxmdp.dynamic_programming.discounted_chain_values_banded`), Sherman-Morrison gives ``V = x + gamma y
+    (m.x) / (1 - gamma m.y)``; the denominator is ``(1 - gamma) m.z`` (from ``(I - gamma B) 1 = (1 - gamma) 1 + gamma
+    u``), a product of positive numbers, at least ``1 - gamma``. ``O(S A K + S w^2)`` plus the ``S x S`` matrix's
+    writes."""
+    dtype = kernel.probs.dtype
+    r = jnp.sum(pi * R, axis=-1)
+    if kernel.order is None:
+        return dp.discounted_chain_values(policy_matrix(kernel, pi), r, discount)
+    S, A, K = kernel.states.shape
+    discount = jnp.asarray(discount, dtype)
+    order, pos = kernel.order, _positions(kernel.order)
+    weight = pi.astype(dtype)[..., None] * kernel.probs
+    rows = jnp.broadcast_to(pos[:, None, None], (S, A, K))
+    B = jnp.zeros((S, S), dtype).at[rows, pos[kernel.states]].add(weight)  # row i: state order[i]
+    u = jnp.sum(pi * kernel.uniform, axis=-1)[order]
+    m = _uniform_row(kernel, dtype)[order]
+    x, y, z = dp.discounted_chain_values_banded(
+        B, u, jnp.stack([r[order], u, jnp.ones_like(u)], axis=1), discount, kernel.bandwidth
+    ).T
+    V = x + discount * y * (jnp.dot(m, x) / ((1.0 - discount) * jnp.dot(m, z)))
+    return V[pos]
+
+
 def discounted_greedy_policy(kernel: SparseKernel, R: jax.Array, discount: Any, action_mask: jax.Array) -> jax.Array:
     """Greedy one-hot ``[S, A]`` policy (lowest-index ties) of the ``discount``-discounted optimal values of
     ``(kernel, R[S, A])``, padded actions mirroring action 0: :func:`~agents.tabular_common.discounted_greedy_policy`
-    (value iteration to ``1e-3``, then policy iteration with exact linear-solve evaluations,
-    :func:`~jaxmdp.dynamic_programming.solve_discounted`) with ``O(S A K)`` backups. The same policy-evaluation
-    systems as the dense route; the backups sum in another order, so near-ties can resolve differently."""
+    (value iteration to ``1e-3``, then policy iteration with exact evaluations, :func:`policy_values`) with ``O(S A
+    K)`` backups. The same policy-evaluation systems as the dense route; the backups sum in another order, so
+    near-ties can resolve differently. With a band order (``kernel.order``) the evaluations are banded; a kernel
+    outside its band (a wrong hint) is solved densely instead, by the members it concerns only."""
+    if kernel.order is None:
+        return _greedy_policy(kernel, R, discount, action_mask)
+    banded = _greedy_policy(kernel, R, discount, action_mask)
+    unbanded = lambda k, r: _greedy_policy(k.replace(order=None, bandwidth=None), r, discount, action_mask)  # noqa: E731
+    return only_if(~kernel.in_band(), unbanded, banded, kernel, R)
+
+
+def _greedy_policy(kernel: SparseKernel, R: jax.Array, discount: Any, action_mask: jax.Array) -> jax.Array:
+    """:func:`discounted_greedy_policy`, banded if ``kernel.order`` is given (which must then hold)."""
     kernel = kernel.copy_action_zero(action_mask)
     R = copy_action_zero(R, action_mask)
     all_states = jnp.ones(R.shape[:1], bool)
@@ -142,7 +227,7 @@ def discounted_greedy_policy(kernel: SparseKernel, R: jax.Array, discount: Any, 
     )
 
     def evaluate(pi: jax.Array) -> jax.Array:
-        return dp.discounted_chain_values(policy_matrix(kernel, pi), jnp.sum(pi * R, axis=-1), discount)
+        return policy_values(kernel, pi, R, discount)
 
     def improve(pi: jax.Array, V: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
         Q = backup(V)

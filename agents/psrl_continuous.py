@@ -255,7 +255,7 @@ def init(key: jax.Array, spec: MDPSpec, hparams: PSRLContinuousHParams) -> PSRLC
     consts = constants(hparams, jnp.sum(spec.state_mask), jnp.sum(spec.action_mask), spec.n_steps)
     return PSRLContinuousState(
         counts=jnp.zeros((S, A, S), jnp.int32),
-        successors=em.empty_counts(S, A, spec.max_successors),
+        successors=em.empty_counts(S, A, spec.max_successors, spec.state_order, spec.bandwidth),
         schedule=epoch_schedule(S, A),
         rewards=rewards,
         Q=jnp.zeros((S, A), dtype),
@@ -665,8 +665,7 @@ def posterior_mean_kernel(state: PSRLContinuousState) -> em.SparseKernel:
     prior_mass = (1.0 / n_real) * n_real
     Z = prior_mass + state.schedule.visits.astype(dtype)
     succ = state.successors
-    return em.SparseKernel(states=succ.states, probs=succ.counts.astype(dtype) / Z[..., None], uniform=prior_mass / Z,
-                           state_mask=state.state_mask)
+    return em.SparseKernel.of(succ, succ.counts.astype(dtype) / Z[..., None], prior_mass / Z, state.state_mask)
 
 
 def _dense_policy(state: PSRLContinuousState) -> jax.Array:

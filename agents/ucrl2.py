@@ -138,7 +138,7 @@ def init(key: jax.Array, spec: MDPSpec, hparams: UCRL2HParams) -> UCRL2State:
     dtype = jnp.result_type(float)
     return UCRL2State(
         counts=jnp.zeros((S, A, S), jnp.int32),
-        successors=em.empty_counts(S, A, spec.max_successors),
+        successors=em.empty_counts(S, A, spec.max_successors, spec.state_order, spec.bandwidth),
         schedule=epoch_schedule(S, A),
         reward_mean=jnp.zeros((S, A), dtype),
         t=jnp.zeros((), jnp.int32),
@@ -306,12 +306,8 @@ def sparse_estimated_model(state: UCRL2State) -> tuple[em.SparseKernel, jax.Arra
     N = state.schedule.visits
     visited = N > 0
     succ = state.successors
-    kernel = em.SparseKernel(
-        states=succ.states,
-        probs=succ.counts.astype(dtype) / jnp.maximum(N, 1)[..., None],
-        uniform=jnp.where(visited, 0.0, 1.0).astype(dtype),
-        state_mask=state.state_mask,
-    )
+    kernel = em.SparseKernel.of(succ, succ.counts.astype(dtype) / jnp.maximum(N, 1)[..., None],
+                                jnp.where(visited, 0.0, 1.0).astype(dtype), state.state_mask)
     return kernel, jnp.where(visited, state.reward_mean, state.hparams.r_max)
 
 

@@ -89,6 +89,7 @@ __all__ = [
     "policy_iteration",
     "policy_iteration_by",
     "discounted_chain_values",
+    "discounted_chain_values_banded",
     "solve_discounted",
     "finite_horizon_value_iteration",
     "finite_horizon_policy_evaluation",
@@ -331,6 +332,33 @@ def discounted_chain_values(P: jax.Array, r: jax.Array, gamma: float | jax.Array
     """Discounted values ``V = (I - gamma P)^{-1} r`` of a Markov reward chain ``P[S, S]``, ``r[S]`` (Puterman 1994
     §6.1): one linear solve (:func:`jaxmdp.jaxlib_workarounds.linalg.solve`, one system at a time under ``vmap``)."""
     return linear_solve(jnp.eye(P.shape[0], dtype=P.dtype) - gamma * P, r)
+
+
+def discounted_chain_values_banded(
+    P: jax.Array, deficit: jax.Array, r: jax.Array, gamma: float | jax.Array, bandwidth: int,
+    block: int = BAND_BLOCK,
+) -> jax.Array:
+    """:func:`discounted_chain_values` of a banded sub-stochastic chain: ``V = (I - gamma P)^{-1} r`` where ``P[i, j]
+    = 0`` for ``|i - j| > bandwidth`` (static; entries outside the band are not read) and ``deficit[s] = 1 - sum_j
+    P[s, j] >= 0`` is given by the caller (exactly, e.g. the mass of a part of the kernel kept aside), so that no
+    difference of nearly equal numbers is formed. ``r``: ``[S]`` or ``[S, m]`` (``m`` systems with one matrix).
+
+    The discounted chain is a chain that stops with probability ``1 - gamma`` at each step, or leaves with the
+    deficit: ``gamma P`` with ``out = (1 - gamma) + gamma deficit`` to an absorbing set. GTH elimination of it
+    (:func:`jaxmdp.gth.gth_eliminate_banded`, last position first, ``O(S w (w + b))``) censors the chain to fewer and
+    fewer states; eliminating ``k`` passes its reward on, ``r_i += col_k[i] r_k`` (``V_k = (r_k + sum_{j<k} M[k, j]
+    V_j) / s_k`` substituted into the rows above), and back-substitution from position 0 gives ``V_k``. Every
+    ``s_k >= 1 - gamma > 0``, and only non-negative numbers are added, as in the gain's elimination
+    (:func:`chain_gain`)."""
+    S = P.shape[0]
+    W = min(max(bandwidth, 1), S)
+    gamma = jnp.asarray(gamma, P.dtype)  # 1 - gamma from the discount that multiplies P (0.999 is no float32)
+    out = (1.0 - gamma) + gamma * deficit.astype(P.dtype)
+    M, scale = gth_eliminate_banded(gamma * P, out, bandwidth, block)
+    c = r if r.ndim == 2 else r[:, None]
+    V = _substitute_up(M, scale, _pass_down(M, c.astype(P.dtype), W), jnp.zeros_like(c, P.dtype),
+                       jnp.zeros((S,), bool), W)
+    return V if r.ndim == 2 else V[:, 0]
 
 
 def discounted_jump_chain_values(
@@ -795,25 +823,40 @@ def _gain_after_elimination(
     den = jax.ops.segment_sum(pi, label, num_segments=S)
     g = jnp.where(rec, num[label] / jnp.where(rec, den[label], 1.0), 0.0)
     if bandwidth is not None:
-        # c_k: the recurrent gains that transient k moves to, passed down like its absorbed mass (c_i += col_k[i] c_k
-        # when k is eliminated, last position first).
-        def carry_down(t, c):
-            k = S - 1 - t
-            start = jnp.maximum(k - W, 0)
-            part, below = _window(c, k, W)
-            col = _column_window(M, k, W)
-            return jax.lax.dynamic_update_slice_in_dim(c, part + jnp.where(below, col, 0.0) * c[k], start, 0)
+        # c_k: the recurrent gains that transient k moves to, passed down like its absorbed mass.
+        c = _pass_down(M, (jnp.where(into, P, 0.0) @ g)[:, None], W)[:, 0]
+    return _substitute_up(M, scale, c[:, None], g[:, None], rec, W)[:, 0]
 
-        c = jnp.where(into, P, 0.0) @ g
-        c = jax.lax.fori_loop(0, S, carry_down, c)
 
-    def absorb(k, g):
-        part, below = _window(g, k, W)
-        row = jax.lax.dynamic_slice(M, (k, jnp.maximum(k - W, 0)), (1, W))[0]
-        trans = (jnp.sum(jnp.where(below, row, 0.0) * part) + c[k]) / jnp.where(scale[k] > 0, scale[k], 1.0)
-        return g.at[k].set(jnp.where(rec[k], g[k], trans))
+def _pass_down(M: jax.Array, c: jax.Array, width: int) -> jax.Array:
+    """Columns ``c[S, m]`` carried down a (GTH) elimination whose stored columns ``col_k`` are in ``M`` (positions
+    within ``width`` above the diagonal): ``c_i += col_k[i] c_k`` for ``i < k``, as ``k`` is eliminated, last position
+    first. An absorbed mass, or a reward, passed on to the positions that remain."""
+    S = M.shape[0]
 
-    return jax.lax.fori_loop(0, S, absorb, g)
+    def step(t, c):
+        k = S - 1 - t
+        part, below = _window(c, k, width)
+        col = jnp.where(below, _column_window(M, k, width), 0.0)
+        return jax.lax.dynamic_update_slice_in_dim(c, part + col[:, None] * c[k][None, :], jnp.maximum(k - width, 0), 0)
+
+    return jax.lax.fori_loop(0, S, step, c)
+
+
+def _substitute_up(
+    M: jax.Array, scale: jax.Array, c: jax.Array, x: jax.Array, fixed: jax.Array, width: int
+) -> jax.Array:
+    """Back-substitution after a (GTH) elimination, first position first: ``x_k = (sum_{j<k} M[k, j] x_j + c_k) /
+    scale_k`` (the eliminated rows ``M[k, :k]``, within ``width`` below the diagonal; ``scale_k`` the mass leaving
+    ``k`` downwards), for every ``k`` but the ``fixed`` ones, which keep ``x_k``. ``c``, ``x``: ``[S, m]``."""
+
+    def step(k, x):
+        part, below = _window(x, k, width)
+        row = jnp.where(below, jax.lax.dynamic_slice(M, (k, jnp.maximum(k - width, 0)), (1, width))[0], 0.0)
+        new = (jnp.sum(row[:, None] * part, axis=0) + c[k]) / jnp.where(scale[k] > 0, scale[k], 1.0)
+        return x.at[k].set(jnp.where(fixed[k], x[k], new))
+
+    return jax.lax.fori_loop(0, M.shape[0], step, x)
 
 
 @compiled("n_squarings")

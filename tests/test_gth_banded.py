@@ -279,3 +279,49 @@ def test_runner_records_are_those_of_the_dense_elimination(monkeypatch):
     dense = runner.run(agent, g, 1500, log_period=100, n_records=5)
     np.testing.assert_array_equal(banded.steps, dense.steps)
     np.testing.assert_allclose(banded.values, dense.values, rtol=1e-5)
+
+
+discounted_banded = jax.jit(dp.discounted_chain_values_banded, static_argnames=("bandwidth", "block"))
+
+
+def _discounted64(P, deficit, r, gamma):
+    """The float64 values of the system that a float32 computation holds: float32 off-diagonals, deficit and discount
+    (0.999 is not a float32), the diagonal implied by ``1 - deficit - sum`` of the others."""
+    P, deficit = np.asarray(np.float32(P), np.float64), np.asarray(np.float32(deficit), np.float64)
+    off = P - np.diag(np.diag(P))
+    implied = off + np.diag(1.0 - deficit - off.sum(1))
+    return np.linalg.solve(np.eye(len(P)) - float(np.float32(gamma)) * implied, r)
+
+
+@pytest.mark.parametrize("S,w,block", [(1, 0, 4), (13, 2, 1), (40, 5, 16), (61, 17, 3), (30, 29, 8)])
+@pytest.mark.parametrize("gamma", [0.5, 0.99, 0.999])
+def test_banded_discounted_values_solve_the_float64_system(S, w, block, gamma):
+    # Sub-stochastic banded chains (the absorbing mass of band_chain is the deficit), three right-hand sides at once
+    # and one alone.
+    rng = np.random.default_rng(S + 7 * w)
+    P, deficit = band_chain(rng, S, w)
+    r = rng.normal(size=(S, 3))
+    want = _discounted64(P, deficit, r, gamma)
+    args = (jnp.asarray(P, jnp.float32), jnp.asarray(deficit, jnp.float32))
+    got = np.asarray(discounted_banded(*args, jnp.asarray(r, jnp.float32), gamma, bandwidth=w, block=block))
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-6 * np.max(np.abs(want)))
+    one = np.asarray(discounted_banded(*args, jnp.asarray(r[:, 1], jnp.float32), gamma, bandwidth=w, block=block))
+    np.testing.assert_allclose(one, want[:, 1], rtol=0, atol=1e-6 * np.max(np.abs(want[:, 1])))
+
+
+@pytest.mark.parametrize("up, leave", [(0.3, 1e-4), (0.001, 1e-3)])
+def test_banded_discounted_values_stay_accurate_where_a_dense_solve_loses_digits(up, leave):
+    # A river of 50 states that leaves only at its top, gamma = 1 - 1e-6: the float32 dense solve of I - gamma P
+    # is off by about 1e-2; the elimination only adds non-negative numbers and stays within 1e-6.
+    S, gamma = 50, 1.0 - 1e-6
+    P = np.zeros((S, S))
+    P[np.arange(S - 1), np.arange(1, S)] = up
+    P[np.arange(1, S), np.arange(S - 1)] = 1.0 - up
+    P[0, 0], P[-1, -1] = 1.0 - up, up - leave
+    deficit = np.where(np.arange(S) == S - 1, leave, 0.0)
+    want = _discounted64(P, deficit, np.ones(S), gamma)
+    args = (jnp.asarray(P, jnp.float32), jnp.ones(S, jnp.float32), gamma)
+    got = np.asarray(discounted_banded(args[0], jnp.asarray(deficit, jnp.float32), *args[1:], bandwidth=1))
+    np.testing.assert_allclose(got, want, rtol=1e-6)
+    dense = np.asarray(jax.jit(dp.discounted_chain_values)(*args))
+    assert np.max(np.abs(dense / want - 1.0)) > 1e-3

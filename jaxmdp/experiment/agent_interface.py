@@ -85,15 +85,26 @@ class MDPSpec(struct.PyTreeNode):
     #: probability, so an agent may store its counts of observed next states in ``K`` slots per pair, a storage
     #: bound that changes none of its decisions. ``None`` (a spec built by hand) means no bound (``n_states``).
     max_successors: int | None = struct.field(pytree_node=False, default=None)
+    #: A state order (``[S]``, traced) in which every transition of positive probability joins states at most
+    #: ``bandwidth`` (static) positions apart (:func:`jaxmdp.gth.band_order`), or ``None``: a hint for an agent's
+    #: linear algebra (banded instead of dense solves), like ``max_successors`` a bound that changes none of its
+    #: decisions beyond rounding.
+    state_order: jax.Array | None = None
+    bandwidth: int | None = struct.field(pytree_node=False, default=None)
 
     @property
     def episodic(self) -> bool:
         return self.H is not None
 
 
-def spec_of(mdp: MDP, n_steps: int | jax.Array) -> MDPSpec:
+def spec_of(
+    mdp: MDP, n_steps: int | jax.Array, state_order: jax.Array | None = None, bandwidth: int | None = None
+) -> MDPSpec:
     """The :class:`MDPSpec` of an (unbatched or stacked) MDP, or of a BlockMDP (any pytree with fields ``mdp`` and
-    ``emissions``), for an interaction of ``n_steps`` steps."""
+    ``emissions``), for an interaction of ``n_steps`` steps; ``state_order`` and ``bandwidth``: the MDP's
+    :func:`jaxmdp.gth.band_order`, both or neither (not checked here: an agent checks its use of them)."""
+    if (state_order is None) != (bandwidth is None):
+        raise ValueError("state_order and bandwidth go together: give both (jaxmdp.gth.band_order) or neither")
     observations = getattr(mdp, "emissions", None)
     mdp = getattr(mdp, "mdp", mdp)
     return MDPSpec(
@@ -107,6 +118,8 @@ def spec_of(mdp: MDP, n_steps: int | jax.Array) -> MDPSpec:
         observations=observations,
         dtype=np.dtype(mdp.dtype),
         max_successors=mdp.max_successors,
+        state_order=state_order,
+        bandwidth=bandwidth,
     )
 
 

@@ -212,9 +212,10 @@ _MAX_CACHED_PROGRAMS = 32
 
 
 @functools.lru_cache(maxsize=_MAX_CACHED_PROGRAMS)
-def _init_program(agent: Agent, record_visits: bool = False) -> Callable:
+def _init_program(agent: Agent, record_visits: bool = False, bandwidth: int | None = None) -> Callable:
     def init(
-        mdps: MDP | BlockMDP, mdp_index: jax.Array, hparams: Any, key_data: jax.Array, n_steps: jax.Array
+        mdps: MDP | BlockMDP, mdp_index: jax.Array, hparams: Any, key_data: jax.Array, n_steps: jax.Array,
+        orders: jax.Array | None = None,
     ) -> Carry:
         sub = jax.vmap(lambda k: jax.random.key_data(jax.random.split(jax.random.wrap_key_data(k), _N_SUBKEYS)))(
             key_data
@@ -223,12 +224,18 @@ def _init_program(agent: Agent, record_visits: bool = False) -> Callable:
         # "plan" key (_plan_keys): a copy of the plan here compiled it once more (PSRL continuous: 32 -> 23 s for a
         # runner, docs/benchmarks/bench_runner_compile.md).
 
-        def one(i, hp, k_reset, k_init):
+        # The members' band orders (runner._band), which the indicators use too, go to the agents' specs as a hint
+        # for their linear algebra (agents.estimated_model.policy_values).
+        def one(i, hp, k_reset, k_init, order):
             m = member_mdp(mdps, i)
             obs, env_state = env.reset(k_reset, m)
-            return obs, env_state, agent.init(k_init, spec_of(m, n_steps), hp)
+            spec = spec_of(m, n_steps, None if orders is None else order, None if orders is None else bandwidth)
+            return obs, env_state, agent.init(k_init, spec, hp)
 
-        obs, env_state, state = jax.vmap(one)(mdp_index, hparams, _init_keys(sub, "reset"), _init_keys(sub, "init"))
+        obs, env_state, state = jax.vmap(one)(
+            mdp_index, hparams, _init_keys(sub, "reset"), _init_keys(sub, "init"),
+            mdp_index if orders is None else orders,
+        )
         B = mdp_index.shape[0]
         policy = jax.eval_shape(jax.vmap(_policy_of(agent)), state)
         dyn = dynamics(mdps)
@@ -671,9 +678,9 @@ def _compile(agent: Agent, grid: Grid, settings: _Settings) -> _Program:
     consts = _constants_program(settings.variant)(mdps, mdp_index)
     orders, bandwidth = _band(mdps, grid.mdp_index)
     consts = consts.replace(state_order=orders)
-    init_jit = _init_program(agent, settings.record_visits)
-    init_fn = init_jit.lower(mdps, mdp_index, hparams, key_data, sched.n_steps).compile()
-    carry_shape = jax.eval_shape(init_jit, mdps, mdp_index, hparams, key_data, sched.n_steps)
+    init_jit = _init_program(agent, settings.record_visits, bandwidth)
+    init_fn = init_jit.lower(mdps, mdp_index, hparams, key_data, sched.n_steps, orders).compile()
+    carry_shape = jax.eval_shape(init_jit, mdps, mdp_index, hparams, key_data, sched.n_steps, orders)
     leaves, treedef = jax.tree.flatten(carry_shape)
     carry_layout = (treedef, tuple(x.ndim for x in leaves))
     chunk_fn = _chunk_program(
@@ -706,7 +713,8 @@ def _start_or_resume(
         if csv_file is not None:
             truncate_csv(csv_file, int(carry.t), program.diagnostic_names)
         return _Progress(carry, steps_done, values_done, float(meta["run_s"]))
-    carry = program.init(program.mdps, program.mdp_index, program.hparams, program.key_data, program.sched.n_steps)
+    carry = program.init(program.mdps, program.mdp_index, program.hparams, program.key_data, program.sched.n_steps,
+                         program.consts.state_order)
     jax.block_until_ready(carry)
     if csv_file is not None:
         csv_file.parent.mkdir(parents=True, exist_ok=True)
