@@ -2,10 +2,12 @@
 ``runner.product(...)``, ``runner.run(...)``). Everything is defined there."""
 
 from jaxmdp.experiment.runner import (  # noqa: F401
+    DEFAULT_CHUNKS,
     MEMBER_COLUMNS,
     Grid,
     ProgramTooLarge,
     RunResult,
+    default_chunk_steps,
     grid,
     product,
     record_steps,

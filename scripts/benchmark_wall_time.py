@@ -18,6 +18,9 @@ its type (episodic, continuous).
 * Two step counts (``--steps N1 N2``): each bucket runs both, in this process (the second run reuses the first's
   compiled program). The rate is the difference of the two runs' seconds / (members x (N2 - N1)), the fixed seconds
   the rest of the first run. Where the second run was not slower (noise), the longer run's single-point rate is used.
+  Both runs must be cut into as many runner chunks as the full run (20, :func:`~jaxmdp.experiment.runner.
+  default_chunk_steps`; ``N1 >= 2000``): each chunk ends with a checkpoint of the batch's state (0.3-0.5 s for 20
+  members of PSRL at 948 states), which a difference of runs with unequal chunk counts would charge to the steps.
 * ``--scaling lockstep-step`` (for a GPU, where a batch's step is bound by latency rather than by its members): the
   cost of a lockstep step, rate x the measured batch's members, is interpolated in states instead, and a full batch
   pays it for every step whatever its member count.
@@ -49,7 +52,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from hardness.benchmark import run, sets  # noqa: E402
-from jaxmdp.experiment import compilation  # noqa: E402
+from jaxmdp.experiment import compilation, runner  # noqa: E402
 
 FULL = dict(seeds=tuple(range(20)), n_steps=500_000, log_period=100, n_buckets=4)
 SCALINGS = ("member-step", "lockstep-step")
@@ -79,6 +82,12 @@ def build_parser() -> argparse.ArgumentParser:
 def _cpu_s() -> float:
     usage = resource.getrusage(resource.RUSAGE_SELF)
     return usage.ru_utime + usage.ru_stime
+
+
+def n_chunks(n_steps: int) -> int:
+    """Runner chunks of a benchmark batch of ``n_steps`` steps (the run's default chunking and record period)."""
+    period, _ = runner.record_steps(n_steps, FULL["log_period"], run.RunConfig.n_records)
+    return -(-n_steps // runner.default_chunk_steps(n_steps, period))
 
 
 def measure(set_name: str, agent: str, labels: list[str], seeds: int, steps: int, out: Path) -> dict:
@@ -135,6 +144,11 @@ def main(argv: list[str] | None = None) -> dict:
     args = parser.parse_args(argv)
     if len(args.steps) > 2 or min(args.steps) < 1 or args.steps != sorted(set(args.steps)):
         parser.error(f"--steps takes one count or two increasing counts N1 < N2 (each >= 1), got {args.steps}")
+    chunks = [n_chunks(n) for n in args.steps]
+    if len(args.steps) == 2 and chunks != [n_chunks(FULL["n_steps"])] * 2:
+        parser.error(f"--steps {args.steps[0]} {args.steps[1]} cut the runs into {chunks[0]} and {chunks[1]} runner "
+                     f"chunks, the full run into {n_chunks(FULL['n_steps'])}: each chunk ends with a checkpoint, whose "
+                     "cost the difference would charge to the steps; take N1 >= 2000")
     # A second call with other steps loads the first's programs (the batches' compile_s then counts loading them).
     compilation.setup_compilation(args.no_compile_cache)
     args.out.mkdir(parents=True, exist_ok=True)

@@ -122,3 +122,13 @@ def test_in_program_seconds_loops_over_calls_with_fresh_keys():
     expected = {tuple(np.asarray(jax.random.key_data(jax.vmap(lambda k: jax.random.fold_in(k, i))(keys))).ravel())
                 for i in range(4)}
     assert set(seen) == expected
+
+
+def test_two_step_counts_must_cut_the_runs_into_the_full_runs_chunks(tmp_path, capsys):
+    # Each runner chunk ends with a checkpoint: 1 000 steps are 10 chunks of one record period, 3 000 steps 20 chunks,
+    # so their difference would charge 10 checkpoints to the steps; from 2 000 steps on, 20 like the full run.
+    wt = load_script("benchmark_wall_time")
+    assert [wt.n_chunks(n) for n in (1000, 2000, 3000, 4000, wt.FULL["n_steps"])] == [10, 20, 20, 20, 20]
+    with pytest.raises(SystemExit):
+        wt.main(["--out", str(tmp_path), "--steps", "1000", "3000"])
+    assert "chunks" in capsys.readouterr().err

@@ -75,7 +75,7 @@ from jaxmdp.sampling import fused_random
 
 __all__ = [
     "Grid", "grid", "product", "seed_keys", "stack_hparams", "RunResult", "run", "record_steps", "MEMBER_COLUMNS",
-    "ProgramTooLarge",
+    "ProgramTooLarge", "DEFAULT_CHUNKS", "default_chunk_steps",
 ]
 
 
@@ -592,6 +592,16 @@ class _Progress:
     elapsed_before: float
 
 
+#: Chunks of a run when ``chunk_steps`` is not given: the host writes records and a checkpoint after each.
+DEFAULT_CHUNKS = 20
+
+
+def default_chunk_steps(n_steps: int, record_period: int) -> int:
+    """Steps per chunk of :func:`run` when ``chunk_steps`` is not given: ``n_steps / DEFAULT_CHUNKS`` rounded up, at
+    least one record period (so a short run has fewer chunks), at most ``n_steps``."""
+    return min(max(record_period, -(-n_steps // DEFAULT_CHUNKS)), n_steps)
+
+
 def _validated_settings(
     agent: Agent,
     grid: Grid,
@@ -623,9 +633,7 @@ def _validated_settings(
     n_shards = _n_shards(grid.n_members, shards)
     _check_shapes(agent, grid, n_steps)
     record_period, _ = record_steps(n_steps, log_period, n_records)
-    if chunk_steps is None:
-        chunk_steps = max(record_period, -(-n_steps // 20))
-    chunk_steps = min(chunk_steps, n_steps)
+    chunk_steps = min(default_chunk_steps(n_steps, record_period) if chunk_steps is None else chunk_steps, n_steps)
     return _Settings(
         n_steps=n_steps,
         log_period=log_period,
