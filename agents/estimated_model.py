@@ -193,7 +193,8 @@ def policy_values(kernel: SparseKernel, pi: jax.Array, R: jax.Array, discount: A
     x, y, z = dp.discounted_chain_values_banded(
         B, u, jnp.stack([r[order], u, jnp.ones_like(u)], axis=1), discount, kernel.bandwidth
     ).T
-    V = x + discount * y * (jnp.dot(m, x) / ((1.0 - discount) * jnp.dot(m, z)))
+    # Element-wise sums, not dot products: a GPU may multiply float32 dot operands in reduced precision.
+    V = x + discount * y * (jnp.sum(m * x) / ((1.0 - discount) * jnp.sum(m * z)))
     return V[pos]
 
 
