@@ -130,8 +130,9 @@ def gth_eliminate_banded(
     window of the ``w = bandwidth`` positions below it: the scalar steps on ``b x (w + 1)`` and ``w x b`` panels and
     one ``[w, b] x [b, w + 1]`` product, ``O(S w (w + b))`` flops in all instead of ``O(S^3)``. The window is read
     from ``M`` padded with ``w`` zero states in front. Returns ``(M, scale)`` as :func:`gth_eliminate` (with
-    ``out`` counted in ``scale``); entries outside the band are not read, and the caller must check the band (see
-    :func:`bandwidth`): an entry outside it is dropped, not an error.
+    ``out`` counted in ``scale``). Entries outside the band must be zero, and the caller must check the band (see
+    :func:`bandwidth`): the windows read entries up to ``w + b - 1`` positions apart, so an entry outside the band is
+    either dropped or eliminated wrongly, never an error.
     """
     if block < 1 or bandwidth < 0:
         raise ValueError(f"block must be at least 1 and bandwidth at least 0, got block={block}, "
