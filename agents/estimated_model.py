@@ -182,12 +182,10 @@ def policy_values(kernel: SparseKernel, pi: jax.Array, R: jax.Array, discount: A
     r = jnp.sum(pi * R, axis=-1)
     if kernel.order is None:
         return dp.discounted_chain_values(policy_matrix(kernel, pi), r, discount)
-    S, A, K = kernel.states.shape
     discount = jnp.asarray(discount, dtype)
     order, pos = kernel.order, _positions(kernel.order)
-    weight = pi.astype(dtype)[..., None] * kernel.probs
-    rows = jnp.broadcast_to(pos[:, None, None], (S, A, K))
-    B = jnp.zeros((S, S), dtype).at[rows, pos[kernel.states]].add(weight)  # row i: state order[i]
+    # Row and column i: state order[i].
+    B = dp.successor_policy_matrix(pos[kernel.states][order], kernel.probs[order], pi.astype(dtype)[order])
     u = jnp.sum(pi * kernel.uniform, axis=-1)[order]
     m = _uniform_row(kernel, dtype)[order]
     x, y, z = dp.discounted_chain_values_banded(
