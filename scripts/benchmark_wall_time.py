@@ -93,7 +93,8 @@ def n_chunks(n_steps: int) -> int:
 def measure(set_name: str, agent: str, labels: list[str], seeds: int, steps: int, out: Path) -> dict:
     """Run ``agent`` on the MDPs ``labels`` of ``set_name`` as one batch; its timings and the CPU seconds used."""
     config = run.RunConfig(sets=(set_name,), agents=(agent,), seeds=tuple(range(seeds)), n_steps=steps,
-                           log_period=FULL["log_period"], hparams="reference", n_buckets=1, only=tuple(labels))
+                           log_period=FULL["log_period"], hparams="reference", n_buckets=1, agent_buckets={},
+                           only=tuple(labels))
     cpu, wall = _cpu_s(), time.perf_counter()
     run.run_benchmark(config, out, progress=False, report=False)
     cpu, wall = _cpu_s() - cpu, time.perf_counter() - wall

@@ -97,7 +97,8 @@ def _no_planning(agent):
 def step_cost(set_name: str, agent: str, labels: list[str], steps: int, out: Path) -> dict:
     """Run seconds per member-step of the bucket's batch with planning switched off."""
     config = run.RunConfig(sets=(set_name,), agents=(agent,), seeds=tuple(range(SEEDS)), n_steps=steps,
-                           log_period=100, hparams="reference", n_buckets=1, only=tuple(labels))
+                           log_period=100, hparams="reference", n_buckets=1, agent_buckets={},
+                           only=tuple(labels))
     saved = agent_registry.AGENTS[agent]
     agent_registry.AGENTS[agent] = _no_planning(saved)
     try:

@@ -50,7 +50,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="paper: the agents follow their algorithms' papers (default); colosseum: reference mode, the "
                         "tabular agents with the reference package's update rules (docs/agents.md); with --hparams "
                         "reference the like-for-like counterpart of the paper's Table 2")
-    p.add_argument("--buckets", type=int, default=None, help="size buckets per set (default 4; --quick 1)")
+    p.add_argument("--buckets", type=int, default=None,
+                   help="size buckets per set for every agent (default 4, and 8 for the agents that plan on dense "
+                        "[S, A, S] models: PSRL and UCRL2; --quick 1)")
     p.add_argument("--max-members", type=int, default=None,
                    help="members per runner call (default: a bucket, halved until it fits in memory)")
     p.add_argument("--memory-limit", type=float, default=None, metavar="GIB",
@@ -79,6 +81,8 @@ def config_from_args(args: argparse.Namespace) -> run.RunConfig:
                  memory_limit=None if args.memory_limit is None else int(args.memory_limit * 2**30))
     config = {**base, **{k: v for k, v in given.items() if v is not None}, "hparams": args.hparams,
               "agent_variant": args.agent_variant}
+    if args.buckets is not None:
+        config.update(agent_buckets={})  # --buckets N: N for every agent
     if args.log_period is not None:
         config.update(log_period=args.log_period, log_periods={})
     return run.RunConfig(**config)

@@ -15,6 +15,7 @@ import pytest
 import jaxmdp
 from hardness.benchmark import published, report, run, sets
 from jaxmdp import runner
+from script_loader import load_script
 
 TINY = dict(sets=("episodic quick test",), agents=("q_learning_episodic", "random_episodic"), seeds=(0, 1),
             n_steps=200, log_period=50, n_buckets=2, hparams="reference", only=("RiverSwim", "DeepSea"))
@@ -277,6 +278,50 @@ def test_bad_configs_raise_clear_errors(tmp_path):
         run.plan(run.RunConfig(sets=("episodic quick test",), only=("Nowhere",), hparams="reference"))
     with pytest.raises(ValueError, match="memory_limit must be a positive number of bytes"):
         run.plan(run.RunConfig(sets=("episodic quick test",), memory_limit=0))
+    with pytest.raises(ValueError, match="agent_buckets names an unknown agent 'psrl'"):
+        run.plan(run.RunConfig(sets=("episodic quick test",), agent_buckets={"psrl": 2}))
+    with pytest.raises(ValueError, match=r"agent_buckets\['ucrl2'\] must be a positive integer; got 0"):
+        run.plan(run.RunConfig(sets=("episodic quick test",), agent_buckets={"ucrl2": 0}))
+
+
+def _buckets_of(batches) -> dict[str, list[list[str]]]:
+    """Per agent, the MDP labels of its batches, in order."""
+    out: dict[str, list[list[str]]] = {}
+    for b in batches:
+        out.setdefault(b.agent, []).append(sorted({label for label, _ in b.members}))
+    return out
+
+
+def test_planning_agents_get_their_own_size_buckets():
+    """By default PSRL and UCRL2 (plans on dense [S, A, S] models) run on PLANNING_BUCKETS' finer buckets of a set,
+    the other agents on ``n_buckets``; each agent's batches are jaxmdp.size_buckets of the set with its count, and
+    together hold every MDP once. ``agent_buckets={}`` gives every agent ``n_buckets``."""
+    assert run.PLANNING_BUCKETS == {"psrl_episodic": 8, "psrl_continuous": 8, "ucrl2": 8}
+    for set_name, agents in (("episodic ergodic", ("psrl_episodic", "q_learning_episodic")),
+                             ("continuous communicating", ("ucrl2", "psrl_continuous", "random_continuous"))):
+        insts = sets.instances(set_name)
+        mdps = [i.build(0) for i in insts]
+        settings, batches = run.plan(run.RunConfig(sets=(set_name,), agents=agents, seeds=(0,), hparams="reference"))
+        got = _buckets_of(batches)
+        for agent in agents:
+            count = run.PLANNING_BUCKETS.get(agent, 4)
+            want = [sorted(insts[i].label for i in g) for g in jaxmdp.size_buckets(mdps, count)]
+            assert got[agent] == want and len(want) == count
+            assert [b.id for b in batches if b.agent == agent][-1].endswith(f".b{count - 1}")
+        assert settings["agent_buckets"] == {a: 8 for a in agents if a in run.PLANNING_BUCKETS}
+        _, same = run.plan(run.RunConfig(sets=(set_name,), agents=agents, seeds=(0,), hparams="reference",
+                                         agent_buckets={}))
+        assert all(len(groups) == 4 for groups in _buckets_of(same).values())
+
+
+def test_run_benchmark_buckets_option_applies_to_every_agent():
+    cli = load_script("run_benchmark")
+    default = cli.config_from_args(cli.build_parser().parse_args(["--out", "x"]))
+    assert default.buckets("psrl_episodic") == 8 and default.buckets("q_learning_episodic") == 4
+    given = cli.config_from_args(cli.build_parser().parse_args(["--out", "x", "--buckets", "3"]))
+    assert given.buckets("psrl_episodic") == given.buckets("q_learning_episodic") == 3
+    quick = cli.config_from_args(cli.build_parser().parse_args(["--out", "x", "--quick"]))
+    assert quick.buckets("psrl_episodic") == quick.buckets("ucrl2") == 1
 
 
 ONE_BUCKET = {**TINY, "agents": ("q_learning_episodic",), "n_buckets": 1}

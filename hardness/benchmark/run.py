@@ -7,7 +7,8 @@ completes its ``n_steps`` and the time it took is recorded (the reference stops 
 clock).
 
 Batches: the MDPs of a set are split into size buckets (:func:`jaxmdp.size_buckets` on each MDP's seed-0 instance, all
-seeds of an MDP in its bucket), and one batch is one agent on one bucket, at most ``max_members`` members (the
+seeds of an MDP in its bucket; ``n_buckets`` of them, more for the agents that plan on dense models,
+:data:`PLANNING_BUCKETS`), and one batch is one agent on one bucket, at most ``max_members`` members (the
 buckets' members split in order otherwise): one lockstep runner call (:func:`jaxmdp.runner.run`) in which no member
 pays for a larger bucket's padding. Identical instances (seed-independent families) are stored once per batch. A
 batch whose compiled programs would not fit in memory (the runner checks before running,
@@ -68,6 +69,7 @@ __all__ = [
     "MEMBER_FIELDS",
     "BATCH_FIELDS",
     "QUICK",
+    "PLANNING_BUCKETS",
     "RunConfig",
     "Batch",
     "RunSummary",
@@ -93,10 +95,23 @@ BATCH_FIELDS = (
 #: fewer than its 50 000 so that ``--quick`` takes a few minutes on two CPU cores, and PSRL continuous is left out:
 #: its optimistic planning (up to 60 sampled kernels per pair on the set's 160 padded states) alone took over
 #: 7 minutes for 1000 steps there (``--agents psrl_continuous`` runs it).
-QUICK = dict(sets=sets.QUICK_SETS, seeds=(0, 1), n_steps=1_000, n_buckets=1,
+QUICK = dict(sets=sets.QUICK_SETS, seeds=(0, 1), n_steps=1_000, n_buckets=1, agent_buckets={},
              agents=("q_learning_episodic", "psrl_episodic", "random_episodic", "q_learning_continuous", "ucrl2",
                      "random_continuous"),
              log_periods={"episodic quick test": 1000, "continuous quick test": 500})
+
+
+#: Size buckets per set for the agents whose plans work on dense ``[S, A, S]`` models (a posterior draw per episode or
+#: epoch, extended value or policy iteration), where a member padded to its bucket's ``S_b`` and ``A_b`` pays
+#: ``S_b^2 A_b`` instead of ``S^2 A``, and pays it at every episode: the small MDPs with short horizons plan most
+#: often. Summed over the benchmark's MDPs (per episode when episodic), four buckets pad that work by 1.47, 1.64, 1.28
+#: and 1.53 (episodic ergodic, episodic communicating, continuous ergodic, continuous communicating), eight by 1.18,
+#: 1.22, 1.05 and 1.05. Measured on the 2-core CPU (4 seeds, steps 2 000 -> 4 000 of every bucket), episodic PSRL's
+#: steps cost 1.9x (ergodic) and 1.6x (communicating) less with eight buckets than with four, for 30-60 s more
+#: compiling (docs/benchmarks/benchmark_wall_time.md; the draws alone: ``scripts/bench_psrl_draw_floor.py``). The
+#: cheap agents keep :attr:`RunConfig.n_buckets`: their steps barely depend on the padding, and every batch is one
+#: more compilation (and, on a GPU, one more sequence of lockstep steps).
+PLANNING_BUCKETS: Mapping[str, int] = {"psrl_episodic": 8, "psrl_continuous": 8, "ucrl2": 8}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -111,6 +126,8 @@ class RunConfig:
       hparams: ``"tuned"``, ``"reference"`` or a tuned-file path (:func:`hardness.benchmark.hparams.hparams_for`).
       n_buckets: size buckets per set; max_members: members per runner call (``None``: a whole bucket, halved
         until its programs fit in memory, :func:`split_batch`).
+      agent_buckets: size buckets per set for the agents it names, instead of ``n_buckets`` (default
+        :data:`PLANNING_BUCKETS`). A member's results depend on its bucket (its padding shapes the random draws).
       memory_limit: bytes a runner call's programs may use (``None``: what the machine has available); not part of
         the results, so not of the plan's settings.
       n_records: records per member in the per-record CSVs and curves.
@@ -131,6 +148,7 @@ class RunConfig:
     log_periods: Mapping[str, int] = dataclasses.field(default_factory=dict)
     hparams: str = "tuned"
     n_buckets: int = 4
+    agent_buckets: Mapping[str, int] = dataclasses.field(default_factory=lambda: dict(PLANNING_BUCKETS))
     max_members: int | None = None
     n_records: int = 100
     emission: str | None = None
@@ -140,6 +158,10 @@ class RunConfig:
 
     def period(self, set_name: str) -> int:
         return int(self.log_periods.get(set_name, self.log_period))
+
+    def buckets(self, agent: str) -> int:
+        """Size buckets per set for ``agent``."""
+        return int(self.agent_buckets.get(agent, self.n_buckets))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -215,6 +237,11 @@ def _check(config: RunConfig) -> list[str]:
         value = getattr(config, field)
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
             raise ValueError(f"{field} must be a positive integer; got {value!r}")
+    for agent, count in config.agent_buckets.items():
+        if agent not in agent_registry.AGENTS:
+            raise ValueError(f"agent_buckets names an unknown agent {agent!r}; known: {sorted(agent_registry.AGENTS)}")
+        if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
+            raise ValueError(f"agent_buckets[{agent!r}] must be a positive integer; got {count!r}")
     if config.max_members is not None and config.max_members < 1:
         raise ValueError(f"max_members must be a positive integer or None; got {config.max_members!r}")
     if config.memory_limit is not None and (isinstance(config.memory_limit, bool) or config.memory_limit < 1):
@@ -276,6 +303,7 @@ def _settings(config: RunConfig, names: Sequence[str]) -> dict[str, Any]:
                  for a in all_agents},
         agent_variant=config.agent_variant,
         n_buckets=int(config.n_buckets), max_members=config.max_members, n_records=int(config.n_records),
+        agent_buckets={a: config.buckets(a) for a in all_agents if config.buckets(a) != config.n_buckets},
         emission=None if config.emission is None else canonical_emission(config.emission), variant="paper",
         only=list(config.only) if config.only else None,
     )
@@ -304,11 +332,14 @@ def plan(config: RunConfig, out: str | os.PathLike | None = None) -> tuple[dict[
         if not found:
             raise ValueError(f"only={list(config.only or ())} keeps no MDP of the {set_name!r} set")
         sizes = [inst.build(config.seeds[0]) for inst in found]
-        groups = [(f"b{b}", sorted(g)) for b, g in enumerate(jaxmdp.size_buckets(sizes, config.n_buckets))]
-        if settings["emission"] is not None:
-            groups = _split_by_observation(groups, sizes, settings["emission"], config.seeds[0])
+        grouped = {}
+        for n_buckets in sorted({config.buckets(a) for a in settings["agents"][set_name]}):
+            groups = [(f"b{b}", sorted(g)) for b, g in enumerate(jaxmdp.size_buckets(sizes, n_buckets))]
+            if settings["emission"] is not None:
+                groups = _split_by_observation(groups, sizes, settings["emission"], config.seeds[0])
+            grouped[n_buckets] = groups
         for agent in settings["agents"][set_name]:
-            for gid, group in groups:
+            for gid, group in grouped[config.buckets(agent)]:
                 members = [(found[i].label, int(s)) for i in group for s in config.seeds]
                 step = config.max_members or len(members)
                 parts = [members[k : k + step] for k in range(0, len(members), step)]
