@@ -194,7 +194,8 @@ def test_ucrl2_plans_on_the_same_boxes_as_the_dense_counts():
     # alpha_p small: the tuned 0.99 keeps every box the whole simplex (c >= 1) until a pair has ~290 visits, where
     # the plan would not depend on the counts at all.
     hp = ucrl2.UCRL2.default_hparams.replace(alpha_p=0.001)
-    states = runner.run(ucrl2.UCRL2, runner.product([mdp], [hp], [0, 1]), 2000, log_period=2000).agent_state
+    # Three seeds, as in the test above: the same runner program (hyperparameters are data), compiled once per module.
+    states = runner.run(ucrl2.UCRL2, runner.product([mdp], [hp], [0, 1, 2]), 2000, log_period=2000).agent_state
     dense_plan = jax.jit(jax.vmap(ucrl2._dense_plan))
     for m in range(2):
         state = jax.tree.map(lambda x: jnp.asarray(x[m]), states).replace(plan_due=jnp.ones((), bool))
