@@ -51,8 +51,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "tabular agents with the reference package's update rules (docs/agents.md); with --hparams "
                         "reference the like-for-like counterpart of the paper's Table 2")
     p.add_argument("--buckets", type=int, default=None,
-                   help="size buckets per set for every agent (default 4, and 8 for the agents that plan on dense "
-                        "[S, A, S] models: PSRL and UCRL2; --quick 1)")
+                   help="size buckets per set for every agent (default 4, and 8 for episodic PSRL, whose posterior "
+                        "draws pay for the padding at every episode; --quick 1)")
     p.add_argument("--max-members", type=int, default=None,
                    help="members per runner call (default: a bucket, halved until it fits in memory)")
     p.add_argument("--memory-limit", type=float, default=None, metavar="GIB",

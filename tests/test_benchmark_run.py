@@ -293,12 +293,12 @@ def _buckets_of(batches) -> dict[str, list[list[str]]]:
 
 
 def test_planning_agents_get_their_own_size_buckets():
-    """By default PSRL and UCRL2 (plans on dense [S, A, S] models) run on PLANNING_BUCKETS' finer buckets of a set,
+    """By default episodic PSRL (a dense posterior draw per episode) runs on PLANNING_BUCKETS' finer buckets of a set,
     the other agents on ``n_buckets``; each agent's batches are jaxmdp.size_buckets of the set with its count, and
     together hold every MDP once. ``agent_buckets={}`` gives every agent ``n_buckets``."""
-    assert run.PLANNING_BUCKETS == {"psrl_episodic": 8, "psrl_continuous": 8, "ucrl2": 8}
+    assert run.PLANNING_BUCKETS == {"psrl_episodic": 8}
     for set_name, agents in (("episodic ergodic", ("psrl_episodic", "q_learning_episodic")),
-                             ("continuous communicating", ("ucrl2", "psrl_continuous", "random_continuous"))):
+                             ("continuous communicating", ("ucrl2", "psrl_continuous"))):
         insts = sets.instances(set_name)
         mdps = [i.build(0) for i in insts]
         settings, batches = run.plan(run.RunConfig(sets=(set_name,), agents=agents, seeds=(0,), hparams="reference"))
@@ -317,7 +317,7 @@ def test_planning_agents_get_their_own_size_buckets():
 def test_run_benchmark_buckets_option_applies_to_every_agent():
     cli = load_script("run_benchmark")
     default = cli.config_from_args(cli.build_parser().parse_args(["--out", "x"]))
-    assert default.buckets("psrl_episodic") == 8 and default.buckets("q_learning_episodic") == 4
+    assert default.buckets("psrl_episodic") == 8 and default.buckets("psrl_continuous") == 4
     given = cli.config_from_args(cli.build_parser().parse_args(["--out", "x", "--buckets", "3"]))
     assert given.buckets("psrl_episodic") == given.buckets("q_learning_episodic") == 3
     quick = cli.config_from_args(cli.build_parser().parse_args(["--out", "x", "--quick"]))

@@ -7,8 +7,8 @@ completes its ``n_steps`` and the time it took is recorded (the reference stops 
 clock).
 
 Batches: the MDPs of a set are split into size buckets (:func:`jaxmdp.size_buckets` on each MDP's seed-0 instance, all
-seeds of an MDP in its bucket; ``n_buckets`` of them, more for the agents that plan on dense models,
-:data:`PLANNING_BUCKETS`), and one batch is one agent on one bucket, at most ``max_members`` members (the
+seeds of an MDP in its bucket; ``n_buckets`` of them, more for the agents named in :data:`PLANNING_BUCKETS`), and
+one batch is one agent on one bucket, at most ``max_members`` members (the
 buckets' members split in order otherwise): one lockstep runner call (:func:`jaxmdp.runner.run`) in which no member
 pays for a larger bucket's padding. Identical instances (seed-independent families) are stored once per batch. A
 batch whose compiled programs would not fit in memory (the runner checks before running,
@@ -101,17 +101,17 @@ QUICK = dict(sets=sets.QUICK_SETS, seeds=(0, 1), n_steps=1_000, n_buckets=1, age
              log_periods={"episodic quick test": 1000, "continuous quick test": 500})
 
 
-#: Size buckets per set for the agents whose plans work on dense ``[S, A, S]`` models (a posterior draw per episode or
-#: epoch, extended value or policy iteration), where a member padded to its bucket's ``S_b`` and ``A_b`` pays
-#: ``S_b^2 A_b`` instead of ``S^2 A``, and pays it at every episode: the small MDPs with short horizons plan most
-#: often. Summed over the benchmark's MDPs (per episode when episodic), four buckets pad that work by 1.47, 1.64, 1.28
-#: and 1.53 (episodic ergodic, episodic communicating, continuous ergodic, continuous communicating), eight by 1.18,
-#: 1.22, 1.05 and 1.05. Measured on the 2-core CPU (4 seeds, steps 2 000 -> 4 000 of every bucket), episodic PSRL's
-#: steps cost 1.9x (ergodic) and 1.6x (communicating) less with eight buckets than with four, for 30-60 s more
-#: compiling (docs/benchmarks/benchmark_wall_time.md; the draws alone: ``scripts/bench_psrl_draw_floor.py``). The
-#: cheap agents keep :attr:`RunConfig.n_buckets`: their steps barely depend on the padding, and every batch is one
-#: more compilation (and, on a GPU, one more sequence of lockstep steps).
-PLANNING_BUCKETS: Mapping[str, int] = {"psrl_episodic": 8, "psrl_continuous": 8, "ucrl2": 8}
+#: Size buckets per set for the agents that run on more than :attr:`RunConfig.n_buckets`. Episodic PSRL draws a dense
+#: ``[S, A, S]`` posterior at every episode, so a member padded to its bucket's ``S_b`` and ``A_b`` pays ``S_b^2 A_b``
+#: per episode instead of ``S^2 A``, and the small MDPs with short horizons plan most often. Summed over each episodic
+#: set's MDPs per episode, four buckets pad that work by 1.47 (ergodic) and 1.64 (communicating), eight by 1.18 and
+#: 1.22 (``scripts/bench_psrl_draw_floor.py``). Measured on the 2-core CPU (4 seeds, steps 2 000 -> 4 000 of every
+#: bucket, ``scripts/bench_bucket_split.py``), episodic PSRL's steps cost 1.9x (ergodic) and 1.6x (communicating)
+#: less with eight buckets, for 30-60 s more compiling (docs/benchmarks/benchmark_wall_time.md). PSRL continuous's
+#: plans, timed per bucket, came to the same hours on eight buckets as on four (their cost sits in the largest
+#: buckets; docs/benchmarks/continuous_planning.md), so it and the other agents keep four: every batch is one more
+#: compilation (and, on a GPU, one more sequence of lockstep steps).
+PLANNING_BUCKETS: Mapping[str, int] = {"psrl_episodic": 8}
 
 
 @dataclasses.dataclass(frozen=True)
