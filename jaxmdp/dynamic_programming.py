@@ -340,9 +340,8 @@ def discounted_chain_values_banded(
 ) -> jax.Array:
     """:func:`discounted_chain_values` of a banded sub-stochastic chain: ``V = (I - gamma P)^{-1} r`` where ``P[i, j]
     = 0`` for ``|i - j| > bandwidth`` (static; not checked, see :func:`jaxmdp.gth.gth_eliminate_banded`) and
-    ``deficit[s] = 1 - sum_j
-    P[s, j] >= 0`` is given by the caller (exactly, e.g. the mass of a part of the kernel kept aside), so that no
-    difference of nearly equal numbers is formed. ``r``: ``[S]`` or ``[S, m]`` (``m`` systems with one matrix).
+    ``deficit[s] = 1 - sum_j P[s, j] >= 0`` is given by the caller (exactly, e.g. the mass of a part of the kernel
+    kept aside), so that no difference of nearly equal numbers is formed. ``r``: ``[S]`` or ``[S, m]`` (``m`` systems with one matrix).
 
     The discounted chain is a chain that stops with probability ``1 - gamma`` at each step, or leaves with the
     deficit: ``gamma P`` with ``out = (1 - gamma) + gamma deficit`` to an absorbing set. GTH elimination of it

@@ -30,6 +30,7 @@ if __name__ == "__main__" and "xla_force_host_platform_device_count" not in os.e
     ).strip()
 
 import argparse  # noqa: E402
+import functools  # noqa: E402
 import json  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -49,6 +50,12 @@ SETTINGS = ("episodic ergodic", "episodic communicating")
 FULL = dict(seeds=tuple(range(20)), n_steps=500_000, n_buckets=4)
 
 
+@functools.cache
+def seed0_mdps(set_name: str) -> dict[str, jaxmdp.MDP]:
+    """The set's MDPs of seed 0 by label (built once per process: both counts below and the tests read them)."""
+    return {inst.label: inst.build(0) for inst in sets.instances(set_name)}
+
+
 def draw_counts(settings=SETTINGS, n_steps: int = FULL["n_steps"], n_buckets: int = FULL["n_buckets"]) -> list[dict]:
     """Per episodic PSRL batch of the full plan: members, padded ``S`` and ``A``, and the Gamma variates its draws
     need, padded (``sum_m n_steps / H_m x S_pad^2 A_pad``) and at each member's own size (``S_m^2 A_m``)."""
@@ -57,11 +64,7 @@ def draw_counts(settings=SETTINGS, n_steps: int = FULL["n_steps"], n_buckets: in
     _, batches = run.plan(config)
     rows = []
     for set_name in settings:
-        sizes = {}
-        for inst in sets.instances(set_name):
-            mdp = inst.build(0)
-            sizes[inst.label] = (int(np.sum(np.asarray(mdp.state_mask))), int(np.sum(np.asarray(mdp.action_mask))),
-                                 int(mdp.H))
+        sizes = {label: (m.n_states, m.n_actions, int(m.H)) for label, m in seed0_mdps(set_name).items()}
         for b in (b for b in batches if b.set_name == set_name):
             S_pad = max(sizes[label][0] for label, _ in b.members)
             A_pad = max(sizes[label][1] for label, _ in b.members)
@@ -76,7 +79,7 @@ def draw_counts(settings=SETTINGS, n_steps: int = FULL["n_steps"], n_buckets: in
 def padding_factor(set_name: str, n_buckets: int) -> float:
     """``sum_m S_b^2 A_b / H_m`` over the set's MDPs ``m`` in their buckets ``b`` (:func:`jaxmdp.size_buckets`), over
     ``sum_m S_m^2 A_m / H_m`` (``H = 1`` when continuous): how much the buckets pad the dense model work of a step."""
-    mdps = [inst.build(0) for inst in sets.instances(set_name)]
+    mdps = list(seed0_mdps(set_name).values())
     per_step = lambda S, A, m: S * S * A / (m.H if m.episodic else 1)  # noqa: E731
     own = sum(per_step(m.n_states, m.n_actions, m) for m in mdps)
     padded = 0.0
@@ -88,8 +91,7 @@ def padding_factor(set_name: str, n_buckets: int) -> float:
 
 def posterior_concentration(label: str, set_name: str, visits: int = 10) -> jax.Array:
     """``1/S + ceil(visits P(.|s,a))`` of an MDP of the set: the concentration the draw is timed on."""
-    inst = next(i for i in sets.instances(set_name) if i.label == label)
-    mdp = inst.build(0)
+    mdp = seed0_mdps(set_name)[label]
     S = mdp.T.shape[0]
     return jnp.asarray(1.0 / S + np.ceil(visits * np.asarray(mdp.T)), jnp.float32)
 

@@ -17,7 +17,7 @@ def test_draw_counts_are_episodes_times_padded_rows():
     own = 0.0
     for set_name in floor.SETTINGS:
         for inst in sets.instances(set_name):
-            A = int(inst.build(0).n_actions)
+            A = floor.seed0_mdps(set_name)[inst.label].n_actions
             own += seeds * n_steps / inst.entry.H * inst.entry.n_states**2 * A
     padded = {}
     for n, rows in counts.items():
@@ -30,7 +30,7 @@ def test_draw_counts_are_episodes_times_padded_rows():
     # One bucket per setting: every member padded to the setting's largest S and A.
     for set_name in floor.SETTINGS:
         row = next(r for r in counts[1] if r["batch"].startswith(run._slug(set_name)))
-        mdps = [i.build(0) for i in sets.instances(set_name)]
+        mdps = list(floor.seed0_mdps(set_name).values())
         S, A = max(m.n_states for m in mdps), max(m.n_actions for m in mdps)
         episodes = sum(seeds * n_steps / m.H for m in mdps)
         np.testing.assert_allclose(row["gammas_padded"], episodes * S * S * A, rtol=1e-12)
@@ -38,7 +38,7 @@ def test_draw_counts_are_episodes_times_padded_rows():
 
 def test_padding_factor_is_one_unbucketed_and_the_single_buckets_by_hand():
     for set_name in ("episodic communicating", "continuous ergodic"):
-        mdps = [i.build(0) for i in sets.instances(set_name)]
+        mdps = list(floor.seed0_mdps(set_name).values())
         np.testing.assert_allclose(floor.padding_factor(set_name, len(mdps)), 1.0, rtol=1e-12)
         S, A = max(m.n_states for m in mdps), max(m.n_actions for m in mdps)
         H = [m.H if m.episodic else 1 for m in mdps]
