@@ -895,13 +895,14 @@ def successor_policy_matrix(succ: jax.Array, succ_p: jax.Array, pi: jax.Array) -
     return jnp.zeros((S, S), succ_p.dtype).at[jnp.arange(S)[:, None], succ.reshape(S, -1)].add(w)
 
 
-@compiled("bandwidth")
+@compiled("bandwidth", "check_band")
 def gain_vector(
     model: Model,
     pi: jax.Array,
     rewards: jax.Array | None = None,
     order: jax.Array | None = None,
     bandwidth: int | None = None,
+    check_band: bool = True,
 ) -> jax.Array:
     """Long-run average reward of ``pi`` from every state: ``g = P*_pi r_pi`` (an ``[S]`` array; :func:`chain_gain`).
 
@@ -911,7 +912,13 @@ def gain_vector(
     chain is written straight into that order from the successor lists, and a chain that is irreducible on the real
     states (two sweeps from one real state, forwards and backwards: every real state reaches it and is reached from
     it; padding states stay absorbing) skips the ``O(S^2)`` recurrent classes. The band is checked on the successor
-    lists, and a chain outside it is eliminated densely."""
+    lists, and a chain outside it (a hand-made ``order``) is eliminated densely.
+
+    ``check_band=False`` (static) compiles no dense branch, for an ``order`` that is the MDP's own
+    :func:`jaxmdp.gth.band_order`, which every policy's chain fits: its recurrent states, then its transient ones,
+    each in ``order``'s order, only come closer, and a transient state's moves into recurrent ones are the absorbed
+    mass. A chain outside the band then gives NaN gains, not a wrong answer. The runner's programs compile 1-3 s
+    faster (docs/benchmarks/bench_runner_compile.md, "unchecked band orders")."""
     if (order is None) != (bandwidth is None):
         raise ValueError("order and bandwidth go together: give both (jaxmdp.gth.band_order) or neither")
     r = policy_rewards(model, pi, rewards)
@@ -942,6 +949,8 @@ def gain_vector(
     # Every transition within the band, but for a transient state's moves into recurrent ones (its absorbed mass).
     inside = ~edge | (jnp.abs(src - dst) <= bandwidth) | (~recurrent[:, None, None] & recurrent[model.succ])
     args = (P, r[perm], rec, label[perm])
+    if not check_band:
+        return jnp.where(jnp.all(inside), _gain_after_elimination(*args, BAND_BLOCK, bandwidth)[pos], jnp.nan)
     g = jax.lax.cond(
         jnp.all(inside), lambda: _gain_after_elimination(*args, BAND_BLOCK, bandwidth),
         lambda: _gain_after_elimination(*args, GTH_BLOCK, None),

@@ -168,12 +168,28 @@ def _policies(mdp, rng):
     ("Taxi", dict(size=4, length=1, width=1, space=1, n_locations=3, p_rand=0.0)),
 ])
 def test_gain_vector_with_band_order_matches_float64(family, kw):
+    # Unchecked, as the runner calls it: the MDP's own band order fits every policy's chain (NaN if one did not).
     mdp = jaxmdp.make(family, episodic=False, seed=0, **kw).strip()
     order, width = gth.band_order(mdp)
-    f = jax.jit(dp.gain_vector, static_argnames="bandwidth")
+    f = jax.jit(dp.gain_vector, static_argnames=("bandwidth", "check_band"))
     for name, pi in _policies(mdp, np.random.default_rng(1)).items():
-        g = f(mdp, jnp.asarray(pi, jnp.float32), order=jnp.asarray(order), bandwidth=width)
+        g = f(mdp, jnp.asarray(pi, jnp.float32), order=jnp.asarray(order), bandwidth=width, check_band=False)
         np.testing.assert_allclose(g, _gain64(mdp, pi), rtol=TOL, atol=1e-7, err_msg=name)
+
+
+def test_gain_vector_checked_and_unchecked_band_agree_bit_for_bit():
+    # Transient states and several classes: the checked route takes its banded branch, the same numbers.
+    mdp = jaxmdp.make("SimpleGrid", episodic=False, seed=0, size=7, p_rand=0.0).strip()
+    order, width = gth.band_order(mdp)
+    assert 2 * width < mdp.n_states
+    rng = np.random.default_rng(3)
+    for pi in (np.eye(mdp.n_actions)[rng.integers(0, mdp.n_actions, mdp.n_states)],
+               np.full((mdp.n_states, mdp.n_actions), 1.0 / mdp.n_actions)):
+        args = (mdp, jnp.asarray(pi, jnp.float32))
+        checked = dp.gain_vector(*args, order=jnp.asarray(order), bandwidth=width)
+        unchecked = dp.gain_vector(*args, order=jnp.asarray(order), bandwidth=width, check_band=False)
+        assert np.all(np.isfinite(unchecked))
+        np.testing.assert_array_equal(unchecked, checked)
 
 
 def test_gain_vector_with_band_order_on_a_padded_stack_member():
@@ -200,6 +216,9 @@ def test_gain_vector_with_a_wrong_band_order_falls_back_to_the_dense_elimination
     natural = jnp.arange(mdp.n_states, dtype=jnp.int32)  # its band is much wider than 3
     g = dp.gain_vector(mdp, jnp.asarray(pi, jnp.float32), order=natural, bandwidth=3)
     np.testing.assert_allclose(g, _gain64(mdp, pi), rtol=TOL, atol=1e-7)
+    # Unchecked, the chain outside the band gives NaN, never a wrong number.
+    g = dp.gain_vector(mdp, jnp.asarray(pi, jnp.float32), order=natural, bandwidth=3, check_band=False)
+    assert np.all(np.isnan(g))
 
 
 def _irreducible_numpy(succ, edge, real):
@@ -264,6 +283,9 @@ def test_runner_evaluates_changed_members_on_their_band_orders(monkeypatch):
         member = jax.tree.map(lambda x: x[index[b]], stacked)
         np.testing.assert_allclose(out[b], _gain64(member, np.eye(A)[np.asarray(actions[b])]), rtol=TOL, atol=1e-7)
     np.testing.assert_array_equal(out[2], cache[2])
+    # The runner does not check its orders (no dense branch compiled): a wrong band would give NaN.
+    narrow = jax.jit(lambda *a: runner._evaluate_changed(*a, orders=orders, bandwidth=1))
+    assert np.all(np.isnan(np.asarray(narrow(stacked, jnp.asarray(index), actions, changed, cache))[[0, 1, 3]]))
 
 
 def test_runner_records_are_those_of_the_dense_elimination(monkeypatch):

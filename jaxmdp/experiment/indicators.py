@@ -160,6 +160,7 @@ def policy_values(
     member: jax.Array | None = None,
     order: jax.Array | None = None,
     bandwidth: int | None = None,
+    check_band: bool = True,
 ) -> jax.Array:
     """The expensive half of an indicator: ``V^pi_0(s)`` for every state (episodic, finite-horizon evaluation on the
     successor lists) or the gain ``rho^pi(s)`` from every state (continuous), ``[S]``.
@@ -177,7 +178,9 @@ def policy_values(
     of ``A K``) and the dense fallback takes its one-hot policy. ``rows`` and ``member`` (episodic action indices
     only, else ignored): a stacked MDP's :func:`~jaxmdp.dynamic_programming.successor_rows` and this MDP's index in
     it, read instead of the MDP's own rows (see that function). ``order`` and ``bandwidth`` (static): the MDP's
-    :func:`jaxmdp.gth.band_order`, for the banded elimination of the dense fallback (continuous; ``O(S w^2)``)."""
+    :func:`jaxmdp.gth.band_order`, for the banded elimination of the dense fallback (continuous; ``O(S w^2)``), and
+    ``check_band`` (static) as in :func:`~jaxmdp.dynamic_programming.gain_vector`: False where ``order`` is the
+    MDP's own band order."""
     integer = jnp.issubdtype(policy.dtype, jnp.integer)
     if integer and mdp.episodic:
         actions = policy if policy.ndim == 2 else jnp.broadcast_to(policy, (mdp.H, *policy.shape))
@@ -187,7 +190,7 @@ def policy_values(
 
     def dense() -> jax.Array:
         pi = jax.nn.one_hot(policy, mdp.n_actions, dtype=mdp.R.dtype) if integer else policy
-        return dp.gain_vector(mdp, pi, order=order, bandwidth=bandwidth)
+        return dp.gain_vector(mdp, pi, order=order, bandwidth=bandwidth, check_band=check_band)
 
     if iterative_sweeps <= 0:
         return dense()

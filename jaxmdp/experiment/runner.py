@@ -177,7 +177,7 @@ def _evaluate_changed(
     lockstep with the dense solve.
 
     ``orders`` (``[B, S]``) and ``bandwidth`` (static): each member's :func:`jaxmdp.gth.band_order`, for the banded
-    elimination of the member-by-member dense solve (:func:`_band`).
+    elimination of the member-by-member dense solve (:func:`_band`; unchecked, as every policy's chain fits them).
     """
     dtype = cache.dtype
 
@@ -191,7 +191,8 @@ def _evaluate_changed(
         i, p, ch, old, order = args
 
         def evaluate():
-            band = {} if orders is None else dict(order=order, bandwidth=bandwidth)
+            # The members' own band orders (_band), which every policy's chain fits: no dense branch compiled.
+            band = {} if orders is None else dict(order=order, bandwidth=bandwidth, check_band=False)
             return policy_values(member_mdp(dyn, i), p, ITERATIVE_GAIN_SWEEPS, **band).astype(dtype)
 
         return jax.lax.cond(ch, evaluate, lambda: old)
