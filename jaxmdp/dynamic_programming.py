@@ -776,11 +776,16 @@ def _column_window(M: jax.Array, k: jax.Array, width: int) -> jax.Array:
 
 
 def _gain_after_elimination(
-    P: jax.Array, r: jax.Array, rec: jax.Array, label: jax.Array, block: int, bandwidth: int | None
+    P: jax.Array, r: jax.Array, rec: jax.Array, label: jax.Array, block: int, bandwidth: int | None,
+    absorbed: tuple[jax.Array, Callable[[jax.Array], jax.Array]] | None = None,
 ) -> jax.Array:
     """:func:`chain_gain` of a chain whose recurrent states (``rec``) come first; ``label`` is the same for the states
     of a recurrent class. Banded (:func:`jaxmdp.gth.gth_eliminate_banded`) when ``bandwidth`` is given: then every
     transition other than from a transient to a recurrent state must join positions at most ``bandwidth`` apart.
+    ``absorbed`` (banded only): ``P`` already without a transient state's moves into recurrent ones, given instead as
+    their mass per state and a function of the recurrent gains ``g`` giving ``sum_j P[k, j] g_j`` over them (from
+    successor lists: no ``S x S`` pass). A chain without transient states skips the transient part (two ``S``-step
+    loops).
 
     Back-substitution reads only the ``w`` positions below each state (``w`` the bandwidth, else ``S``). The
     stationary masses can span more than float32's range within a class (ratios of 1e46 on a 50-state chain), so each
@@ -794,9 +799,11 @@ def _gain_after_elimination(
         M, scale = gth_eliminate(P, block)
         c = jnp.zeros((S,), dtype)  # the rows keep their recurrent columns
     else:
-        into = ~rec[:, None] & rec[None, :]  # a transient state's moves into the recurrent ones: one absorbed mass
-        M, scale = gth_eliminate_banded(jnp.where(into, 0.0, P), jnp.sum(jnp.where(into, P, 0.0), axis=1), bandwidth,
-                                        block)
+        if absorbed is None:  # a transient state's moves into the recurrent ones: one absorbed mass
+            into = ~rec[:, None] & rec[None, :]
+            P_into, P = jnp.where(into, P, 0.0), jnp.where(into, 0.0, P)
+            absorbed = jnp.sum(P_into, axis=1), lambda g: P_into @ g
+        M, scale = gth_eliminate_banded(P, absorbed[0], bandwidth, block)
     root = rec & (scale == 0)
     lowest = jnp.iinfo(jnp.int32).min
 
@@ -822,10 +829,13 @@ def _gain_after_elimination(
     num = jax.ops.segment_sum(pi * r, label, num_segments=S)
     den = jax.ops.segment_sum(pi, label, num_segments=S)
     g = jnp.where(rec, num[label] / jnp.where(rec, den[label], 1.0), 0.0)
-    if bandwidth is not None:
-        # c_k: the recurrent gains that transient k moves to, passed down like its absorbed mass.
-        c = _pass_down(M, (jnp.where(into, P, 0.0) @ g)[:, None], W)[:, 0]
-    return _substitute_up(M, scale, c[:, None], g[:, None], rec, W)[:, 0]
+
+    def transient(g: jax.Array) -> jax.Array:
+        # c_k: the recurrent gains that transient k moves to (banded), passed down like its absorbed mass.
+        c_k = c if bandwidth is None else _pass_down(M, absorbed[1](g)[:, None], W)[:, 0]
+        return _substitute_up(M, scale, c_k[:, None], g[:, None], rec, W)[:, 0]
+
+    return jax.lax.cond(jnp.all(rec), lambda g: g, transient, g)
 
 
 def _pass_down(M: jax.Array, c: jax.Array, width: int) -> jax.Array:
@@ -945,17 +955,26 @@ def gain_vector(
     src = jnp.broadcast_to(pos[:, None, None], w.shape)
     dst = pos[model.succ]
     rec = recurrent[perm]
-    P = successor_policy_matrix(dst[perm], model.succ_p[perm], pi[perm].astype(r.dtype))  # row i: state perm[i]
+    into = ~recurrent[:, None, None] & recurrent[model.succ]  # a transient state's slots into recurrent states
     # Every transition within the band, but for a transient state's moves into recurrent ones (its absorbed mass).
-    inside = ~edge | (jnp.abs(src - dst) <= bandwidth) | (~recurrent[:, None, None] & recurrent[model.succ])
-    args = (P, r[perm], rec, label[perm])
+    inside = ~edge | into | (jnp.abs(src - dst) <= bandwidth)
+    pi_p = pi[perm].astype(r.dtype)
+    args = (r[perm], rec, label[perm])
+
+    def banded() -> jax.Array:
+        # Row i: state perm[i]; the moves into recurrent states as their mass and their gains, from the slots.
+        P = successor_policy_matrix(dst[perm], jnp.where(into, 0.0, model.succ_p)[perm], pi_p)
+        w_into = jnp.where(into, w, 0.0)
+        absorbed = jnp.sum(w_into, axis=(1, 2))[perm], lambda g: jnp.sum(w_into * g[dst], axis=(1, 2))[perm]
+        return _gain_after_elimination(P, *args, BAND_BLOCK, bandwidth, absorbed)
+
+    def dense() -> jax.Array:
+        return _gain_after_elimination(successor_policy_matrix(dst[perm], model.succ_p[perm], pi_p), *args,
+                                       GTH_BLOCK, None)
+
     if not check_band:
-        return jnp.where(jnp.all(inside), _gain_after_elimination(*args, BAND_BLOCK, bandwidth)[pos], jnp.nan)
-    g = jax.lax.cond(
-        jnp.all(inside), lambda: _gain_after_elimination(*args, BAND_BLOCK, bandwidth),
-        lambda: _gain_after_elimination(*args, GTH_BLOCK, None),
-    )
-    return g[pos]
+        return jnp.where(jnp.all(inside), banded()[pos], jnp.nan)
+    return jax.lax.cond(jnp.all(inside), banded, dense)[pos]
 
 
 def _irreducible(succ: jax.Array, edge: jax.Array, real: jax.Array) -> jax.Array:

@@ -9,7 +9,9 @@ as a partly learnt Q-learning policy would be), both versions are compiled once 
 difference of the two gain vectors (over the largest gain). Under load the best-of times, the CPU times and their
 ratios are what to read (docs/benchmarks/continuous_indicators.md); the ratio columns are the baseline's time over
 this tree's banded one. ``--compile`` also reports each version's
-compile seconds (one ``jit(...).lower(...).compile()`` each, on the first MDP). ``--eliminate 32,1 32,4`` times
+compile seconds (one ``jit(...).lower(...).compile()`` each, on the first MDP). ``--banded-baseline`` times the
+baseline's banded route instead of its dense one (both banded routes unchecked, ``check_band=False``, as the runner
+calls them, where the baseline has that option). ``--eliminate 32,1 32,4`` times
 the blocked elimination alone at those ``block,stages`` settings instead.
 
     PYTHONPATH=$PWD python scripts/bench_gain_vector.py --labels MiniGridEmpty/prms_2 MiniGridEmpty/prms_3 \\
@@ -19,6 +21,7 @@ the blocked elimination alone at those ``block,stages`` settings instead.
 from __future__ import annotations
 
 import argparse
+import inspect
 import sys
 import time
 
@@ -79,6 +82,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--baseline", default="main", help="git revision timed against (%(default)s)")
     p.add_argument("--repeats", type=int, default=5, help="calls of each version per policy (%(default)s)")
     p.add_argument("--redrawn", type=float, default=0.2, help="fraction of redrawn actions (%(default)s)")
+    p.add_argument("--banded-baseline", action="store_true", help="time the baseline's banded route")
     p.add_argument("--compile", action="store_true", help="also time each version's compilation")
     p.add_argument("--eliminate", nargs="*", default=[], metavar="BLOCK,STAGES",
                    help="only time jaxmdp.gth.gth_eliminate on each MDP's random policy matrix at these settings "
@@ -99,10 +103,14 @@ def main(argv: list[str] | None = None) -> None:
         mdp = instances[label].build(0).strip()
         order, width = gth.band_order(mdp)
         order = jnp.asarray(order)
+        unchecked = dict(check_band=False)
+        base_band = dict(order=order, bandwidth=width) if args.banded_baseline else {}
+        if args.banded_baseline and "check_band" in inspect.signature(base.gain_vector).parameters:
+            base_band.update(unchecked)
         fns = {
-            args.baseline: jax.jit(lambda m, pi: base.gain_vector(m, pi)),
+            args.baseline: jax.jit(lambda m, pi, kw=base_band: base.gain_vector(m, pi, **kw)),
             "dense": jax.jit(lambda m, pi: dp.gain_vector(m, pi)),
-            "banded": jax.jit(lambda m, pi, width=width: dp.gain_vector(m, pi, order=order, bandwidth=width)),
+            "banded": jax.jit(lambda m, pi, w=width: dp.gain_vector(m, pi, order=order, bandwidth=w, **unchecked)),
         }
         if args.compile and q == 0:
             pi = jax.nn.one_hot(jnp.zeros(mdp.n_states, int), mdp.n_actions, dtype=mdp.R.dtype)
