@@ -1034,6 +1034,7 @@ def successor_gain_bounds(
     inner_sweeps: int = 32,
     refine_sweeps: int | None = None,
     tau: float = 0.5,
+    give_up: float | None = None,
 ) -> GainBounds:
     """Bounds on the gain vector ``g = P*_pi r_pi`` from sweeps over the successor lists (``O(S J)`` each, ``J = A K``
     for a stochastic ``pi[S, A]``, ``K`` for a deterministic one given by its integer action indices ``[S]``,
@@ -1053,6 +1054,12 @@ def successor_gain_bounds(
     ``upper - lower <= rtol (1 + |upper|)`` at every real state (``certified``) or after ``max_sweeps`` sweeps.
     Converges geometrically at the rate of the slowest class's mixing (and absorption, for transient states); a
     caller falls back to :func:`gain_vector` when not certified.
+
+    ``give_up`` (e.g. 16): also stop, uncertified, after a refresh at whose rate of contraction (the widest gap in
+    units of its tolerance, against the previous refresh's) the gap would need more than ``give_up`` times the
+    refreshes left to certify. Where the bounds certify either way, the result is the same; on a slowly mixing chain a
+    caller with an exact fallback saves the sweeps that would not have certified (docs/benchmarks/
+    continuous_indicators.md, "Giving up early").
     """
     succ, w, r = policy_successor_lists(mdp, pi)
     dtype = w.dtype
@@ -1087,21 +1094,29 @@ def successor_gain_bounds(
         init = (lo, hi, jnp.asarray(0, jnp.int32), jnp.asarray(True))
         lo, hi, _, _ = jax.lax.while_loop(lambda c: c[3] & (c[2] < n_refine), refine, init)
         ok = jnp.all(~real | (hi - lo <= rtol * (1.0 + jnp.abs(hi))))
-        return lo, hi, ok
+        # The widest gap in units of its tolerance (at most 1 where certified).
+        gap = jnp.max(jnp.where(real, (hi - lo) / (rtol * (1.0 + jnp.abs(hi))), 0.0))
+        return lo, hi, ok, gap
 
     def cond(c):
-        *_, ok, n = c
-        return ~ok & (n < max_sweeps)
+        *_, ok, n, _, hopeless = c
+        return ~ok & (n < max_sweeps) & ~hopeless
 
     def body(c):
-        d, lo, hi, _, n = c
+        d, lo, hi, _, n, gap0, _ = c
         d = jax.lax.fori_loop(0, inner_sweeps, lambda _, d: d + tau * drift(d), d)
-        lo, hi, ok = refresh(lo, hi, d)
-        return d, lo, hi, ok, n + inner_sweeps
+        lo, hi, ok, gap = refresh(lo, hi, d)
+        n = n + inner_sweeps
+        hopeless = jnp.zeros((), bool)
+        if give_up is not None:
+            # Refreshes still needed at the last one's rate of contraction, against those left.
+            need = jnp.log(jnp.maximum(gap, 1.0)) / jnp.maximum(jnp.log(gap0) - jnp.log(gap), 0.0)
+            hopeless = ~ok & (need > give_up * (max_sweeps - n) / inner_sweeps)
+        return d, lo, hi, ok, n, gap, hopeless
 
-    lo, hi, ok = refresh(jnp.full((S,), -inf), jnp.full((S,), inf), r)
-    init = (r, lo, hi, ok, jnp.asarray(0, jnp.int32))
-    _, lo, hi, ok, n = jax.lax.while_loop(cond, body, init)
+    lo, hi, ok, gap = refresh(jnp.full((S,), -inf), jnp.full((S,), inf), r)
+    init = (r, lo, hi, ok, jnp.asarray(0, jnp.int32), gap, jnp.zeros((), bool))
+    _, lo, hi, ok, n, _, _ = jax.lax.while_loop(cond, body, init)
     return GainBounds(lower=lo, upper=hi, certified=ok, sweeps=n)
 
 

@@ -281,3 +281,37 @@ def test_slowly_mixing_chain_falls_back_to_the_dense_gain():
     pi = jnp.ones((2, 1))
     assert not bool(dp.successor_gain_bounds(mdp, pi, max_sweeps=128).certified)
     np.testing.assert_allclose(indicators.policy_values(mdp, pi, 128), [0.5, 0.5], rtol=1e-6)
+
+
+def _lazy_two_cycle(eps: float) -> jaxmdp.MDP:
+    T = np.array([[[1 - eps, eps]], [[eps, 1 - eps]]])
+    return jaxmdp.custom_mdp(T, R=np.array([[0.0], [1.0]]))
+
+
+def test_giving_up_early_stops_on_a_slow_chain_and_keeps_every_certificate():
+    # The bounds' gap on a lazy 2-cycle shrinks by 1 - eps a sweep (tau = 1/2) from about 5e5 tolerances: with eps =
+    # 1e-4 it would need about 1.3e5 sweeps, so giving up stops at the first refresh (32 sweeps) instead of 128;
+    # with eps = 0.13 it certifies at the fourth refresh (128 sweeps; 101 needed), and giving up changes nothing.
+    # Random sparse MDPs: wherever the plain bounds certify, the same bounds and sweeps.
+    from jaxmdp import dynamic_programming as dp
+
+    pi = jnp.ones((2, 1))
+    plain = jax.jit(lambda m, p: dp.successor_gain_bounds(m, p, max_sweeps=128))
+    early = jax.jit(lambda m, p: dp.successor_gain_bounds(m, p, max_sweeps=128,
+                                                          give_up=indicators.ITERATIVE_GAIN_GIVE_UP))
+    slow = _lazy_two_cycle(1e-4)
+    assert (int(plain(slow, pi).sweeps), int(early(slow, pi).sweeps)) == (128, 32)
+    assert not bool(early(slow, pi).certified)
+    np.testing.assert_allclose(indicators.policy_values(slow, pi, 128), [0.5, 0.5], rtol=1e-6)
+    rng = np.random.default_rng(8)
+    cases = [(_lazy_two_cycle(0.13), pi)]
+    cases += [(random_mdp(rng, S=7, A=3, sparsity=(0.08, 0.3, 0.6)[t % 3]), jnp.asarray(rng.dirichlet(np.ones(3), 7),
+                                                                                      jnp.float32)) for t in range(6)]
+    late = 0
+    for mdp, p in cases:
+        a, b = plain(mdp, p), early(mdp, p)
+        assert bool(a.certified) and bool(b.certified) and int(a.sweeps) == int(b.sweeps)
+        np.testing.assert_array_equal(a.lower, b.lower)
+        np.testing.assert_array_equal(a.upper, b.upper)
+        late += int(a.sweeps) == 128
+    assert late >= 1
