@@ -1024,7 +1024,7 @@ def policy_successor_lists(mdp: MDP, pi: jax.Array) -> tuple[jax.Array, jax.Arra
     return mdp.succ.reshape(S, -1), w.reshape(S, -1), jnp.sum(pi * mdp.R, axis=-1)
 
 
-@compiled("inner_sweeps", "refine_sweeps")
+@compiled("inner_sweeps", "refine_sweeps", "give_up")
 def successor_gain_bounds(
     mdp: MDP,
     pi: jax.Array,
@@ -1055,12 +1055,14 @@ def successor_gain_bounds(
     Converges geometrically at the rate of the slowest class's mixing (and absorption, for transient states); a
     caller falls back to :func:`gain_vector` when not certified.
 
-    ``give_up`` (e.g. 16): also stop, uncertified, after a refresh at whose rate of contraction (the widest gap in
+    ``give_up`` (static, e.g. 16): also stop, uncertified, after a refresh at whose rate of contraction (the widest gap in
     units of its tolerance, against the previous refresh's) the gap would need more than ``give_up`` times the
     refreshes left to certify. Where the bounds certify either way, the result is the same; on a slowly mixing chain a
     caller with an exact fallback saves the sweeps that would not have certified (docs/benchmarks/
     continuous_indicators.md, "Giving up early").
     """
+    if give_up is not None and not give_up > 0:
+        raise ValueError(f"give_up must be positive (a factor on the refreshes left) or None, got {give_up}")
     succ, w, r = policy_successor_lists(mdp, pi)
     dtype = w.dtype
     edge = w > 0

@@ -315,3 +315,11 @@ def test_giving_up_early_stops_on_a_slow_chain_and_keeps_every_certificate():
         np.testing.assert_array_equal(a.upper, b.upper)
         late += int(a.sweeps) == 128
     assert late >= 1
+
+
+@pytest.mark.parametrize("give_up", [0.0, -1.0, float("nan")])
+def test_giving_up_refuses_a_factor_that_is_not_positive(give_up):
+    from jaxmdp import dynamic_programming as dp
+
+    with pytest.raises(ValueError, match="give_up must be positive"):
+        dp.successor_gain_bounds(_lazy_two_cycle(0.5), jnp.ones((2, 1)), give_up=give_up)
