@@ -797,7 +797,6 @@ def _gain_after_elimination(
     W = S if bandwidth is None else min(max(bandwidth, 1), S)
     if bandwidth is None:
         M, scale = gth_eliminate(P, block)
-        c = jnp.zeros((S,), dtype)  # the rows keep their recurrent columns
     else:
         if absorbed is None:  # a transient state's moves into the recurrent ones: one absorbed mass
             into = ~rec[:, None] & rec[None, :]
@@ -831,8 +830,9 @@ def _gain_after_elimination(
     g = jnp.where(rec, num[label] / jnp.where(rec, den[label], 1.0), 0.0)
 
     def transient(g: jax.Array) -> jax.Array:
-        # c_k: the recurrent gains that transient k moves to (banded), passed down like its absorbed mass.
-        c_k = c if bandwidth is None else _pass_down(M, absorbed[1](g)[:, None], W)[:, 0]
+        # c_k: the recurrent gains that transient k moves to, passed down like its absorbed mass (banded; densely,
+        # the rows keep their recurrent columns).
+        c_k = jnp.zeros((S,), dtype) if bandwidth is None else _pass_down(M, absorbed[1](g)[:, None], W)[:, 0]
         return _substitute_up(M, scale, c_k[:, None], g[:, None], rec, W)[:, 0]
 
     return jax.lax.cond(jnp.all(rec), lambda g: g, transient, g)
@@ -1095,9 +1095,9 @@ def successor_gain_bounds(
         hi = jnp.minimum(hi, reach_extreme(d, -1.0))
         init = (lo, hi, jnp.asarray(0, jnp.int32), jnp.asarray(True))
         lo, hi, _, _ = jax.lax.while_loop(lambda c: c[3] & (c[2] < n_refine), refine, init)
-        ok = jnp.all(~real | (hi - lo <= rtol * (1.0 + jnp.abs(hi))))
-        # The widest gap in units of its tolerance (at most 1 where certified).
-        gap = jnp.max(jnp.where(real, (hi - lo) / (rtol * (1.0 + jnp.abs(hi))), 0.0))
+        tol = rtol * (1.0 + jnp.abs(hi))
+        ok = jnp.all(~real | (hi - lo <= tol))
+        gap = jnp.max(jnp.where(real, (hi - lo) / tol, 0.0))  # the widest gap in tolerances (<= 1 where certified)
         return lo, hi, ok, gap
 
     def cond(c):

@@ -32,8 +32,7 @@ SETS = ("continuous ergodic", "continuous communicating")
 def policies(mdp, rng: np.random.Generator) -> list[jax.Array]:
     """The optimal policy, it with 5 / 20 / 50% of its actions redrawn, and a random one (action indices)."""
     S, A = mdp.n_states, mdp.n_actions
-    best = np.asarray(dp.optimal_gain(mdp).policy)
-    best = best.argmax(-1) if best.ndim == 2 else best
+    best = np.asarray(jnp.argmax(dp.optimal_gain(mdp).policy, -1))  # the one-hot [S, A] policy's actions
     out = [best] + [np.where(rng.random(S) < f, rng.integers(0, A, S), best) for f in (0.05, 0.2, 0.5)]
     return [jnp.asarray(p, jnp.int32) for p in out + [rng.integers(0, A, S)]]
 

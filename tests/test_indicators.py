@@ -302,7 +302,9 @@ def test_giving_up_early_stops_on_a_slow_chain_and_keeps_every_certificate():
     slow = _lazy_two_cycle(1e-4)
     assert (int(plain(slow, pi).sweeps), int(early(slow, pi).sweeps)) == (128, 32)
     assert not bool(early(slow, pi).certified)
-    np.testing.assert_allclose(indicators.policy_values(slow, pi, 128), [0.5, 0.5], rtol=1e-6)
+    # Given up, the exact gain instead.
+    np.testing.assert_allclose(indicators.policy_values(slow, pi, 128, give_up=indicators.ITERATIVE_GAIN_GIVE_UP),
+                               [0.5, 0.5], rtol=1e-6)
     rng = np.random.default_rng(8)
     cases = [(_lazy_two_cycle(0.13), pi)]
     cases += [(random_mdp(rng, S=7, A=3, sparsity=(0.08, 0.3, 0.6)[t % 3]), jnp.asarray(rng.dirichlet(np.ones(3), 7),
@@ -323,3 +325,18 @@ def test_giving_up_refuses_a_factor_that_is_not_positive(give_up):
 
     with pytest.raises(ValueError, match="give_up must be positive"):
         dp.successor_gain_bounds(_lazy_two_cycle(0.5), jnp.ones((2, 1)), give_up=give_up)
+
+
+def test_the_runner_hands_its_give_up_to_the_bounds(monkeypatch):
+    # The runner's member-by-member evaluation reads ITERATIVE_GAIN_GIVE_UP when it is traced: a factor that the
+    # bounds refuse surfaces there (giving up changes costs only, not the gains, so this is how it shows).
+    from jaxmdp.experiment import runner
+
+    stacked = jaxmdp.stack([_lazy_two_cycle(0.5)]).strip()
+    args = (stacked, jnp.zeros((1,), jnp.int32), jnp.zeros((1, 2), jnp.int32), jnp.ones((1,), bool),
+            jnp.zeros((1, 2), jnp.float32))
+    evaluate = lambda: jax.jit(lambda *a: runner._evaluate_changed(*a))(*args)  # noqa: E731 (traced anew)
+    np.testing.assert_allclose(evaluate(), [[0.5, 0.5]], rtol=1e-6)
+    monkeypatch.setattr(runner, "ITERATIVE_GAIN_GIVE_UP", 0.0)
+    with pytest.raises(ValueError, match="give_up must be positive"):
+        evaluate()

@@ -45,6 +45,7 @@ __all__ = [
     "indicator_constants",
     "policy_values",
     "ITERATIVE_GAIN_SWEEPS",
+    "ITERATIVE_GAIN_GIVE_UP",
     "instant_from_values",
     "instantaneous",
     "CSV_COLUMNS",
@@ -150,9 +151,9 @@ def _safe_ratio(num: jax.Array, den: jax.Array, scale: jax.Array) -> jax.Array:
 #: RiverSwim, DeepSea, FrozenLake, SimpleGrid and MiniGridEmpty: 2694 of 2916 certified (92%; every failure on
 #: FrozenLake: 210 of Q-learning's 799 evaluations there, 7 of UCRL2's 120, 5 of PSRL's 155).
 ITERATIVE_GAIN_SWEEPS = 128
-#: :func:`~jaxmdp.dynamic_programming.successor_gain_bounds`' ``give_up``: the bounds stop once, at their rate of
-#: contraction, certifying would take more than 16 times the sweeps left. On the benchmark's 40 continuous MDPs (seed
-#: 0; the optimal policy, three partly random ones and a random one each) they stop early on 96 of the 115 chains
+#: The runner's ``give_up`` for :func:`~jaxmdp.dynamic_programming.successor_gain_bounds`: the bounds stop once, at
+#: their rate of contraction, certifying would take more than 16 times the sweeps left. On the benchmark's 40
+#: continuous MDPs (seed 0; the optimal policy, three partly random ones and a random one each) they stop early on 96 of the 115 chains
 #: that do not certify within 128 sweeps (50 of them after 32), and 85 of the 87 that certify within 128 still do,
 #: with the same bounds (docs/benchmarks/continuous_indicators.md, "Giving up early").
 ITERATIVE_GAIN_GIVE_UP = 16.0
@@ -167,17 +168,18 @@ def policy_values(
     order: jax.Array | None = None,
     bandwidth: int | None = None,
     check_band: bool = True,
-    give_up: float | None = ITERATIVE_GAIN_GIVE_UP,
+    give_up: float | None = None,
 ) -> jax.Array:
     """The expensive half of an indicator: ``V^pi_0(s)`` for every state (episodic, finite-horizon evaluation on the
     successor lists) or the gain ``rho^pi(s)`` from every state (continuous), ``[S]``.
 
     Continuous: with ``iterative_sweeps > 0`` (static), :func:`~jaxmdp.dynamic_programming.successor_gain_bounds`
     first tries to certify the gain to a relative ``1e-6`` within that many sweeps over the successor lists
-    (``O(S A K)`` each, ``O(S K)`` for action indices; stopping early where, at their rate of contraction, they
-    would not: ``give_up``, :data:`ITERATIVE_GAIN_GIVE_UP`) and returns the midpoint of its bounds; otherwise, or
-    when the chain mixes too slowly for that, the dense ``O(S^3)`` :func:`~jaxmdp.dynamic_programming.gain_vector`. The
-    branch is a ``lax.cond``, so use it per member (``lax.map``), not under ``vmap``.
+    (``O(S A K)`` each, ``O(S K)`` for action indices; with ``give_up``, e.g. the runner's
+    :data:`ITERATIVE_GAIN_GIVE_UP`, stopping early where at their rate of contraction they would not) and returns
+    the midpoint of its bounds; otherwise, or when the chain mixes too slowly for that, the dense ``O(S^3)``
+    :func:`~jaxmdp.dynamic_programming.gain_vector`. The branch is a ``lax.cond``, so use it per member
+    (``lax.map``), not under ``vmap``.
 
     ``policy`` may also be a deterministic policy given by its action indices (an integer ``[H, S]`` or ``[S]``
     array, an agent's ``greedy_actions``): episodic, only the chosen actions' successor lists are read

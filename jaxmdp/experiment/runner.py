@@ -60,6 +60,7 @@ from jaxmdp.experiment.checkpoints import fingerprint, load_checkpoint, save_che
 from jaxmdp.experiment.memory import ProgramTooLarge, check_fits
 from jaxmdp.experiment.indicators import (
     AGENT_COLUMNS,
+    ITERATIVE_GAIN_GIVE_UP,
     ITERATIVE_GAIN_SWEEPS,
     IndicatorConstants,
     indicator_constants,
@@ -193,7 +194,8 @@ def _evaluate_changed(
         def evaluate():
             # The members' own band orders (_band), which every policy's chain fits: no dense branch compiled.
             band = {} if orders is None else dict(order=order, bandwidth=bandwidth, check_band=False)
-            return policy_values(member_mdp(dyn, i), p, ITERATIVE_GAIN_SWEEPS, **band).astype(dtype)
+            return policy_values(member_mdp(dyn, i), p, ITERATIVE_GAIN_SWEEPS, give_up=ITERATIVE_GAIN_GIVE_UP,
+                                 **band).astype(dtype)
 
         return jax.lax.cond(ch, evaluate, lambda: old)
 
