@@ -4,6 +4,12 @@
 are packed 32 to a ``uint32`` word first, so the prefix sum and the scatter run over ``n / 32`` words and the rest
 over the ``size`` output slots: about ten times cheaper when ``size`` is a small fraction of ``n`` (the rejected
 entries of a rejection sampler). Pure ``jnp``; ``vmap`` compacts every member on its own.
+
+Each output slot finds its word by counting the words whose first rank is at most the slot (a scatter-add over the
+words, then a prefix sum over the slots). A running maximum over the slots (``lax.cummax``) gives the same words, but
+XLA lowers it on a CPU as a scan of ``log size`` levels that cost about 12 ns a slot, against 2-3 ns for the
+cumulative sum; together with packing by shifts instead of a select per flag, a compaction of 640 000 flags into
+40 064 slots (3 members under ``vmap``, ``scripts/bench_compaction.py``) takes 1.1-1.3 instead of 3.2-3.8 ms.
 """
 
 from __future__ import annotations
@@ -15,7 +21,7 @@ import numpy as np
 __all__ = ["compact", "compact_with_count"]
 
 _U32 = jnp.uint32
-_BIT = np.left_shift(np.uint32(1), np.arange(32, dtype=np.uint32))  # bit b of a word holds flag 32 * word + b
+_SHIFT = np.arange(32, dtype=np.uint32)  # bit b of a word holds flag 32 * word + b
 
 
 def compact(flags: jax.Array, size: int) -> tuple[jax.Array, jax.Array]:
@@ -36,15 +42,17 @@ def compact_with_count(flags: jax.Array, size: int) -> tuple[jax.Array, jax.Arra
     if n >= 2**31 - 64 - size:
         raise ValueError(f"compact: flags has {n} entries; at most 2**31 - 64 - size are supported")
     n_words = -(-n // 32)
-    packed = jnp.pad(flags, (0, 32 * n_words - n)).reshape(n_words, 32)
-    words = jnp.sum(jnp.where(packed, _BIT, _U32(0)), axis=1, dtype=_U32)  # distinct bits: the sum is the "or"
+    packed = jnp.pad(flags, (0, 32 * n_words - n)).reshape(n_words, 32).astype(_U32)
+    words = jnp.sum(packed << _SHIFT, axis=1, dtype=_U32)  # distinct bits: the sum is the "or"
     counts = jax.lax.population_count(words).astype(jnp.int32)
-    before = jnp.cumsum(counts) - counts  # true entries in earlier words
-    total = before[-1] + counts[-1]
-    # Slot -> word: each word with a true entry marks the slot of its first one; a running maximum fills the gaps.
-    word_id = jnp.arange(n_words, dtype=jnp.int32)
-    starts = jnp.zeros((size,), jnp.int32).at[jnp.where(counts > 0, before, size)].max(word_id, mode="drop")
-    word = jax.lax.cummax(starts)
+    through = jnp.cumsum(counts)  # true entries up to each word
+    before = through - counts  # in earlier words: the rank of the word's first true entry
+    total = through[-1]
+    # Slot -> word: the last word whose first rank is at most the slot, which holds the slot's entry (the next word's
+    # first rank is past the slot). Its index is the number of such words, less one: every word counts one at its
+    # first rank (ranks past the slots dropped), and a prefix sum over the slots adds them up.
+    first_ranks = jnp.zeros((size,), jnp.int32).at[before].add(1, mode="drop")
+    word = jnp.cumsum(first_ranks) - 1
     slot = jnp.arange(size, dtype=jnp.int32)
     # Bit of the k-th set bit of the word by bisection: skip the low half while it holds k or fewer set bits.
     k = slot - before[word]
