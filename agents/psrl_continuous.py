@@ -679,10 +679,23 @@ def policy(state: PSRLContinuousState) -> jax.Array:
     """Greedy ``[S, A]`` policy of the discounted optimal values of the posterior-mean MDP, its backups on the
     observed next states (:func:`posterior_mean_kernel`, :func:`agents.estimated_model.discounted_greedy_policy`;
     the dense posterior mean should the slots overflow)."""
+    return warm_policy(state, None)[0]
+
+
+def warm_policy(state: PSRLContinuousState, start: jax.Array | None) -> tuple[jax.Array, jax.Array]:
+    """:func:`policy` with its value iteration started from ``start`` (``[S]``, the values the previous call returned;
+    ``None``: zeros) and the exact values of the returned policy, the next call's start
+    (:func:`agents.estimated_model.warm_greedy_policy`; ``Agent.warm_policy``). The dense fallback starts cold and
+    hands ``start`` on."""
     R = normal_gamma_mean(state.rewards)
-    sparse = em.discounted_greedy_policy(posterior_mean_kernel(state), R, state.hparams.policy_discount,
-                                         state.action_mask)
-    return only_if(state.successors.overflowed, _dense_policy, sparse, state)
+    sparse = em.warm_greedy_policy(posterior_mean_kernel(state), R, state.hparams.policy_discount,
+                                   state.action_mask, start)
+    return only_if(state.successors.overflowed, lambda st, u: (_dense_policy(st), u), sparse, state, sparse[1])
+
+
+def policy_start(state: PSRLContinuousState) -> jax.Array:
+    """The start of the first policy estimate: zeros ``[S]`` (``Agent.policy_start``)."""
+    return jnp.zeros(state.Q.shape[:1], state.Q.dtype)
 
 
 PSRL_CONTINUOUS = Agent(
@@ -693,6 +706,8 @@ PSRL_CONTINUOUS = Agent(
     act=act,
     update=update,
     policy=policy,
+    warm_policy=warm_policy,
+    policy_start=policy_start,
     needs_plan=needs_plan,
     plan=plan,
     check_hparams=check_hparams,

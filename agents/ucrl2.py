@@ -320,9 +320,22 @@ def policy(state: UCRL2State) -> jax.Array:
     """Greedy ``[S, A]`` policy of the discounted optimal values of the estimated MDP (``O(S A K)`` backups on the
     observed next states, :func:`agents.estimated_model.discounted_greedy_policy`). Should the slots have overflowed
     (a spec whose ``max_successors`` is below the MDP's), the dense route on the dense counts, for that member only."""
+    return warm_policy(state, None)[0]
+
+
+def warm_policy(state: UCRL2State, start: jax.Array | None) -> tuple[jax.Array, jax.Array]:
+    """:func:`policy` with its value iteration started from ``start`` (``[S]``, the values the previous call returned;
+    ``None``: zeros) and the exact values of the returned policy, the next call's start
+    (:func:`agents.estimated_model.warm_greedy_policy`; ``Agent.warm_policy``). The dense fallback starts cold and
+    hands ``start`` on."""
     kernel, R = sparse_estimated_model(state)
-    sparse = em.discounted_greedy_policy(kernel, R, state.hparams.policy_discount, state.action_mask)
-    return only_if(state.successors.overflowed, _dense_policy, sparse, state)
+    sparse = em.warm_greedy_policy(kernel, R, state.hparams.policy_discount, state.action_mask, start)
+    return only_if(state.successors.overflowed, lambda st, u: (_dense_policy(st), u), sparse, state, sparse[1])
+
+
+def policy_start(state: UCRL2State) -> jax.Array:
+    """The start of the first policy estimate: zeros ``[S]`` (``Agent.policy_start``)."""
+    return jnp.zeros(state.Q.shape[:1], state.Q.dtype)
 
 
 UCRL2 = Agent(
@@ -333,6 +346,8 @@ UCRL2 = Agent(
     act=act,
     update=update,
     policy=policy,
+    warm_policy=warm_policy,
+    policy_start=policy_start,
     needs_plan=needs_plan,
     plan=plan,
     check_hparams=check_hparams,
@@ -442,5 +457,7 @@ UCRL2_COLOSSEUM = dataclasses.replace(
     init=init_colosseum,
     update=update_colosseum,
     policy=policy_colosseum,
+    warm_policy=None,  # the reference's estimate: the dense route on its lagged model, started cold
+    policy_start=None,
     plan=plan_colosseum,
 )

@@ -14,6 +14,11 @@ the dense route's.
 
     python scripts/bench_policy_estimate.py --agents ucrl2 psrl_continuous --steps 300 5000 50000
 
+``--phases`` times the banded estimate's two phases instead (:func:`agents.estimated_model.greedy_policy_phases`:
+value iteration to ``1e-3``, then policy iteration with exact evaluations), each from zeros as the agents start it
+and from the values of the same estimate one log (``--log-period`` steps) earlier, as a warm start would: the value
+iteration's sweeps, the policy iteration's evaluations, milliseconds of each, and whether the two policies agree.
+
 Prints the table and appends it, with the command, to ``--doc`` (docs/benchmarks/continuous_indicators.md).
 """
 
@@ -31,7 +36,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import profile_continuous_plans as pcp  # noqa: E402
 
+from agents import estimated_model as em  # noqa: E402
 from agents import psrl_continuous, ucrl2  # noqa: E402
+from agents.posteriors import normal_gamma_mean  # noqa: E402
 from hardness.benchmark import sets  # noqa: E402
 from jaxmdp.experiment import compilation, runner  # noqa: E402
 
@@ -44,12 +51,62 @@ ROUTES = {
 }
 
 
+#: agent name -> its estimated model on the observed next states, ``state -> (SparseKernel, R[S, A])``
+MODELS = {
+    "ucrl2": ucrl2.sparse_estimated_model,
+    "psrl_continuous": lambda st: (psrl_continuous.posterior_mean_kernel(st), normal_gamma_mean(st.rewards)),
+}
+
+
+def phase_rows(name: str, label: str, mdp, hp, steps: int, args) -> str:
+    """One ``--phases`` row: the banded estimate from zeros and from the previous log's values."""
+    agent = ROUTES[name][0]
+    orders, width = runner._band(mdp, np.zeros(1, int))
+    if orders is None:
+        return f"| {name} | {label} | {mdp.n_states} | {steps} | no band |"
+    before = jax.jit(lambda k: pcp.played(agent, mdp, hp, steps, k))(jax.random.key(0))
+    after = jax.jit(lambda k, st: pcp.played(agent, mdp, hp, args.log_period, k, st))(jax.random.key(1), before)
+
+    @jax.jit
+    def phases(state, u0):
+        state = state.replace(successors=state.successors.replace(order=orders[0], bandwidth=width))
+        kernel, R = MODELS[name](state)
+        return em.greedy_policy_phases(kernel, R, hp.policy_discount, state.action_mask, u0)
+
+    zeros = jax.numpy.zeros(before.Q.shape[:1], before.Q.dtype)  # the agents' start
+    u_prev = phases(before, zeros)[2].V  # the exact values of its policy, the start the agents hand on
+    out, best = {}, {}
+    for start, u0 in (("zeros", zeros), ("previous log", u_prev)):
+        out[start] = jax.block_until_ready(phases(after, u0))
+        best[start] = np.inf
+    for _ in range(args.repeats):
+        for start, u0 in (("zeros", zeros), ("previous log", u_prev)):
+            t0 = time.perf_counter()
+            jax.block_until_ready(phases(after, u0))
+            best[start] = min(best[start], time.perf_counter() - t0)
+    (p0, vi0, pi0), (p1, vi1, pi1) = out["zeros"], out["previous log"]
+    same = bool(np.array_equal(np.asarray(p0), np.asarray(p1)))
+    return (f"| {name} | {label} | {mdp.n_states} | {steps} | {int(vi0.iterations)} / {int(vi1.iterations)} | "
+            f"{int(pi0.iterations)} / {int(pi1.iterations)} | {1e3 * best['zeros']:.1f} / "
+            f"{1e3 * best['previous log']:.1f} | {best['zeros'] / best['previous log']:.1f}x | {same} |")
+
+
+PHASE_HEADER = [
+    "| agent | MDP | S | random steps | value-iteration sweeps: from zeros / previous log | policy-iteration "
+    "evaluations | ms | speed-up | same policy |",
+    "|---|---|---|---|---|---|---|---|---|",
+]
+
+
 def main(argv: list[str] | None = None) -> list[str]:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--set", default="continuous ergodic")
     ap.add_argument("--agents", nargs="+", default=list(ROUTES), choices=list(ROUTES))
     ap.add_argument("--steps", type=int, nargs="+", default=[300, 5000, 50_000])
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--phases", action="store_true", help="time the estimate's two phases, cold and warm")
+    ap.add_argument("--log-period", type=int, default=100, help="steps between two logs (--phases)")
+    ap.add_argument("--labels", nargs="+", help="only these MDPs of --set (default: each size bucket's largest)")
     ap.add_argument("--doc", type=Path, default=Path("docs/benchmarks/continuous_indicators.md"))
     compilation.add_cache_flag(ap)
     args = ap.parse_args(argv)
@@ -58,11 +115,16 @@ def main(argv: list[str] | None = None) -> list[str]:
     for name in args.agents:
         agent, dense, sparse = ROUTES[name]
         routes = {"dense": jax.jit(dense), "sparse": jax.jit(sparse), "banded": jax.jit(sparse)}
-        for label in pcp.bucket_labels(args.set):
+        for label in args.labels or pcp.bucket_labels(args.set):
             mdp = next(i for i in sets.instances(args.set) if i.label == label).build(0)
             hp = agent.default_hparams
             if name == "psrl_continuous":  # the plan's buffer at the MDP's own psi, as the benchmark sizes it
                 hp = hp.replace(max_psi=psrl_continuous.psi(hp, mdp.n_states, mdp.n_actions))
+            if args.phases:
+                for steps in args.steps:
+                    rows.append(phase_rows(name, label, mdp, hp, steps, args))
+                    print(rows[-1], flush=True)
+                continue
             orders, width = runner._band(mdp, np.zeros(1, int))
             for steps in args.steps:
                 state = jax.jit(lambda k: pcp.played(agent, mdp, hp, steps, k))(jax.random.key(0))
@@ -86,15 +148,18 @@ def main(argv: list[str] | None = None) -> list[str]:
                        f"{best['dense'] / best['sparse']:.1f}x | {differ['sparse']} | {banded} |")
                 print(row, flush=True)
                 rows.append(row)
+    header = PHASE_HEADER if args.phases else [
+        "| agent | MDP | S | K | band | random steps | dense ms | observed next states ms | speed-up | states whose "
+        "action differs | banded ms | speed-up over observed | states whose action differs |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     lines = [
         f"### {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}",
         "",
         f"`python {' '.join(sys.argv)}`: best of {args.repeats}, one member; jax {jax.__version__}, "
         f"{jax.default_backend()}, {platform.machine()}.",
         "",
-        "| agent | MDP | S | K | band | random steps | dense ms | observed next states ms | speed-up | states whose "
-        "action differs | banded ms | speed-up over observed | states whose action differs |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        *header,
         *rows,
         "",
     ]

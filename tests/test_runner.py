@@ -602,3 +602,35 @@ def test_greedy_actions_of_the_wrong_shape_are_refused():
     wrong = dataclasses.replace(base, greedy_actions=lambda state: jnp.zeros((2,), jnp.int32))
     with pytest.raises(ValueError, match="greedy_actions"):
         runner.run(wrong, runner.product([river_swim(False)], [base.default_hparams], seeds=[0]), 100)
+
+
+def test_each_log_gets_the_warm_start_the_previous_log_returned():
+    # A warm policy that plays constant action start % A and returns start + 1: log k (from 1) evaluates action
+    # (k - 1) % A. The same records as a plain policy that reads k from the update count; a runner that kept the first
+    # start would evaluate action 0 at every log.
+    period, n_steps = 7, 70
+
+    def warm_policy(state, start):
+        return jax.nn.one_hot(jnp.full((state.n_states,), start[0] % state.n_actions), state.n_actions), start + 1
+
+    def by_count(state):
+        return jax.nn.one_hot(jnp.full((state.n_states,), (state.c // period - 1) % state.n_actions), state.n_actions)
+
+    base = SCRIPTED[False]
+    warm = dataclasses.replace(base, name="scripted_warm", warm_policy=warm_policy,
+                               policy_start=lambda state: jnp.zeros((1,), jnp.int32))
+    plain = dataclasses.replace(base, name="scripted_by_count", policy=by_count)
+    g = runner.product([river_swim(False)], [ScriptedHParams(plan_every=1000)], seeds=[0, 1])
+    got, want = (runner.run(a, g, n_steps, log_period=period, n_records=10) for a in (warm, plain))
+    for column in ("cumulative_regret", "normalized_cumulative_regret", "cumulative_expected_reward"):
+        np.testing.assert_array_equal(got.column(column), want.column(column))
+    assert len(np.unique(np.diff(np.asarray(want.column("cumulative_regret"))[:, 0]))) > 1  # the actions differ
+
+
+@pytest.mark.parametrize("fields", [dict(warm_policy=lambda s, u: (None, u)), dict(policy_start=lambda s: None)])
+def test_warm_policy_and_policy_start_go_together(fields):
+    with pytest.raises(ValueError, match="warm_policy and policy_start go together"):
+        dataclasses.replace(SCRIPTED[False], **fields)
+    both = dict(warm_policy=lambda s, u: (None, u), policy_start=lambda s: None)
+    with pytest.raises(ValueError, match="warm_policy is for agents without greedy_actions"):
+        dataclasses.replace(agents.get("q_learning_continuous"), **both)

@@ -168,6 +168,15 @@ class Agent:
     observation: Literal["state", "emission", "any"] = "state"
     #: Optional ``state -> int32 [S] or [H, S]``: ``policy`` as action indices, when it is always deterministic.
     greedy_actions: Callable[[Any], jax.Array] | None = None
+    #: Optional ``(state, start) -> (policy, start')``: ``policy(state)`` computed from a warm ``start`` (an array of
+    #: the agent's choosing, e.g. the values of its previous estimate), and the start for the next call. The runner
+    #: hands each log the ``start'`` of the previous one (``policy_start(state)`` before the first) and evaluates the
+    #: policy it returns, which must be ``policy``'s estimate up to that estimate's own tolerances. Given with
+    #: ``policy_start`` or not at all; an agent made by ``dataclasses.replace`` with another ``policy`` must replace
+    #: or clear both.
+    warm_policy: Callable[[Any, jax.Array], tuple[jax.Array, jax.Array]] | None = None
+    #: Optional ``state -> start``: the first ``start`` of ``warm_policy`` (from the state after ``init``).
+    policy_start: Callable[[Any], jax.Array] | None = None
     #: Optional ``state -> {name: int scalar}``: counters the runner records and warns about (module docstring).
     diagnostics: Callable[[Any], dict[str, jax.Array]] | None = None
     #: True when ``policy`` is the same at every step of a run (it depends on no learnt quantity, as the random
@@ -181,6 +190,12 @@ class Agent:
     #: The largest total size in bytes of a lockstep batch's agent states that the runner plans whole (``None``: any);
     #: a batch above it plans in rounds like one above ``whole_batch_plans``.
     whole_batch_bytes: int | None = None
+
+    def __post_init__(self) -> None:
+        if (self.warm_policy is None) != (self.policy_start is None):
+            raise ValueError(f"agent {self.name!r}: warm_policy and policy_start go together (one of them is None)")
+        if self.warm_policy is not None and self.greedy_actions is not None:
+            raise ValueError(f"agent {self.name!r}: warm_policy is for agents without greedy_actions")
 
     @property
     def plans(self) -> bool:

@@ -123,6 +123,7 @@ class Carry(struct.PyTreeNode):
     # [B, ...] the policy evaluated at the previous log (NaN or -1 before the first); [B, 0] for a fixed policy
     policy_cache: jax.Array
     value_cache: jax.Array  # [B, S] its values (V_0 or the gain from every state)
+    policy_start: jax.Array  # [B, ...] the next log's warm start of agent.warm_policy, else [B, 0]
     visits: jax.Array  # [B, S] int32 count of the states acted in (record_visits), else [B, 0]
 
 
@@ -258,6 +259,8 @@ def _init_program(agent: Agent, record_visits: bool = False, bandwidth: int | No
             policy_cache=jnp.zeros((B, 0), policy.dtype) if agent.fixed_policy
             else jnp.full(policy.shape, -1 if jnp.issubdtype(policy.dtype, jnp.integer) else jnp.nan, policy.dtype),
             value_cache=jnp.zeros((B, dyn.n_states), dyn.dtype),
+            policy_start=jnp.zeros((B, 0), dyn.dtype) if agent.warm_policy is None
+            else jax.vmap(agent.policy_start)(state),
             visits=jnp.zeros((B, dyn.n_states if record_visits else 0), jnp.int32),
         )
 
@@ -352,24 +355,28 @@ def _chunk_program(
                 reward=c.reward.add(reward.astype(dtype)),
             )
 
-        def changed_policy(c: Carry) -> tuple[jax.Array, jax.Array]:
-            """The policy to cache and which members' policies changed since the previous log."""
+        def changed_policy(c: Carry) -> tuple[jax.Array, jax.Array, jax.Array]:
+            """The policy to cache, which members' policies changed since the previous log, and the next log's warm
+            start (``agent.warm_policy``: the policy computed from the previous log's)."""
             if agent.fixed_policy:  # evaluated at the first log (the previous log at step 0), never again
-                return c.policy_cache, jnp.broadcast_to(c.last_log == 0, (B,))
-            policy = jax.vmap(_policy_of(agent))(c.agent_state)
+                return c.policy_cache, jnp.broadcast_to(c.last_log == 0, (B,)), c.policy_start
+            if agent.warm_policy is None:
+                policy, start = jax.vmap(_policy_of(agent))(c.agent_state), c.policy_start
+            else:
+                policy, start = jax.vmap(agent.warm_policy)(c.agent_state, c.policy_start)
             # max over uint8, not any over bool: XLA's CPU reduction of a predicate is about 9x slower (a float
             # [B, H, S, A] policy of Taxi at 512 members: 1.0 us against 0.11 us per agent-step). Reduced over the
             # trailing axes as they are: flattened first (reshape(B, -1)), the comparison fused with the greedy
             # extraction ran 14 times slower (episodic Q-learning, MiniGridEmpty, 512 members: 15.4 ms a log
             # against 1.1 ms, CPU time).
             changed = jnp.max((policy != c.policy_cache).astype(jnp.uint8), axis=tuple(range(1, policy.ndim))) > 0
-            return policy, changed
+            return policy, changed, start
 
         def log(c: Carry) -> tuple:
             # The fields a log writes (logged_fields' order). Policy evaluation is the expensive half of an
             # indicator; a member whose policy is unchanged since the previous log reuses its values (exactly: they
             # cover every state), and the evaluation is skipped altogether when no member's policy changed.
-            policy, changed = changed_policy(c)
+            policy, changed, start = changed_policy(c)
 
             def evaluate(cache: jax.Array) -> jax.Array:
                 current = jax.vmap(_policy_of(agent))(c.agent_state) if agent.fixed_policy else policy
@@ -381,10 +388,10 @@ def _chunk_program(
             )
             k = (c.t - c.last_log).astype(dtype)
             x = jnp.stack([inst.regret, inst.expected_reward, inst.normalized_regret], axis=-1) * k
-            return policy, values, c.logged.add(x.astype(dtype)), c.t
+            return policy, values, c.logged.add(x.astype(dtype)), c.t, start
 
         def logged_fields(c: Carry) -> tuple:
-            return c.policy_cache, c.value_cache, c.logged, c.last_log
+            return c.policy_cache, c.value_cache, c.logged, c.last_log, c.policy_start
 
         t_end = carry.t + n
 
@@ -397,8 +404,9 @@ def _chunk_program(
             is_log = (c.t % sched.log_period == 0) | (c.t == sched.n_steps)
             # Only what a log writes leaves the cond: with the whole carry as its result, XLA copied the agent
             # tables at every log.
-            policy_cache, value_cache, logged, last_log = jax.lax.cond(is_log, log, logged_fields, c)
-            c = c.replace(policy_cache=policy_cache, value_cache=value_cache, logged=logged, last_log=last_log)
+            policy_cache, value_cache, logged, last_log, start = jax.lax.cond(is_log, log, logged_fields, c)
+            c = c.replace(policy_cache=policy_cache, value_cache=value_cache, logged=logged, last_log=last_log,
+                          policy_start=start)
             is_record = (c.t % sched.record_period == 0) | (c.t == sched.n_steps)
 
             def record(args):
