@@ -25,6 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from baseline_module import load_revision  # scripts/ is on the path of a script run as python scripts/NAME.py
+from bench_doc import interleaved_best
 from jaxmdp.sampling import beta_sampling, compaction
 
 
@@ -47,20 +48,11 @@ def compiled(fn, args, compact_fn):
         return exe, time.perf_counter() - t
 
 
-def best_of(exes: dict, args, repeats: int) -> dict:
-    """Best wall seconds of each executable, called in turn ``repeats`` times (after one call each)."""
-    out = {k: jax.block_until_ready(e(*args)) for k, e in exes.items()}
-    names = list(exes)
-    first = jax.tree.leaves(out[names[0]])
-    for k in names[1:]:  # the same bits
-        assert all(np.array_equal(a, b) for a, b in zip(first, jax.tree.leaves(out[k]))), k
-    best = dict.fromkeys(exes, np.inf)
-    for _ in range(repeats):
-        for k, e in exes.items():
-            t = time.perf_counter()
-            jax.block_until_ready(e(*args))
-            best[k] = min(best[k], time.perf_counter() - t)
-    return best
+def same_bits(exes: dict, args) -> None:
+    """Every executable gives the first one's bits on ``args``."""
+    outs = [jax.tree.leaves(e(*args)) for e in exes.values()]
+    for name, out in zip(list(exes)[1:], outs[1:]):
+        assert all(np.array_equal(a, b) for a, b in zip(outs[0], out)), name
 
 
 def main() -> None:
@@ -83,7 +75,8 @@ def main() -> None:
         exes, secs = {}, {}
         for name, fn in versions.items():
             exes[name], secs[name] = compiled(jax.vmap(lambda f, fn=fn: fn(f, n // 16 + 64)), (flags,), fn)
-        best = best_of(exes, (flags,), args.repeats)
+        same_bits(exes, (flags,))
+        best = interleaved_best(exes, (flags,), args.repeats)
         cells = [f"{best[k] * 1e3:.3f} ({secs[k]:.2f})" for k in versions]
         print(f"| {n:,} | {' | '.join(cells)} | {best[args.baseline] / best['current']:.2f}x |")
 
@@ -96,7 +89,8 @@ def main() -> None:
         for name, fn in versions.items():  # a function of its own per version: jit caches traces by function
             sampler = jax.vmap(lambda k, a: beta_sampling.sample_log_gamma.__wrapped__(k, a))
             exes[name], secs[name] = compiled(sampler, (keys, alpha), fn)
-        best = best_of(exes, (keys, alpha), args.repeats)
+        same_bits(exes, (keys, alpha))
+        best = interleaved_best(exes, (keys, alpha), args.repeats)
         cells = [f"{best[k] / alpha.size * 1e9:.2f} ({secs[k]:.1f})" for k in versions]
         print(f"| {S} | {alpha.size:,} | {' | '.join(cells)} | {best[args.baseline] / best['current']:.2f}x |")
 

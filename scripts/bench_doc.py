@@ -1,6 +1,6 @@
 """Helpers shared by the benchmark scripts: appending a dated section to a benchmark's Markdown file
 (docs/benchmarks/), for the scripts that keep a history of their runs there rather than rewriting the file, and the
-best-of-``n`` wall time of a call."""
+best-of-``n`` wall time of a call or of several calls taken in turn."""
 
 from __future__ import annotations
 
@@ -47,3 +47,18 @@ def best_seconds(fn: Callable[[], object], repeats: int) -> float:
         jax.block_until_ready(fn())
         times.append(time.perf_counter() - start)
     return min(times)
+
+
+def interleaved_best(fns: dict[str, Callable[..., object]], args: Sequence[object], repeats: int) -> dict[str, float]:
+    """The shortest wall time of each of ``fns`` on ``args`` over ``repeats`` rounds that call them in turn (results
+    waited for), after one call each that compiles: a machine's slow spell then falls on all of them alike."""
+    for fn in fns.values():
+        jax.block_until_ready(fn(*args))
+    best = dict.fromkeys(fns, float("inf"))
+    for _ in range(repeats):
+        for name, fn in fns.items():
+            start = time.perf_counter()
+            jax.block_until_ready(fn(*args))
+            best[name] = min(best[name], time.perf_counter() - start)
+    return best
+

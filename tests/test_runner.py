@@ -634,3 +634,17 @@ def test_warm_policy_and_policy_start_go_together(fields):
     both = dict(warm_policy=lambda s, u: (None, u), policy_start=lambda s: None)
     with pytest.raises(ValueError, match="warm_policy is for agents without greedy_actions"):
         dataclasses.replace(agents.get("q_learning_continuous"), **both)
+
+
+@pytest.mark.parametrize("returned, match", [
+    (lambda state, start: (jnp.zeros((state.n_states,)), start), "returns a warm_policy of"),
+    (lambda state, start: (jax.nn.one_hot(jnp.zeros((state.n_states,), int), state.n_actions), start[:1] * 1.0),
+     "warm_policy returns a start of"),
+])
+def test_a_warm_policy_that_does_not_fit_is_refused_before_compiling(returned, match):
+    agent = dataclasses.replace(SCRIPTED[False], name="scripted_bad_warm", warm_policy=returned,
+                                policy_start=lambda state: jnp.zeros((2,), jnp.int32))
+    g = runner.product([river_swim(False)], [ScriptedHParams()], seeds=[0])
+    with pytest.raises(ValueError, match=match):
+        runner.run(agent, g, 10, log_period=5)
+

@@ -10,7 +10,8 @@ through ``n_steps`` agent/MDP interaction steps (paper §3.3 and App. A.1; docs/
   only the members that asked are planned, ``plan_slots`` at a time (:mod:`jaxmdp.experiment.planning`), so planning
   is paid at boundaries only and for those members only; every member plans before its first action, in the same
   step (the initialisation program holds no plan, so the plan is compiled once less);
-* indicator logging (:mod:`jaxmdp.experiment.indicators`, exact policy evaluation of ``agent.policy``) runs under a
+* indicator logging (:mod:`jaxmdp.experiment.indicators`, exact policy evaluation of ``agent.policy``, or of
+  ``agent.warm_policy`` started from what the member's previous log returned) runs under a
   ``lax.cond`` on "this is a log step" (a chunk may end between two): after every ``log_period`` steps and after
   the last step. A log made after
   ``c`` steps covers the ``k = c - c_prev`` steps since the previous log (the paper's approximation; ``log_period=1``
@@ -531,12 +532,16 @@ def _check_shapes(agent: Agent, g: Grid, n_steps: int) -> None:
         state = agent.init(key, spec_of(m, n_steps), hp)
         obs, _ = env.reset(key, m)
         greedy = agent.greedy_actions(state) if agent.greedy_actions is not None else None
-        return agent.policy(state), agent.act(key, state, obs, jnp.zeros((), jnp.int32)), greedy
+        warm = None
+        if agent.warm_policy is not None:
+            start = agent.policy_start(state)
+            warm = (start, *agent.warm_policy(state, start))
+        return agent.policy(state), agent.act(key, state, obs, jnp.zeros((), jnp.int32)), greedy, warm
 
     m = jax.eval_shape(lambda mdps: member_mdp(mdps, 0), g.mdps)
     S, A, H = m.n_states, m.n_actions, m.H
     try:
-        policy, action, greedy = jax.eval_shape(first_member, g.mdps, g.hparams)
+        policy, action, greedy, warm = jax.eval_shape(first_member, g.mdps, g.hparams)
     except (TypeError, ValueError, IndexError) as err:
         raise ValueError(f"agent {agent.name!r} does not fit MDPs with S={S}, A={A}, H={H}: {err}") from err
     allowed = [(H, S, A), (S, A)] if H is not None else [(S, A)]
@@ -552,6 +557,14 @@ def _check_shapes(agent: Agent, g: Grid, n_steps: int) -> None:
         )
     if action.shape != () or not jnp.issubdtype(action.dtype, jnp.integer):
         raise ValueError(f"agent {agent.name!r} must return one integer action; got {action.shape} {action.dtype}")
+    if warm is not None:
+        start, warm_policy, start2 = warm
+        if (warm_policy.shape, warm_policy.dtype) != (policy.shape, policy.dtype):
+            raise ValueError(f"agent {agent.name!r} returns a warm_policy of {warm_policy.shape} {warm_policy.dtype}; "
+                             f"expected its policy's {policy.shape} {policy.dtype}")
+        if (start2.shape, start2.dtype) != (start.shape, start.dtype):
+            raise ValueError(f"agent {agent.name!r}: warm_policy returns a start of {start2.shape} {start2.dtype}; "
+                             f"expected policy_start's {start.shape} {start.dtype} (the runner carries it)")
 
 
 def _progress(done: int, total: int, elapsed: float, members: int) -> None:
