@@ -685,8 +685,8 @@ def policy(state: PSRLContinuousState) -> jax.Array:
 def warm_policy(state: PSRLContinuousState, start: jax.Array | None) -> tuple[jax.Array, jax.Array]:
     """:func:`policy` with its value iteration started from ``start`` (``[S]``, the values the previous call returned;
     ``None``: zeros) and the exact values of the returned policy, the next call's start
-    (:func:`agents.estimated_model.warm_greedy_policy`; ``Agent.warm_policy``). The dense fallback starts cold and
-    hands ``start`` on."""
+    (:func:`agents.estimated_model.warm_greedy_policy`; ``Agent.warm_policy``). Should the slots have overflowed,
+    the dense fallback starts cold and hands on the slots' values, which it never uses."""
     R = normal_gamma_mean(state.rewards)
     sparse = em.warm_greedy_policy(posterior_mean_kernel(state), R, state.hparams.policy_discount,
                                    state.action_mask, start)

@@ -326,8 +326,8 @@ def policy(state: UCRL2State) -> jax.Array:
 def warm_policy(state: UCRL2State, start: jax.Array | None) -> tuple[jax.Array, jax.Array]:
     """:func:`policy` with its value iteration started from ``start`` (``[S]``, the values the previous call returned;
     ``None``: zeros) and the exact values of the returned policy, the next call's start
-    (:func:`agents.estimated_model.warm_greedy_policy`; ``Agent.warm_policy``). The dense fallback starts cold and
-    hands ``start`` on."""
+    (:func:`agents.estimated_model.warm_greedy_policy`; ``Agent.warm_policy``). Should the slots have overflowed,
+    the dense fallback starts cold and hands on the slots' values, which it never uses."""
     kernel, R = sparse_estimated_model(state)
     sparse = em.warm_greedy_policy(kernel, R, state.hparams.policy_discount, state.action_mask, start)
     return only_if(state.successors.overflowed, lambda st, u: (_dense_policy(st), u), sparse, state, sparse[1])
