@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
 from pathlib import Path
 
 import jax
@@ -29,6 +28,7 @@ from hardness.benchmark import sets
 from jaxmdp.experiment.planning import default_plan_slots
 
 from baseline_module import load_file  # scripts/ is on the path of a script run as python scripts/NAME.py
+from bench_doc import interleaved_best
 from profile_continuous_plans import bucket_labels, played
 
 
@@ -65,18 +65,6 @@ def at_eta(state, n: int, seed: int = 0):
     return state.replace(counts=counts, schedule=state.schedule.replace(visits=counts.sum(-1)))
 
 
-def interleaved(fns: dict, args, repeats: int) -> dict:
-    for fn in fns.values():
-        jax.block_until_ready(fn(*args))  # compile
-    best = dict.fromkeys(fns, np.inf)
-    for _ in range(repeats):
-        for name, fn in fns.items():
-            t = time.perf_counter()
-            jax.block_until_ready(fn(*args))
-            best[name] = min(best[name], time.perf_counter() - t)
-    return best
-
-
 def main(argv=None) -> list[dict]:
     args = build_parser().parse_args(argv)
     base = load_file(args.baseline, "psrl_continuous_baseline")
@@ -99,7 +87,7 @@ def main(argv=None) -> list[dict]:
             variants.append((f"{args.eta_pairs} pairs at eta", at_eta(state, args.eta_pairs)))
         for what, st in variants:
             keys = jax.random.split(jax.random.key(3), slots)
-            best = interleaved(plans, (keys, stacked(st, slots)), args.repeats)
+            best = interleaved_best(plans, (keys, stacked(st, slots)), args.repeats)
             out = {name: plans[name](keys, stacked(st, slots)) for name in plans}
             row = dict(mdp=label, S=S, A=A, psi=int(st.constants.psi), eta=float(st.constants.eta),
                        pairs_at_eta=int(jnp.sum(st.schedule.visits >= st.constants.eta)), state=what, slots=slots,
