@@ -1055,9 +1055,9 @@ def successor_gain_bounds(
     Converges geometrically at the rate of the slowest class's mixing (and absorption, for transient states); a
     caller falls back to :func:`gain_vector` when not certified.
 
-    ``give_up`` (static, e.g. 16): also stop, uncertified, after a refresh at whose rate of contraction (the widest gap in
-    units of its tolerance, against the previous refresh's) the gap would need more than ``give_up`` times the
-    refreshes left to certify. Where the bounds certify either way, the result is the same; on a slowly mixing chain a
+    ``give_up`` (static, e.g. 16): also stop, uncertified, after a refresh at whose rate of contraction (the widest
+    gap in units of its tolerance, against the previous refresh's) the gap would need more than ``give_up`` times
+    the refreshes left to certify. Where the bounds certify either way, the result is the same; on a slowly mixing chain a
     caller with an exact fallback saves the sweeps that would not have certified (docs/benchmarks/
     continuous_indicators.md, "Giving up early").
     """

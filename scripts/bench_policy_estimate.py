@@ -58,7 +58,7 @@ MODELS = {
 }
 
 
-def phase_rows(name: str, label: str, mdp, hp, steps: int, args) -> str:
+def phase_row(name: str, label: str, mdp, hp, steps: int, args) -> str:
     """One ``--phases`` row: the banded estimate from zeros and from the previous log's values."""
     agent = ROUTES[name][0]
     orders, width = runner._band(mdp, np.zeros(1, int))
@@ -122,7 +122,7 @@ def main(argv: list[str] | None = None) -> list[str]:
                 hp = hp.replace(max_psi=psrl_continuous.psi(hp, mdp.n_states, mdp.n_actions))
             if args.phases:
                 for steps in args.steps:
-                    rows.append(phase_rows(name, label, mdp, hp, steps, args))
+                    rows.append(phase_row(name, label, mdp, hp, steps, args))
                     print(rows[-1], flush=True)
                 continue
             orders, width = runner._band(mdp, np.zeros(1, int))

@@ -19,6 +19,7 @@ from agents.posteriors import dirichlet_mean, normal_gamma_mean
 from jaxmdp import dynamic_programming as dp
 from jaxmdp.experiment import runner
 from jaxmdp.experiment.agent_interface import Transition, spec_of
+from script_loader import load_script
 
 
 def _stream(rng, n, S, A, K):
@@ -374,7 +375,7 @@ def test_runner_hands_the_band_order_to_ucrl2_and_psrl_continuous():
 
 
 @pytest.mark.parametrize("banded", [False, True])
-def test_a_warm_start_gives_the_cold_estimate_and_the_exact_values_of_its_policy(banded):
+def test_a_warm_start_gives_the_cold_estimate_and_the_exact_values_of_its_policy(banded, monkeypatch):
     # From any start (zeros, the estimate's own values, those values perturbed, a far constant) the estimate is the
     # cold one on a kernel without near-ties (the enumerated optimum, action gaps checked), and the returned values are
     # that policy's exact values (float64 solve). From its own values the value iteration stops after one sweep.
@@ -390,44 +391,49 @@ def test_a_warm_start_gives_the_cold_estimate_and_the_exact_values_of_its_policy
     g32 = float(np.float32(gamma))
     exact = np.linalg.solve(np.eye(S) - g32 * np.einsum("sa,sat->st", best, dense), (best * R).sum(-1))
     R32, mask = jnp.asarray(R, jnp.float32), jnp.ones(A, bool)
+    phases_of = em.greedy_policy_phases
+    handed = []  # what warm_greedy_policy hands the phases when traced (the band's two routes: two calls)
+
+    def spy(kernel, R, discount, action_mask, u0=None):
+        handed.append(None if u0 is None else u0.shape)
+        return phases_of(kernel, R, discount, action_mask, u0)
+
+    monkeypatch.setattr(em, "greedy_policy_phases", spy)
     warm = jax.jit(lambda u: em.warm_greedy_policy(kernel, R32, gamma, mask, u))
     cold_pi, V = jax.jit(lambda: em.warm_greedy_policy(kernel, R32, gamma, mask, None))()
     np.testing.assert_array_equal(cold_pi, best)
     np.testing.assert_array_equal(em.discounted_greedy_policy(kernel, R32, gamma, mask), best)
     np.testing.assert_allclose(V, exact, rtol=2e-6)
+    handed.clear()
     for u in (np.zeros(S), np.asarray(V), np.asarray(V) + rng.normal(0, 1, S), np.full(S, 50.0)):
         pi, V2 = warm(jnp.asarray(u, jnp.float32))
         np.testing.assert_array_equal(pi, best)
         np.testing.assert_allclose(V2, exact, rtol=2e-6)
-    phases = jax.jit(lambda u: em.greedy_policy_phases(kernel, R32, gamma, mask, u))
+    assert handed == [(S,)] * (2 if banded else 1)  # traced once, the start handed on
+    phases = jax.jit(lambda u: phases_of(kernel, R32, gamma, mask, u))
     assert int(phases(V)[1].iterations) == 1
     assert int(phases(None)[1].iterations) > 50  # from zeros: log(1e-3) / log(0.95) sweeps at least, about 135
 
 
-def _played(agent, mdp, hp, n, key, state=None):
-    """The agent's state after ``n`` uniformly random steps on ``mdp`` (``update`` only)."""
-    state = agent.init(key, spec_of(mdp, 10_000), hp) if state is None else state
-    obs, env_state = jaxmdp.reset(jax.random.fold_in(key, 1), mdp)
-
-    def body(c, k):
-        obs, env_state, st = c
-        a = jax.random.randint(jax.random.fold_in(k, 1), (), 0, mdp.n_actions)
-        obs2, env_state2, r, term, _, info = jaxmdp.step(k, env_state, a, mdp)
-        tr = Transition(obs=obs, action=a, reward=r, next_obs=info["final_observation"], h=env_state.h,
-                        terminated=term)
-        return (obs2, env_state2, agent.update(st, tr)), None
-
-    return jax.lax.scan(body, (obs, env_state, state), jax.random.split(key, n))[0][2]
-
-
 @pytest.mark.parametrize("agent", [ucrl2.UCRL2, psrl_continuous.PSRL_CONTINUOUS], ids=lambda a: a.name)
-def test_agents_warm_policy_from_the_previous_log_is_their_policy(agent):
+def test_agents_warm_policy_from_the_previous_log_is_their_policy(agent, monkeypatch):
     # Along a random-play stream, each log's estimate started from the previous log's values is the agent's cold
-    # policy (no near-ties on this MDP); a cold call hands on its values, the first start is zeros.
+    # policy (no near-ties on this MDP); a cold call hands on its values, the first start is zeros. The policies alone
+    # cannot show that the start is used (policy iteration ends at the same policy from any start), so a spy records
+    # what the agent hands the estimate when it is traced: the start, not None.
     mdp = jaxmdp.make("MiniGridEmpty", episodic=False, seed=0, size=5, p_lazy=0.3, n_starting_states=2,
                       make_reward_stochastic=True)
     hp = agent.default_hparams
-    play = jax.jit(lambda k, st: _played(agent, mdp, hp, 50, k, st))
+    played = load_script("profile_continuous_plans").played
+    play = jax.jit(lambda k, st: played(agent, mdp, hp, 50, k, st))
+    handed = []
+    solve = em.warm_greedy_policy
+
+    def spy(kernel, R, discount, action_mask, u0):
+        handed.append(None if u0 is None else u0.shape)
+        return solve(kernel, R, discount, action_mask, u0)
+
+    monkeypatch.setattr(em, "warm_greedy_policy", spy)
     warm, cold = jax.jit(agent.warm_policy), jax.jit(agent.policy)
     state = agent.init(jax.random.key(0), spec_of(mdp, 10_000), hp)
     start = agent.policy_start(state)
@@ -437,3 +443,4 @@ def test_agents_warm_policy_from_the_previous_log_is_their_policy(agent):
         pi, start = warm(state, start)
         np.testing.assert_array_equal(pi, cold(state))
     np.testing.assert_array_equal(jax.jit(lambda st: agent.warm_policy(st, None)[1])(state), start)
+    assert handed == [(mdp.n_states,), None, None]  # traced once each: warm, cold policy, cold warm_policy

@@ -153,9 +153,9 @@ def _safe_ratio(num: jax.Array, den: jax.Array, scale: jax.Array) -> jax.Array:
 ITERATIVE_GAIN_SWEEPS = 128
 #: The runner's ``give_up`` for :func:`~jaxmdp.dynamic_programming.successor_gain_bounds`: the bounds stop once, at
 #: their rate of contraction, certifying would take more than 16 times the sweeps left. On the benchmark's 40
-#: continuous MDPs (seed 0; the optimal policy, three partly random ones and a random one each) they stop early on 96 of the 115 chains
-#: that do not certify within 128 sweeps (50 of them after 32), and 85 of the 87 that certify within 128 still do,
-#: with the same bounds (docs/benchmarks/continuous_indicators.md, "Giving up early").
+#: continuous MDPs (seed 0; the optimal policy, three partly random ones and a random one each) they stop early on
+#: 96 of the 115 chains that do not certify within 128 sweeps (50 of them after 32), and 85 of the 87 that certify
+#: within 128 still do, with the same bounds (docs/benchmarks/continuous_indicators.md, "Giving up early").
 ITERATIVE_GAIN_GIVE_UP = 16.0
 
 
