@@ -11,12 +11,10 @@ Run it in two checkouts to compare them (docs/benchmarks/continuous_indicators.m
 from __future__ import annotations
 
 import argparse
-import dataclasses
-
-import jax.numpy as jnp
 
 import agents
 from agents import psrl_continuous
+from continuous_plan_wall_time import no_planning  # scripts/ is on the path of a script run as python scripts/NAME.py
 from hardness.benchmark import sets
 from jaxmdp.experiment import runner
 
@@ -32,7 +30,7 @@ def main(argv: list[str] | None = None) -> None:
     args = ap.parse_args(argv)
     mdp = next(i for i in sets.instances(args.set) if i.label == args.label).build(0)
     base = agents.get(args.agent)
-    agent = dataclasses.replace(base, name=f"{base.name}[no plans]", needs_plan=lambda state: jnp.zeros((), bool))
+    agent = no_planning(base)
     hp = base.default_hparams
     if args.agent == "psrl_continuous":  # the plan's buffer at the MDP's own psi, as the benchmark sizes it
         hp = hp.replace(max_psi=psrl_continuous.psi(hp, mdp.n_states, mdp.n_actions))

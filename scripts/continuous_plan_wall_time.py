@@ -90,7 +90,8 @@ def plans_bound(S: int, A: int, T: int = T_FULL) -> float:
     return float(1 + min(T, V * math.log2(2.0 * T / V)))
 
 
-def _no_planning(agent):
+def no_planning(agent):
+    """``agent`` that never asks for a plan (``needs_plan`` always False): its steps and logs alone."""
     return dataclasses.replace(agent, needs_plan=lambda state: jnp.zeros((), bool))
 
 
@@ -100,7 +101,7 @@ def step_cost(set_name: str, agent: str, labels: list[str], steps: int, out: Pat
                            log_period=100, hparams="reference", n_buckets=1, agent_buckets={},
                            only=tuple(labels))
     saved = agent_registry.AGENTS[agent]
-    agent_registry.AGENTS[agent] = _no_planning(saved)
+    agent_registry.AGENTS[agent] = no_planning(saved)
     try:
         run.run_benchmark(config, out, progress=False, report=False)
     finally:
