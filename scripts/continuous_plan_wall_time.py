@@ -19,7 +19,9 @@ first visits), later epochs are rare. So the run time of a batch (one agent on o
   before it (:mod:`agents.epochs`); a pair that ends ``j`` epochs has at least doubled its count each time from 1,
   so ``j <= 1 + log2 N(s, a)``, and ``sum_(s,a) (1 + log2 N(s, a)) <= S A (1 + log2(T / (S A)))`` by concavity
   (``sum N = T``); the ``1`` is the initial plan. (Jaksch et al. 2010, Prop. 18, bound the same count by the looser
-  ``S A log2(8 T / (S A))``.) An upper bound: unreachable pairs and uneven visits give fewer plans.
+  ``S A log2(8 T / (S A))``.) An upper bound: unreachable pairs and uneven visits give fewer plans. With
+  ``--plan-counts FILE`` (written by ``scripts/count_plans.py``) a member of an MDP measured at ``T`` steps counts
+  the mean plans measured there instead (:func:`member_plans`); the others keep the bound.
 
 Extrapolated run seconds of a batch (:func:`extrapolate`): ``c_step * members * T + plans / shards * c_round / slots``
 (every round full) and, at the other extreme, ``... + plans / shards * c_one`` (every round plans one member, which
@@ -79,6 +81,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--skip-steps", action="store_true", help="do not run the no-planning batches (measure plans)")
     p.add_argument("--skip-plans", action="store_true", help="do not time planning rounds (measure steps)")
+    p.add_argument("--plan-counts", type=Path, default=None,
+                   help="plans measured by scripts/count_plans.py, used instead of the bound where present")
     p.add_argument("--out", type=Path, required=True)
     return p
 
@@ -88,6 +92,22 @@ def plans_bound(S: int, A: int, T: int = T_FULL) -> float:
     minimum with ``T``: at most one re-plan per step)."""
     V = min(S * A, T)
     return float(1 + min(T, V * math.log2(2.0 * T / V)))
+
+
+def plan_count_key(agent: str, set_name: str, label: str) -> str:
+    """The key of one MDP's measurement in ``scripts/count_plans.py``'s file."""
+    return f"{agent} | {set_name} | {label}"
+
+
+def member_plans(agent: str, set_name: str, label: str, S: int, A: int, counts: dict | None,
+                 T: int = T_FULL) -> tuple[float, bool]:
+    """Plans of one member of ``agent`` on MDP ``label`` of ``set_name`` (``S`` states, ``A`` actions) over ``T``
+    steps, and whether measured: the mean over the seeds of ``counts`` (``scripts/count_plans.py``'s file) if it
+    holds that MDP at ``T`` steps, else :func:`plans_bound`."""
+    entry = (counts or {}).get(plan_count_key(agent, set_name, label))
+    if entry is not None and entry["steps"] == T:
+        return float(np.mean(entry["plans"])), True
+    return plans_bound(S, A, T), False
 
 
 def no_planning(agent):
@@ -181,6 +201,7 @@ def main(argv: list[str] | None = None) -> dict:
     shards = max(d for d in range(1, jax.local_device_count() + 1) if all(len(b.members) % d == 0 for b in batches))
     state_path = args.out / "measured.json"
     measured = json.loads(state_path.read_text()) if state_path.exists() else {}
+    counts = json.loads(args.plan_counts.read_text()) if args.plan_counts is not None else None
     rows = []
     for b in batches:
         if b.agent not in args.agents:
@@ -191,9 +212,11 @@ def main(argv: list[str] | None = None) -> dict:
         real = {lab: (int(np.sum(np.asarray(m.state_mask))), int(np.sum(np.asarray(m.action_mask))))
                 for lab, m in shapes.items()}
         bucket = b.id.split(".")[-1]
+        plans = [member_plans(b.agent, b.set_name, m, *real[m], counts) for m, _ in b.members]
         row = dict(batch=b.id, set=b.set_name, agent=b.agent, bucket=bucket, members=len(b.members), shards=shards,
-                   max_states=max(S for S, _ in real.values()),
-                   plans=sum(plans_bound(*real[m]) for m, _ in b.members))
+                   max_states=max(S for S, _ in real.values()), plans=sum(n for n, _ in plans),
+                   plans_bound=sum(plans_bound(*real[m]) for m, _ in b.members),
+                   members_counted=sum(known for _, known in plans))
         if b.set_name in args.sets and (args.buckets is None or bucket in args.buckets):
             m = measured.setdefault(b.id, {})
             if "c_round_call" not in m and not args.skip_plans:  # absent: not measured, or per call (before)
@@ -208,7 +231,8 @@ def main(argv: list[str] | None = None) -> dict:
     result = extrapolate(rows)
     for row in result["rows"]:
         if "run_s_low" in row:
-            print(f"{row['batch']}: {row['members']} members, S <= {row['max_states']}, plans <= {row['plans']:.3g}, "
+            print(f"{row['batch']}: {row['members']} members ({row['members_counted']} with counted plans), "
+                  f"S <= {row['max_states']}, plans {row['plans']:.3g} (bound {row['plans_bound']:.3g}), "
                   f"round of {row['slots']} {row['c_round'] * 1e3:.1f} ms, step {row.get('c_step', 0.0):.2e} s: "
                   f"{row['run_s_low'] / 3600:.1f} h (rounds full) / {row['run_s_high'] / 3600:.1f} h (one member a "
                   "round)", file=sys.stderr)
