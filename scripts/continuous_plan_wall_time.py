@@ -5,9 +5,12 @@ A few hundred steps of these agents are no sample of a long run: early on nearly
 first visits), later epochs are rare. So the run time of a batch (one agent on one size bucket of the full plan,
 :func:`hardness.benchmark.run.plan`) is split into
 
-* **steps**: ``--steps`` steps of the bucket's real batch (all its members and seeds, indicators every 100 steps) with
-  planning switched off (the agent's ``needs_plan`` always False), through ``run_benchmark``: ``c_step`` = run seconds
-  per member-step (both shards, as the benchmark runs them);
+* **steps**: the bucket's real batch (all its members and seeds, indicators every 100 steps) with planning switched
+  off (the agent's ``needs_plan`` always False), through ``run_benchmark``, for each of the two ``--steps`` counts:
+  ``c_step`` = the difference of their run seconds per member-step (both shards, as the benchmark runs them;
+  :func:`benchmark_wall_time.rate_and_fixed`). Both counts must cut their runs into as many runner chunks as the
+  full run (``N1 >= 2000``): a chunk ends with a checkpoint of the batch (about 0.3-0.5 s at 948 states, 20
+  members), which a short run of many chunks would otherwise charge to its steps, 5x the true rate at 948 states;
 * **plans**: one round of the runner's compacted planning, ``slots = default_plan_slots(members per shard)`` members
   planned under ``vmap`` (:mod:`jaxmdp.experiment.planning`), on the bucket's largest MDP padded to the bucket's
   shapes, after ``--play`` uniformly random steps, a cold plan and ``--more`` further steps (so the timed plan is
@@ -32,7 +35,8 @@ and the steps of a few; a bucket's value already in ``measured.json`` is not mea
 while no bucket of the agent has one.
 
     python scripts/continuous_plan_wall_time.py --out results/continuous_plans --skip-steps
-    python scripts/continuous_plan_wall_time.py --out results/continuous_plans --skip-plans --buckets b0 b3
+    python scripts/continuous_plan_wall_time.py --out results/continuous_plans --skip-plans --buckets b0 b3 \
+        --steps 2000 4000
 """
 
 from __future__ import annotations
@@ -45,11 +49,11 @@ if __name__ == "__main__" and "xla_force_host_platform_device_count" not in os.e
     ).strip()
 
 import argparse  # noqa: E402
-import csv  # noqa: E402
 import dataclasses  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import sys  # noqa: E402
+from collections.abc import Sequence  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import jax  # noqa: E402
@@ -63,6 +67,7 @@ from hardness.benchmark import run, sets  # noqa: E402
 from jaxmdp.experiment.planning import default_plan_slots  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import benchmark_wall_time as wall_time  # noqa: E402
 from profile_continuous_plans import best_of, in_program_seconds, warm_state  # noqa: E402
 
 T_FULL = 500_000
@@ -75,7 +80,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sets", nargs="+", default=["continuous ergodic"], help="continuous sets to measure")
     p.add_argument("--agents", nargs="+", default=list(AGENTS))
     p.add_argument("--buckets", nargs="+", default=None, help="bucket ids to measure, e.g. b0 b3 (default: all)")
-    p.add_argument("--steps", type=int, default=300, help="steps of the no-planning batch (%(default)s)")
+    p.add_argument("--steps", type=int, nargs=2, default=[2000, 4000], metavar=("N1", "N2"),
+                   help="steps of the two no-planning runs (%(default)s; each cut into the full run's chunk count)")
     p.add_argument("--play", type=int, default=5000, help="random steps before the timed plan (%(default)s)")
     p.add_argument("--more", type=int, default=200, help="random steps between the cold and the timed plan")
     p.add_argument("--repeats", type=int, default=3)
@@ -115,22 +121,18 @@ def no_planning(agent):
     return dataclasses.replace(agent, needs_plan=lambda state: jnp.zeros((), bool))
 
 
-def step_cost(set_name: str, agent: str, labels: list[str], steps: int, out: Path) -> dict:
-    """Run seconds per member-step of the bucket's batch with planning switched off."""
-    config = run.RunConfig(sets=(set_name,), agents=(agent,), seeds=tuple(range(SEEDS)), n_steps=steps,
-                           log_period=100, hparams="reference", n_buckets=1, agent_buckets={},
-                           only=tuple(labels))
+def step_cost(set_name: str, agent: str, labels: list[str], steps: Sequence[int], out: Path) -> dict:
+    """Run seconds per member-step of the bucket's batch with planning switched off, from runs of ``steps = (N1,
+    N2)`` steps (module docstring)."""
     saved = agent_registry.AGENTS[agent]
     agent_registry.AGENTS[agent] = no_planning(saved)
     try:
-        run.run_benchmark(config, out, progress=False, report=False)
+        m1, m2 = [wall_time.measure(set_name, agent, labels, SEEDS, n, out / f"steps_{n}") for n in steps]
     finally:
         agent_registry.AGENTS[agent] = saved
-    with open(out / "batches.csv") as f:
-        (row,) = list(csv.DictReader(f))
-    members, run_s = int(row["members"]), float(row["run_s"])
-    return dict(step_members=members, step_run_s=run_s, step_compile_s=float(row["compile_s"]),
-                c_step=run_s / (members * steps))
+    c_step, fixed = wall_time.rate_and_fixed(dict(m1, steps2=m2["steps"], run2_s=m2["run_s"]))
+    return dict(step_members=m1["members"], step_steps=list(steps), step_run_s=[m1["run_s"], m2["run_s"]],
+                step_compile_s=m1["compile_s"], c_step=c_step, step_fixed_s=fixed)
 
 
 def round_cost(set_name: str, agent_name: str, labels: list[str], slots: int, play: int, more: int,
@@ -193,7 +195,13 @@ def extrapolate(rows: list[dict], T: int = T_FULL) -> dict:
 
 
 def main(argv: list[str] | None = None) -> dict:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    full_chunks = wall_time.n_chunks(T_FULL)
+    if not args.skip_steps and (args.steps[0] >= args.steps[1]
+                                or [wall_time.n_chunks(n) for n in args.steps] != [full_chunks] * 2):
+        parser.error(f"--steps {args.steps[0]} {args.steps[1]}: take N1 < N2 whose runs are cut into the full run's "
+                     f"{full_chunks} runner chunks (N1 >= 2000), so that no checkpoint is charged to the steps")
     args.out.mkdir(parents=True, exist_ok=True)
     full = run.RunConfig(sets=tuple(s for s in sets.SETTINGS if not sets.is_episodic(s)), hparams="reference",
                          seeds=tuple(range(SEEDS)), n_steps=T_FULL, log_period=100, n_buckets=4)

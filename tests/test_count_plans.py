@@ -59,3 +59,25 @@ def test_member_plans_uses_a_count_measured_at_the_same_steps_else_the_bound():
     assert wt.member_plans("ucrl2", "continuous ergodic", "RiverSwim/prms_0", 30, 2, None) == (bound, False)
     short = {key: dict(steps=1000, plans=[100, 300])}
     assert wt.member_plans("ucrl2", "continuous ergodic", "RiverSwim/prms_0", 30, 2, short) == (bound, False)
+
+
+def test_the_continuous_step_cost_is_the_difference_of_two_runs_cut_like_the_full_run(tmp_path, monkeypatch):
+    # 5 s fixed per call plus 1e-4 s per member-step: the difference of the two runs gives the rate alone. Runs of
+    # 300 and 1 300 steps would be cut into 3 and 13 chunks (a checkpoint each), the full run into 20: refused.
+    import agents as agent_registry
+
+    cp = load_script("continuous_plan_wall_time")
+    with pytest.raises(SystemExit):
+        cp.main(["--out", str(tmp_path), "--skip-plans", "--steps", "300", "1300"])
+    planning = []
+
+    def measure(set_name, agent, labels, seeds, n, out):
+        planning.append(bool(agent_registry.AGENTS[agent].needs_plan(None)))
+        return dict(set=set_name, agent=agent, members=20, max_states=948, steps=n, run_s=5.0 + 1e-4 * 20 * n,
+                    compile_s=30.0)
+
+    monkeypatch.setattr(cp.wall_time, "measure", measure)
+    saved = agent_registry.AGENTS["ucrl2"]
+    m = cp.step_cost("continuous ergodic", "ucrl2", ["MiniGridRooms/prms_1"], (2000, 4000), tmp_path)
+    assert m["c_step"] == pytest.approx(1e-4) and m["step_fixed_s"] == pytest.approx(5.0)
+    assert planning == [False, False] and agent_registry.AGENTS["ucrl2"] is saved
