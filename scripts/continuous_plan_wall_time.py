@@ -163,11 +163,11 @@ def round_cost(set_name: str, agent_name: str, labels: list[str], slots: int, pl
 def extrapolate(rows: list[dict], T: int = T_FULL) -> dict:
     """The batches' run seconds at ``T`` steps from their measured costs (module docstring), in place on ``rows``.
 
-    Each row holds ``agent``, ``members``, ``shards``, ``slots``, ``max_states``, ``plans`` (the plan-count bound
-    over the batch's members) and, where measured, ``c_round``, ``c_one`` and ``c_step``. A cost missing from a row
-    is interpolated linearly in ``max_states`` between the same agent's measured rows (clipped at the ends;
-    ``c_round`` per slot, since buckets differ in their slots) and flagged ``<cost>_interpolated``. A row with
-    ``c_round`` and ``c_one`` gets ``steps_s = c_step members T`` (``c_step`` 0 if none), ``plans_s_packed =
+    Each row holds ``agent``, ``members``, ``shards``, ``slots``, ``max_states``, ``plans`` (the members' plan
+    counts: counted where measured, else the bound) and, where measured, ``c_round``, ``c_one`` and ``c_step``. A cost
+    missing from a row is interpolated linearly in ``max_states`` between the same agent's measured rows (clipped at
+    the ends; ``c_round`` per slot, since buckets differ in their slots) and flagged ``<cost>_interpolated``. A row
+    with ``c_round`` and ``c_one`` gets ``steps_s = c_step members T`` (``c_step`` 0 if none), ``plans_s_packed =
     plans / shards c_round / slots``, ``plans_s_one_per_round = plans / shards c_one``, ``run_s_low`` and
     ``run_s_high`` (steps plus each); a row without them (e.g. a ``measured.json`` written before ``c_one``) is left
     out of the totals. Returns ``{"T", "seeds", "rows", "run_s_low", "run_s_high"}``; the totals sum the rows done.
