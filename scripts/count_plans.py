@@ -98,6 +98,10 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     for set_name in args.sets:
         if set_name not in continuous:
             raise ValueError(f"--sets must name continuous settings {continuous}; got {set_name!r}")
+    known = {i.label for set_name in args.sets for i in sets.instances(set_name)}
+    unknown = sorted(set(args.labels or ()) - known)
+    if unknown:
+        raise ValueError(f"--labels {unknown} are not MDPs of {args.sets}; they have {sorted(known)}")
     results = json.loads(args.out.read_text()) if args.out.exists() else {}
     todo = []
     for set_name in args.sets:

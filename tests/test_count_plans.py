@@ -47,6 +47,8 @@ def test_ucrl2_counted_at_least_once_per_pair_it_visited_and_at_most_the_bound(t
                     "RiverSwim/prms_0", "--steps", "3000"]) == results
     with pytest.raises(ValueError, match="--sets must name continuous settings"):
         cp.main(["--out", str(out), "--sets", "episodic ergodic"])
+    with pytest.raises(ValueError, match=r"--labels \['RiverSwim/prms_9'\] are not MDPs"):
+        cp.main(["--out", str(out), "--sets", "continuous ergodic", "--labels", "RiverSwim/prms_9"])
 
 
 def test_member_plans_uses_a_count_measured_at_the_same_steps_else_the_bound():
