@@ -75,11 +75,11 @@ def count(agent_name: str, set_name: str, label: str, n_steps: int, seeds: int, 
                         n_records=1)
     S, A = int(np.sum(mdp.state_mask)), int(np.sum(mdp.action_mask))
     visits = np.asarray(result.agent_state[0].schedule.visits, np.float64)  # [seeds, S, A]
-    seen = visits > 0
+    seen = visits > 0  # an unvisited pair adds 0 to visits_bound: log2(max(0, 1)) = 0
     return dict(agent=agent_name, set=set_name, mdp=label, states=S, actions=A, steps=n_steps, seeds=seeds,
                 plans=np.asarray(result.agent_state[1]).tolist(), bound=plans_bound(S, A, n_steps),
                 pairs_visited=seen.sum(axis=(1, 2)).tolist(),
-                visits_bound=(1 + np.where(seen, 1 + np.log2(np.where(seen, visits, 1)), 0).sum(axis=(1, 2))).tolist(),
+                visits_bound=(1 + (seen + np.log2(np.maximum(visits, 1))).sum(axis=(1, 2))).tolist(),
                 run_s=result.run_s, compile_s=result.compile_s)
 
 
