@@ -1057,8 +1057,8 @@ def successor_gain_bounds(
 
     ``give_up`` (static, e.g. 16): also stop, uncertified, after a refresh at whose rate of contraction (the widest
     gap in units of its tolerance, against the previous refresh's) the gap would need more than ``give_up`` times
-    the refreshes left to certify. Where the bounds certify either way, the result is the same; on a slowly mixing chain a
-    caller with an exact fallback saves the sweeps that would not have certified (docs/benchmarks/
+    the refreshes left to certify. Where the bounds certify either way, the result is the same; on a slowly mixing
+    chain a caller with an exact fallback saves the sweeps that would not have certified (docs/benchmarks/
     continuous_indicators.md, "Giving up early").
     """
     if give_up is not None and not give_up > 0:
