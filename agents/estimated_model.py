@@ -36,6 +36,7 @@ __all__ = [
     "empty_counts",
     "record",
     "dense_counts",
+    "with_dense_counts",
     "SparseKernel",
     "expected_next_values",
     "policy_matrix",
@@ -103,6 +104,23 @@ def dense_counts(table: SuccessorCounts) -> jax.Array:
     rows = jnp.zeros((S, A, S), jnp.int32)
     s, a, _ = jnp.meshgrid(jnp.arange(S), jnp.arange(A), jnp.arange(K), indexing="ij")
     return rows.at[s, a, table.states].add(table.counts)
+
+
+def with_dense_counts(table: SuccessorCounts, counts: jax.Array) -> SuccessorCounts:
+    """``table`` (its slot count ``K`` and band order) holding dense counts ``counts[S, A, S]`` instead: each pair's
+    next states with a positive count in index order (the order of first observation is not in dense counts), then
+    empty slots; ``overflowed`` if a pair has more than ``K``. The inverse of :func:`dense_counts` up to the slots'
+    order, for states built from counts (tests, benchmarks) rather than by :func:`record`."""
+    counts = jnp.asarray(counts, jnp.int32)
+    K = table.states.shape[-1]
+    seen = counts > 0
+    first = jnp.argsort(~seen, axis=-1, stable=True)[..., :K]
+    slot_counts = jnp.take_along_axis(counts, first, axis=-1)
+    return table.replace(
+        states=jnp.where(slot_counts > 0, first, 0).astype(jnp.int32),
+        counts=jnp.maximum(slot_counts, 0),
+        overflowed=jnp.any(jnp.sum(seen, axis=-1) > K),
+    )
 
 
 class SparseKernel(struct.PyTreeNode):

@@ -41,7 +41,8 @@ acts with ``Q(s, a) = max_k Q_ext(s, (a, k))``, i.e. the real action of the best
 
 The plan never builds the extended MDP's ``[S, A max_psi, S]`` kernel (:func:`draws`, :func:`extended_policy_iteration`;
 :func:`candidate_kernels` and :func:`extended_mdp` materialise it for tests). A simple optimistic candidate's
-expectation is ``p^-(s, a) . V + missing(s, a) V[z_k(s, a)]``, so a backup costs ``O(S A S)`` for ``p^- . V`` and
+expectation is ``p^-(s, a) . V + missing(s, a) V[z_k(s, a)]``, so a backup costs ``O(S A K)`` for ``p^- . V`` (``p^-``
+is zero off the observed next states: it is kept at the ``K`` successor slots, :class:`Draws`) and
 ``O(max_psi S A)`` for the states ``z`` (kept as ``[max_psi, S, A]`` indices). Posterior candidates (pairs at ``eta``)
 are Dirichlet draws: the plan keeps those of the first ``M = min(S A, 2^22 / (max_psi S))`` pairs at ``eta``
 (``[max_psi, M, S]``, drawn once, only when some pair of some member of a ``vmap`` is at ``eta``); should more pairs be
@@ -307,23 +308,61 @@ def _posterior_alpha(state: PSRLContinuousState) -> jax.Array:
 KEEP_LIMIT = 1 << 22
 
 
+def _unless_slots_complete(
+    complete: jax.Array, dense: Callable[..., jax.Array], slots: jax.Array, *operands: jax.Array
+) -> jax.Array:
+    """``slots`` (a value computed on the successor slots) if ``complete``, else ``dense(*operands)``, computed only if
+    some member of a ``vmap`` overflowed its slots (:func:`agents.tabular_common.only_if`; the dense inputs must come
+    as ``operands``, else XLA hoists the work out of the skip). A fallback, not a skip: the two can differ in the last
+    bit (sums in another order), so tests that force every skip leave it alone (``_SLOTS_FALLBACK`` is bound once, at
+    import)."""
+    return _SLOTS_FALLBACK(~complete, dense, slots, *operands)
+
+
+_SLOTS_FALLBACK = only_if
+
+
+def _p_minus(counts: jax.Array, n1: jax.Array, log4s: jax.Array, colosseum: bool) -> jax.Array:
+    """Simple optimistic sampling's lower row ``p^- = p_hat - min(sqrt(3 p_hat ln(4S) / n) + 3 ln(4S) / n, p_hat)``
+    at next-state counts ``counts[..., n_next]`` (float) of pairs with ``n1 = max(1, N(s, a))[..., None]`` visits;
+    ``n = n1``, or (``colosseum``) the reference's per-next-state ``max(1, N(s, a, s'))``. Elementwise, so the slots'
+    values equal the dense row's at the same next states, and an unobserved next state gets exactly 0."""
+    p_hat = counts / n1
+    n_dev = jnp.maximum(counts, 1.0) if colosseum else n1
+    return p_hat - jnp.minimum(jnp.sqrt(3.0 * p_hat * log4s / n_dev) + 3.0 * log4s / n_dev, p_hat)
+
+
 class Draws(struct.PyTreeNode):
     """One plan's candidates in structured form (module docstring): candidate ``k`` of ``(s, a)`` is
-    ``p_minus[s, a] + missing[s, a] e_z[k, s, a]`` where ``posterior[s, a]`` is False, else a Dirichlet draw with
-    concentration ``alpha[s, a]``: ``kept[k, m]`` for pair ``pairs[m]`` (the first ``M`` pairs at ``eta``, then the
-    fill value ``S A``), or, when more than ``M`` pairs are at ``eta`` (``overflow``), row ``(s, a)`` of :meth:`draw`.
-    ``active[k]``: slot ``k < psi``."""
+    ``p^-(s, a) + missing[s, a] e_z[k, s, a]`` where ``posterior[s, a]`` is False, else a Dirichlet draw from the
+    posterior concentration of the pair's counts: ``kept[k, m]`` for pair ``pairs[m]`` (the first ``M`` pairs at
+    ``eta``, then the fill value ``S A``), or, when more than ``M`` pairs are at ``eta`` (``overflow``), row ``(s, a)``
+    of :meth:`draw`. ``active[k]``: slot ``k < psi``.
 
-    p_minus: jax.Array  # [S, A, S]
+    ``p^-`` (:func:`_p_minus`) is non-zero only at observed next states, so it is held at the pair's successor slots
+    (``p_minus[S, A, K]`` at ``slot_states``) and backed up in ``O(S A K)``; should the slots have overflowed
+    (``slots_complete`` False, impossible with ``K`` from :func:`~jaxmdp.experiment.agent_interface.spec_of`) every
+    use recomputes it from the dense ``counts`` instead. Nor is the dense concentration kept: the posterior rows are
+    drawn from the counts rows of the pairs drawn."""
+
+    counts: jax.Array  # [S, A, S] int32: the agent's counts N(s, a, s')
+    n1: jax.Array  # [S, A, 1]: max(1, N(s, a))
+    log4s: jax.Array  # ln(4 S), S the real states
+    slot_states: jax.Array  # [S, A, K] int32
+    p_minus: jax.Array  # [S, A, K]: p^- at the slots
+    slots_complete: jax.Array  # bool: no pair met more than K next states
     missing: jax.Array  # [S, A]
     z: jax.Array  # [max_psi, S, A] int32, real states
     posterior: jax.Array  # [S, A] bool: N(s, a) >= eta
-    alpha: jax.Array  # [S, A, S]
+    concentration: jax.Array  # [3]: (prior 1/S, omega, kappa) of the posterior concentration
+    state_mask: jax.Array  # [S]
     key: jax.Array
     active: jax.Array  # [max_psi] bool
     pairs: jax.Array  # [M] int32 flat pair indices s A + a
     kept: jax.Array  # [max_psi, M, S]
     offset: float = struct.field(pytree_node=False, default=0.0)
+    colosseum: bool = struct.field(pytree_node=False, default=False)
+    scaled: bool = struct.field(pytree_node=False, default=False)
 
     @property
     def any_posterior(self) -> jax.Array:
@@ -333,23 +372,56 @@ class Draws(struct.PyTreeNode):
     def overflow(self) -> jax.Array:
         return jnp.sum(self.posterior) > self.pairs.shape[0]
 
+    def alpha(self, counts: jax.Array) -> jax.Array:
+        """The posterior concentration of count rows ``counts[..., S]``: ``1/S + N`` on the real states, or Agrawal &
+        Jia's ``(N + omega) / kappa`` (``scaled``)."""
+        prior, omega, kappa = self.concentration
+        if self.scaled:
+            return jnp.where(self.state_mask, (counts.astype(self.missing.dtype) + omega) / kappa, 0.0)
+        return dirichlet_concentration(prior, counts, self.state_mask)
+
+    def _dense(self, counts: jax.Array, n1: jax.Array, log4s: jax.Array) -> jax.Array:
+        return _p_minus(counts.astype(self.missing.dtype), n1, log4s, self.colosseum)
+
+    def p_minus_dense(self) -> jax.Array:
+        """``p^-`` of every pair, ``[S, A, S]`` (the fallback should the slots overflow, and for inspection)."""
+        return self._dense(self.counts, self.n1, self.log4s)
+
+    def p_minus_dot(self, V: jax.Array) -> jax.Array:
+        """``p^-(s, a) . V`` for every pair, ``[S, A]``: on the slots, ``O(S A K)``."""
+        slots = jnp.sum(self.p_minus * V[self.slot_states], axis=-1)
+        dense = lambda c, n1, l4, v: jnp.sum(self._dense(c, n1, l4) * v, axis=-1)  # noqa: E731
+        return _unless_slots_complete(self.slots_complete, dense, slots, self.counts, self.n1, self.log4s, V)
+
+    def p_minus_rows(self, s: jax.Array, a: jax.Array) -> jax.Array:
+        """The dense rows ``p^-(s[n], a[n])``, ``[n, S]``, scattered from the slots (distinct states, so exact)."""
+        S = self.counts.shape[-1]
+        rows = jnp.zeros((s.shape[0], S), self.p_minus.dtype)
+        rows = rows.at[jnp.arange(s.shape[0])[:, None], self.slot_states[s, a]].add(self.p_minus[s, a])
+        dense = lambda c, n1, l4, s, a: self._dense(c[s, a], n1[s, a], l4)  # noqa: E731
+        return _unless_slots_complete(self.slots_complete, dense, rows, self.counts, self.n1, self.log4s, s, a)
+
     def _dirichlet(self, k: jax.Array, alpha: jax.Array) -> jax.Array:
         return dirichlet_sample(jax.random.fold_in(self.key, k), alpha, offset=self.offset)
 
-    def kept_rows(self, k: jax.Array) -> jax.Array:
-        """Candidate ``k``'s posterior draws ``[M, S]`` of the kept pairs."""
-        S = self.alpha.shape[-1]
-        return self._dirichlet(k, self.alpha.reshape(-1, S)[jnp.minimum(self.pairs, self.missing.size - 1)])
+    def kept_alpha(self, counts: jax.Array) -> jax.Array:
+        """The concentrations ``[M, S]`` of the kept pairs, from the counts ``[S, A, S]``."""
+        S = counts.shape[-1]
+        return self.alpha(counts).reshape(-1, S)[jnp.minimum(self.pairs, self.missing.size - 1)]
+
+    def kept_rows(self, k: jax.Array, alpha: jax.Array) -> jax.Array:
+        """Candidate ``k``'s posterior draws ``[M, S]`` of the kept pairs, of concentrations :meth:`kept_alpha`."""
+        return self._dirichlet(k, alpha)
 
     def draw(self, k: jax.Array) -> jax.Array:
         """Candidate ``k``'s posterior draws ``[S, A, S]`` for every pair, used when ``overflow``."""
-        return self._dirichlet(k, self.alpha)
+        return self._dirichlet(k, self.alpha(self.counts))
 
     def posterior_draw(self, k: jax.Array) -> jax.Array:
         """The ``[S, A, S]`` posterior candidates ``k`` that a plan uses (rows of pairs not at ``eta`` meaningless)."""
-        S = self.alpha.shape[-1]
-        kept = jnp.zeros((self.missing.size, S), self.alpha.dtype).at[self.pairs].set(self.kept[k], mode="drop")
-        return jnp.where(self.overflow, self.draw(k), kept.reshape(self.alpha.shape))
+        S = self.counts.shape[-1]
+        kept = jnp.zeros((self.missing.size, S), self.missing.dtype).at[self.pairs].set(self.kept[k], mode="drop")
+        return jnp.where(self.overflow, self.draw(k), kept.reshape(self.counts.shape))
 
 
 def draws(
@@ -360,28 +432,22 @@ def draws(
     The state receiving the missing mass is one ``randint`` over the real states (``state_mask``, in index order,
     wherever the padding lies) per pair and slot (``variant="colosseum"``: per slot, shared by all pairs). The
     colosseum variant's deviation divides by ``max(1, N(s, a, s'))`` and its posterior draws are normalised by ``sum +
-    1e-5``. The posterior draws of the first ``M = min(S A, keep_limit / (max_psi S))`` (at least one) pairs at
-    ``eta`` are kept (``keep_limit`` floats, static; default :data:`KEEP_LIMIT`), drawn only if some pair (of any
-    member of a ``vmap``) is at ``eta``; with more pairs at ``eta``, every backup draws all rows again from the same
-    keys (:meth:`Draws.draw`)."""
+    1e-5``. ``p^-`` is computed at the successor slots only (:class:`Draws`). The posterior draws of the first ``M =
+    min(S A, keep_limit / (max_psi S))`` (at least one) pairs at ``eta`` are kept (``keep_limit`` floats, static;
+    default :data:`KEEP_LIMIT`), drawn only if some pair (of any member of a ``vmap``) is at ``eta``; with more pairs
+    at ``eta``, every backup draws all rows again from the same keys (:meth:`Draws.draw`)."""
     colosseum = variant == "colosseum"
     hp, c = state.hparams, state.constants
     dtype = state.Q.dtype
     S, A = state.Q.shape
     K = hp.max_psi
     mask = state.state_mask
-    counts = state.counts.astype(dtype)
-    if hp.scaled_dirichlet:
-        alpha = jnp.where(mask, (counts + c.omega) / c.kappa, 0.0)
-    else:
-        alpha = _posterior_alpha(state)
+    n_real = jnp.sum(mask).astype(dtype)
     N = state.schedule.visits.astype(dtype)
     n1 = jnp.maximum(N, 1.0)[..., None]
-    p_hat = counts / n1
-    log4s = jnp.log(4.0 * jnp.sum(mask).astype(dtype))
-    n_dev = jnp.maximum(counts, 1.0) if colosseum else n1
-    p_minus = p_hat - jnp.minimum(jnp.sqrt(3.0 * p_hat * log4s / n_dev) + 3.0 * log4s / n_dev, p_hat)
-    missing = 1.0 - jnp.sum(p_minus, axis=-1)
+    log4s = jnp.log(4.0 * n_real)
+    succ = state.successors
+    p_minus = _p_minus(succ.counts.astype(dtype), n1, log4s, colosseum)
     k_dir, k_z = jax.random.split(key)
     real_states = jnp.argsort(~mask, stable=True)  # the real states first, in index order
     index = jax.random.randint(k_z, (K,) if colosseum else (K, S, A), 0, jnp.sum(mask))
@@ -389,13 +455,24 @@ def draws(
     posterior = N >= c.eta
     M = min(S * A, max(1, keep_limit // (K * S)))
     (pairs,) = jnp.nonzero(posterior.reshape(-1), size=M, fill_value=S * A)
-    out = Draws(p_minus=p_minus, missing=missing, z=z.astype(jnp.int32), posterior=posterior, alpha=alpha,
-                key=k_dir, active=jnp.arange(K) < c.psi, pairs=pairs.astype(jnp.int32),
-                kept=jnp.zeros((K, M, S), dtype), offset=COLOSSEUM_DIRICHLET_OFFSET if colosseum else 0.0)
+    out = Draws(counts=state.counts, n1=n1, log4s=log4s, slot_states=succ.states, p_minus=p_minus,
+                slots_complete=~succ.overflowed, missing=jnp.zeros((S, A), dtype), z=z.astype(jnp.int32),
+                posterior=posterior, concentration=jnp.stack([1.0 / n_real, c.omega, c.kappa]).astype(dtype),
+                state_mask=mask, key=k_dir, active=jnp.arange(K) < c.psi, pairs=pairs.astype(jnp.int32),
+                kept=jnp.zeros((K, M, S), dtype), offset=COLOSSEUM_DIRICHLET_OFFSET if colosseum else 0.0,
+                colosseum=colosseum, scaled=hp.scaled_dirichlet)
+    dense_missing = lambda c, n, l4: 1.0 - jnp.sum(out._dense(c, n, l4), axis=-1)  # noqa: E731
+    missing = _unless_slots_complete(out.slots_complete, dense_missing, 1.0 - jnp.sum(p_minus, axis=-1),
+                                     state.counts, n1, log4s)
     zeros = jnp.zeros((M, S), dtype)
-    kept = jax.lax.map(lambda k: only_if(out.any_posterior & out.active[k], out.kept_rows, zeros, k),
-                       jnp.arange(K))
-    return out.replace(kept=kept)
+
+    # The kept pairs' concentrations are computed densely, then gathered, once per plan that draws any: gathered
+    # first, a batched program's draws differed from a single member's in the last bit.
+    def kept(counts):
+        alpha = out.kept_alpha(counts)
+        return jax.lax.map(lambda k: only_if(out.active[k], out.kept_rows, zeros, k, alpha), jnp.arange(K))
+
+    return out.replace(missing=missing, kept=only_if(out.any_posterior, kept, out.kept, state.counts))
 
 
 def candidate_kernels(
@@ -410,11 +487,12 @@ def candidate_kernels(
     ``z_k``; posterior draws are normalised by ``sum + 1e-5``. ``keep_limit``: as for :func:`draws`."""
     d = draws(key, state, variant=variant, keep_limit=keep_limit)
     S = state.Q.shape[0]
-    zeros = jnp.zeros(d.alpha.shape, d.alpha.dtype)
+    zeros = jnp.zeros(d.counts.shape, d.missing.dtype)
+    p_minus = d.p_minus_dense()
 
     def one(k):
         posterior = only_if(d.any_posterior, d.posterior_draw, zeros, k)
-        optimistic = d.p_minus + d.missing[..., None] * jax.nn.one_hot(d.z[k], S, dtype=d.alpha.dtype)
+        optimistic = p_minus + d.missing[..., None] * jax.nn.one_hot(d.z[k], S, dtype=d.missing.dtype)
         return jnp.where(d.posterior[..., None], posterior, optimistic)
 
     P = jax.lax.map(one, jnp.arange(d.z.shape[0]))
@@ -460,14 +538,14 @@ def _best_candidates(
     ``k`` (the lowest among ties), and ``posterior_row(s, a)``: the best posterior rows ``[n, S]`` of pairs
     ``(s[n], a[n])`` (meaningful for pairs at ``eta``).
 
-    Optimistic rows cost ``O(S A S)`` for ``p_minus . V`` and ``O(max_psi S A)`` for ``V[z]``; the kept posterior rows
-    ``O(max_psi M S)``. With more than ``M`` pairs at ``eta`` (some member of a ``vmap``), the posterior rows of all
-    pairs are drawn again, one slot ``[S, A, S]`` at a time, each slot skipped past ``psi``."""
+    Optimistic rows cost ``O(S A K)`` for ``p^- . V`` (on the successor slots) and ``O(max_psi S A)`` for ``V[z]``;
+    the kept posterior rows ``O(max_psi M S)``. With more than ``M`` pairs at ``eta`` (some member of a ``vmap``), the
+    posterior rows of all pairs are drawn again, one slot ``[S, A, S]`` at a time, each slot skipped past ``psi``."""
     K, S, A = d.z.shape
     M = d.pairs.shape[0]
     dtype = V.dtype
     expected = lambda rows, values: jnp.sum(rows * values, axis=-1)  # noqa: E731  (kept and redrawn rows alike)
-    q_opt = R_ext + gamma * (expected(d.p_minus, V) + d.missing * V[d.z])  # [max_psi, S, A]
+    q_opt = R_ext + gamma * (d.p_minus_dot(V) + d.missing * V[d.z])  # [max_psi, S, A]
     q_opt = jnp.where(d.active[:, None, None], q_opt, -jnp.inf)
     k_opt = jnp.argmax(q_opt, axis=0).astype(jnp.int32)
     best_opt = jnp.max(q_opt, axis=0)
@@ -490,28 +568,31 @@ def _best_candidates(
 
     if M < S * A:  # static: some pairs' draws may not be kept
 
-        def better(carry, k):
-            q, kk = carry
-            q_k = R_ext[k] + gamma * expected(d.draw(k), V)
-            up = q_k > q
-            return jnp.where(up, q_k, q), jnp.where(up, k, kk)
+        # The draws come into each skip as an operand (``dd``), not by closure: closed over, the work of the
+        # Dirichlet sampler that depends on the counts alone (dense, [S, A, S]) was hoisted out of every loop and ran
+        # at every plan (5 members of 784 states: about 80 of 440 ms).
+        def all_slots(c, dd, V):
+            def better(carry, k):
+                q, kk = carry
+                q_k = R_ext[k] + gamma * expected(dd.draw(k), V)
+                up = q_k > q
+                return jnp.where(up, q_k, q), jnp.where(up, k, kk)
 
-        def slot(k, carry):
-            return jax.lax.cond(d.active[k], better, lambda c, _: c, carry, k)
+            return jax.lax.fori_loop(0, K, lambda k, c: jax.lax.cond(dd.active[k], better, lambda c, _: c, c, k), c)
 
         # One skip around the whole loop, and no [S, A, S] in its carry: carried through a skip per slot, the rows
         # were copied at every slot of every backup (MiniGridRooms, 948 states: a plan 560 -> 130 ms).
         init = (jnp.full((S, A), -jnp.inf, dtype), jnp.zeros((S, A), jnp.int32))
-        q_all, k_all = only_if(d.overflow, lambda c: jax.lax.fori_loop(0, K, slot, c), init, init)
+        q_all, k_all = only_if(d.overflow, all_slots, init, init, d, V)
         q_post, k_post = jnp.where(d.overflow, q_all, q_post), jnp.where(d.overflow, k_all, k_post)
 
-        def redraw(s, a, rows):  # the rows [n, S] of slots k_all[s, a], drawn again from the same keys
-            pick = lambda k, r: jnp.where((k_all[s, a] == k)[:, None], d.draw(k)[s, a], r)  # noqa: E731
+        def redraw(s, a, rows, dd):  # the rows [n, S] of slots k_all[s, a], drawn again from the same keys
+            pick = lambda k, r: jnp.where((k_all[s, a] == k)[:, None], dd.draw(k)[s, a], r)  # noqa: E731
             return jax.lax.fori_loop(0, K, pick, rows)
 
     def posterior_row(s, a):
         row = d.kept[k_kept[s, a], position[s, a]]
-        return row if redraw is None else only_if(d.overflow, redraw, row, s, a, row)
+        return row if redraw is None else only_if(d.overflow, redraw, row, s, a, row, d)
 
     return jnp.where(d.posterior, q_post, best_opt), jnp.where(d.posterior, k_post, k_opt), posterior_row
 
@@ -521,7 +602,10 @@ def _best_candidates(
 # times), solving for the other states and the states jumped to only (dp.discounted_jump_chain_values), if they are at
 # most this many; else (or with fewer states) the whole [S, S] system. At 948 states after 2 000 or 20 000 random
 # steps every chosen row was a jump, to 41-49 distinct states.
-JUMP_STATES = 256
+# The elimination tries a system of 64 states first: a solve's pivots are applied by a loop of one step per row
+# (jax.lax.linalg.lu on a CPU), so the system's size, not the states it holds, sets its cost (5 members of 784 states
+# after 5 000 random steps and a warm plan: a planning round 0.20 s at 256 states, 0.16 s at 64).
+JUMP_STATES = (64, 256)
 
 
 class _Choice(struct.PyTreeNode):
@@ -544,30 +628,40 @@ def _greedy(
     s = jnp.arange(S)
     a = dp.greedy_actions(q, action_mask)
     ka = k[s, a]
-    optimistic = d.p_minus[s, a] + d.missing[s, a][:, None] * jax.nn.one_hot(d.z[ka, s, a], S, dtype=V.dtype)
+    p_minus = d.p_minus_rows(s, a)
+    optimistic = p_minus + d.missing[s, a][:, None] * jax.nn.one_hot(d.z[ka, s, a], S, dtype=V.dtype)
     row = jnp.where(d.posterior[s, a][:, None], posterior_row(s, a), optimistic)
-    jump = jnp.where(~d.posterior[s, a] & jnp.all(d.p_minus[s, a] == 0, axis=-1), d.z[ka, s, a], -1)
+    jump = jnp.where(~d.posterior[s, a] & jnp.all(p_minus == 0, axis=-1), d.z[ka, s, a], -1)
     return q, _Choice(action=a, row=row, reward=R_ext[ka, s, a], jump=jump)
 
 
 def extended_policy_iteration(
     d: Draws, R_ext: jax.Array, gamma: jax.Array, V0: jax.Array, action_mask: jax.Array,
-    jump_states: int = JUMP_STATES,
+    jump_states: int | tuple[int, ...] = JUMP_STATES,
 ) -> dp.ValueIterationResult:
     """Policy iteration (:func:`jaxmdp.dynamic_programming.policy_iteration_by`, exact evaluation, ``rtol = 1e-5``)
     on the extended MDP of ``d`` and rewards ``R_ext[max_psi, S, A]``, from the policy greedy on one backup of
     ``V0``. Improvement picks per pair the best candidate and per state the best real action (:func:`_greedy`);
-    evaluation solves ``(I - gamma P_pi) V = r_pi`` for the chosen rows, with more than ``jump_states`` (static)
-    states first eliminating those whose chosen row is a jump (:data:`JUMP_STATES`). ``Q[S, A] = max_k Q_ext(s, (a,
-    k))``."""
+    evaluation solves ``(I - gamma P_pi) V = r_pi`` for the chosen rows, with more states than the largest of
+    ``jump_states`` (static sizes, tried in increasing order) first eliminating those whose chosen row is a jump
+    (:data:`JUMP_STATES`). ``Q[S, A] = max_k Q_ext(s, (a, k))``."""
+    sizes = sorted({jump_states} if isinstance(jump_states, int) else set(jump_states))
 
     def dense(row, reward):
         return dp.discounted_chain_values(row, reward, gamma)
 
+    def eliminated(size):
+        def values(row, reward, jump):
+            return dp.discounted_jump_chain_values(row, reward, gamma, jump, size)
+
+        return values
+
     def evaluate(pi):
-        if pi.row.shape[0] <= jump_states:  # static
+        if pi.row.shape[0] <= sizes[-1]:  # static
             return dense(pi.row, pi.reward)
-        V, fits = dp.discounted_jump_chain_values(pi.row, pi.reward, gamma, pi.jump, jump_states)
+        V, fits = eliminated(sizes[0])(pi.row, pi.reward, pi.jump)
+        for size in sizes[1:]:
+            V, fits = only_if(~fits, eliminated(size), (V, fits), pi.row, pi.reward, pi.jump)
         return only_if(~fits, dense, V, pi.row, pi.reward)
 
     def improve(pi, V):
@@ -600,7 +694,7 @@ def plan(
     variant: Variant = "paper",
     reward_variant: Variant | None = None,
     keep_limit: int = KEEP_LIMIT,
-    jump_states: int = JUMP_STATES,
+    jump_states: int | tuple[int, ...] = JUMP_STATES,
 ) -> PSRLContinuousState:
     """Start an epoch: draw the extended MDP and solve it (module docstring).
 

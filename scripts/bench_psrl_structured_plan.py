@@ -24,6 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import agents.psrl_continuous as pc
+from agents import estimated_model as em
 from hardness.benchmark import sets
 from jaxmdp.experiment.planning import default_plan_slots
 
@@ -62,7 +63,8 @@ def at_eta(state, n: int, seed: int = 0):
     t = rng.choice(np.flatnonzero(np.asarray(state.state_mask)), n)
     add = int(np.ceil(float(state.constants.eta)))
     counts = state.counts.at[s, a, t].add(add)
-    return state.replace(counts=counts, schedule=state.schedule.replace(visits=counts.sum(-1)))
+    return state.replace(counts=counts, successors=em.with_dense_counts(state.successors, counts),
+                         schedule=state.schedule.replace(visits=counts.sum(-1)))
 
 
 def main(argv=None) -> list[dict]:

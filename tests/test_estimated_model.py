@@ -53,6 +53,28 @@ def test_record_counts_every_transition_in_first_seen_slots():
         assert np.all(np.asarray(table.counts[i, j, :n]) > 0) and np.all(np.asarray(table.counts[i, j, n:]) == 0)
 
 
+def test_with_dense_counts_holds_the_same_counts_in_index_order():
+    rng = np.random.default_rng(5)
+    S, A, K = 7, 3, 4
+    s, a, s2 = _stream(rng, 400, S, A, K)
+    recorded = _record_all(em.empty_counts(S, A, K), s, a, s2)
+    dense = em.dense_counts(recorded)
+    table = em.with_dense_counts(em.empty_counts(S, A, K), dense)
+    np.testing.assert_array_equal(em.dense_counts(table), dense)
+    assert not bool(table.overflowed)
+    for i, j in itertools.product(range(S), range(A)):  # the observed next states in index order, then empty slots
+        seen = np.flatnonzero(np.asarray(dense[i, j]))
+        assert np.asarray(table.states[i, j, :seen.size]).tolist() == seen.tolist()
+        np.testing.assert_array_equal(table.counts[i, j, :seen.size], np.asarray(dense[i, j])[seen])
+        assert np.all(np.asarray(table.counts[i, j, seen.size:]) == 0)
+    # One pair with K + 1 next states: flagged, its first K kept.
+    more = np.asarray(dense).copy()
+    more[2, 1, :K + 1] = np.arange(1, K + 2)
+    flagged = em.with_dense_counts(em.empty_counts(S, A, K), more)
+    assert bool(flagged.overflowed)
+    np.testing.assert_array_equal(flagged.counts[2, 1], np.arange(1, K + 1))
+
+
 def test_overflow_is_flagged_and_ucrl2_falls_back_to_its_dense_counts():
     S, A = 4, 1
     table = _record_all(em.empty_counts(S, A, 2), [0, 0, 0, 0], [0, 0, 0, 0], [1, 2, 1, 3])

@@ -12,6 +12,8 @@ import jaxmdp
 import numpy_reference as ref
 from agent_loop import is_river, make_runner, probe_batch, seeds
 from agents import AGENTS
+from agents import get as get_agent
+from agents import estimated_model as em
 from agents.posteriors import normal_gamma_sample
 from agents.psrl_continuous import (
     PSRL_CONTINUOUS,
@@ -72,7 +74,8 @@ def _state_with_counts(counts, hp=HP, S_real=None):
     spec = spec_of(mdp, 500_000).replace(state_mask=jnp.asarray(mask))
     state = AGENT.init(jax.random.key(0), spec, hp)
     counts = jnp.asarray(counts, jnp.int32)
-    return state.replace(counts=counts, schedule=state.schedule.replace(visits=counts.sum(-1)))
+    return state.replace(counts=counts, successors=em.with_dense_counts(state.successors, counts),
+                         schedule=state.schedule.replace(visits=counts.sum(-1)))
 
 
 candidate_draws = jax.jit(jax.vmap(candidate_kernels, (0, None)))
@@ -140,6 +143,43 @@ def test_scaled_dirichlet_candidates():
     checks = Checks()
     for i in range(3):
         checks.bounded_moments(rows[:, i], stats.beta(alpha[i], a0 - alpha[i]), 0.0, 1.0, f"component {i}")
+
+
+@pytest.mark.parametrize("variant", ["paper", "colosseum"])
+def test_p_minus_on_the_successor_slots_equals_the_dense_rows_and_overflow_falls_back(variant):
+    """The plan keeps ``p^-`` at each pair's observed next states; against a float64 numpy computation of the dense
+    rows (docs/agents.md §4): the backup ``p^- . V``, the missing mass and the chosen rows, with complete slots and
+    with overflowed ones (2 slots for up to 6 next states: the dense counts take over); the plans agree."""
+    from agents.psrl_continuous import draws
+
+    rng = np.random.default_rng(3)
+    S, A = 6, 2
+    counts = rng.poisson(300, (S, A, S)) * (rng.random((S, A, S)) < 0.5)  # 0-6 next states, p^- > 0 on many
+    counts[0, 0] = 0  # an unvisited pair
+    counts[1, 1] = [0, 0, 50, 0, 0, 0]  # below eta = 10 S = 60 with p^- > 0 (simple optimistic sampling) ...
+    counts[2, 0] = [45, 0, 0, 5, 0, 0]  # ... the others at eta (posterior draws)
+    state = _state_with_counts(counts, hp=HP.replace(eta_weight=1.0))
+    assert float(state.constants.eta) == 60.0
+    small = state.replace(successors=em.with_dense_counts(em.empty_counts(S, A, 2), counts))
+    assert not bool(state.successors.overflowed) and bool(small.successors.overflowed)
+    N = counts.sum(-1, keepdims=True).astype(np.float64)
+    n1, log4s = np.maximum(N, 1), np.log(4 * S)
+    p_hat = counts / n1
+    n_dev = np.maximum(counts, 1) if variant == "colosseum" else n1
+    p_minus = p_hat - np.minimum(np.sqrt(3 * p_hat * log4s / n_dev) + 3 * log4s / n_dev, p_hat)
+    assert (p_minus > 0).sum() > 20 and np.all((p_minus[[1, 2], [1, 0]] > 0).sum(-1) == [1, 1])
+    V = rng.uniform(-2, 5, S)
+    s, a = np.arange(S), rng.integers(0, A, S)
+    for st in (state, small):
+        d = draws(key(5), st, variant=variant)
+        np.testing.assert_allclose(d.p_minus_dot(jnp.asarray(V, jnp.float32)), p_minus @ V, rtol=2e-6, atol=2e-6)
+        np.testing.assert_allclose(d.missing, 1 - p_minus.sum(-1), rtol=1e-6, atol=1e-6)
+        np.testing.assert_allclose(d.p_minus_rows(jnp.asarray(s), jnp.asarray(a)), p_minus[s, a], atol=1e-7)
+        rows = np.asarray(d.p_minus_rows(jnp.asarray(s), jnp.asarray(a)))
+        np.testing.assert_array_equal(rows == 0, p_minus[s, a] == 0)
+    plan = get_agent("psrl_continuous", variant).plan
+    plans = [plan(key(6), st) for st in (state, small)]
+    np.testing.assert_allclose(plans[0].Q, plans[1].Q, rtol=1e-5)
 
 
 def _extended_mdp(R, P, n_psi):

@@ -18,6 +18,7 @@ import pytest
 import agents.psrl_continuous as pc
 import jaxmdp
 import numpy_reference
+from agents import estimated_model as em
 from agents import get
 from agents.posteriors import normal_gamma_sample
 from jaxmdp import dynamic_programming as dp
@@ -48,7 +49,8 @@ def _state(variant, case, discount=0.99, seed=0):
     counts = np.stack([[rng.multinomial(visits[s, a], p) for a in range(A)] for s in range(S)])
     counts = jnp.asarray(counts, jnp.int32)
     mu = jnp.asarray(rng.uniform(0, 1, (S, A)), jnp.float32)
-    state = state.replace(counts=counts, schedule=state.schedule.replace(visits=counts.sum(-1)),
+    state = state.replace(counts=counts, successors=em.with_dense_counts(state.successors, counts),
+                          schedule=state.schedule.replace(visits=counts.sum(-1)),
                           rewards=state.rewards.replace(mu=mu), u=jnp.asarray(rng.uniform(0, 3, S), jnp.float32))
     assert int(state.constants.psi) == 3 and float(state.constants.eta) == 5.0
     n_eta = int(jnp.sum((state.schedule.visits >= 5) & STATE_MASK[:, None] & ACTION_MASK[None, :]))
@@ -99,7 +101,7 @@ CASES = [(v, c) for v in ("paper", "colosseum") for c in ("none", "some", "all")
 
 
 @pytest.mark.statistical(p=0.0)
-@pytest.mark.parametrize("jump_states", [pc.JUMP_STATES, 5, 2])
+@pytest.mark.parametrize("jump_states", [pc.JUMP_STATES, 5, 2, (2, 5)])
 @pytest.mark.parametrize("variant,case", CASES)
 def test_discounted_plan_equals_policy_iteration_on_the_dense_extended_mdp(variant, case, jump_states):
     # For every key (a deterministic comparison, p = 0): the structured plan's values equal those of the dense
@@ -108,7 +110,7 @@ def test_discounted_plan_equals_policy_iteration_on_the_dense_extended_mdp(varia
     # test_psrl_continuous.test_discounted_planning_matches_exact_solution).
     # jump_states below S = 8: the evaluations eliminate the jumping states when at most that many others remain (5:
     # often in case "none", where every pair is below eta with at most 4 visits, so p^- = 0), else solve the whole
-    # chain (2: mostly).
+    # chain (2: mostly); (2, 5): a system of 2 first, then of 5, then the whole chain.
     agent, state = _state(variant, case)
     plan = jax.jit(functools.partial(agent.plan, jump_states=jump_states))
     gamma, K = 0.99, state.hparams.max_psi
