@@ -118,7 +118,7 @@ def with_dense_counts(table: SuccessorCounts, counts: jax.Array) -> SuccessorCou
     slot_counts = jnp.take_along_axis(counts, first, axis=-1)
     return table.replace(
         states=jnp.where(slot_counts > 0, first, 0).astype(jnp.int32),
-        counts=jnp.maximum(slot_counts, 0),
+        counts=slot_counts,
         overflowed=jnp.any(jnp.sum(seen, axis=-1) > K),
     )
 

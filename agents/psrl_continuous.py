@@ -401,7 +401,8 @@ class Draws(struct.PyTreeNode):
         dense = lambda c, n1, l4, s, a: self._dense(c[s, a], n1[s, a], l4)  # noqa: E731
         return _unless_slots_complete(self.slots_complete, dense, rows, self.counts, self.n1, self.log4s, s, a)
 
-    def _dirichlet(self, k: jax.Array, alpha: jax.Array) -> jax.Array:
+    def dirichlet(self, k: jax.Array, alpha: jax.Array) -> jax.Array:
+        """Candidate ``k``'s posterior draws of concentrations ``alpha[..., S]`` (one key per candidate slot)."""
         return dirichlet_sample(jax.random.fold_in(self.key, k), alpha, offset=self.offset)
 
     def kept_alpha(self, counts: jax.Array) -> jax.Array:
@@ -409,13 +410,9 @@ class Draws(struct.PyTreeNode):
         S = counts.shape[-1]
         return self.alpha(counts).reshape(-1, S)[jnp.minimum(self.pairs, self.missing.size - 1)]
 
-    def kept_rows(self, k: jax.Array, alpha: jax.Array) -> jax.Array:
-        """Candidate ``k``'s posterior draws ``[M, S]`` of the kept pairs, of concentrations :meth:`kept_alpha`."""
-        return self._dirichlet(k, alpha)
-
     def draw(self, k: jax.Array) -> jax.Array:
         """Candidate ``k``'s posterior draws ``[S, A, S]`` for every pair, used when ``overflow``."""
-        return self._dirichlet(k, self.alpha(self.counts))
+        return self.dirichlet(k, self.alpha(self.counts))
 
     def posterior_draw(self, k: jax.Array) -> jax.Array:
         """The ``[S, A, S]`` posterior candidates ``k`` that a plan uses (rows of pairs not at ``eta`` meaningless)."""
@@ -455,24 +452,24 @@ def draws(
     posterior = N >= c.eta
     M = min(S * A, max(1, keep_limit // (K * S)))
     (pairs,) = jnp.nonzero(posterior.reshape(-1), size=M, fill_value=S * A)
+    dense_missing = lambda c, n, l4: 1.0 - jnp.sum(_p_minus(c.astype(dtype), n, l4, colosseum), axis=-1)  # noqa: E731
+    missing = _unless_slots_complete(~succ.overflowed, dense_missing, 1.0 - jnp.sum(p_minus, axis=-1),
+                                     state.counts, n1, log4s)
     out = Draws(counts=state.counts, n1=n1, log4s=log4s, slot_states=succ.states, p_minus=p_minus,
-                slots_complete=~succ.overflowed, missing=jnp.zeros((S, A), dtype), z=z.astype(jnp.int32),
+                slots_complete=~succ.overflowed, missing=missing, z=z.astype(jnp.int32),
                 posterior=posterior, concentration=jnp.stack([1.0 / n_real, c.omega, c.kappa]).astype(dtype),
                 state_mask=mask, key=k_dir, active=jnp.arange(K) < c.psi, pairs=pairs.astype(jnp.int32),
                 kept=jnp.zeros((K, M, S), dtype), offset=COLOSSEUM_DIRICHLET_OFFSET if colosseum else 0.0,
                 colosseum=colosseum, scaled=hp.scaled_dirichlet)
-    dense_missing = lambda c, n, l4: 1.0 - jnp.sum(out._dense(c, n, l4), axis=-1)  # noqa: E731
-    missing = _unless_slots_complete(out.slots_complete, dense_missing, 1.0 - jnp.sum(p_minus, axis=-1),
-                                     state.counts, n1, log4s)
     zeros = jnp.zeros((M, S), dtype)
 
     # The kept pairs' concentrations are computed densely, then gathered, once per plan that draws any: gathered
     # first, a batched program's draws differed from a single member's in the last bit.
     def kept(counts):
         alpha = out.kept_alpha(counts)
-        return jax.lax.map(lambda k: only_if(out.active[k], out.kept_rows, zeros, k, alpha), jnp.arange(K))
+        return jax.lax.map(lambda k: only_if(out.active[k], out.dirichlet, zeros, k, alpha), jnp.arange(K))
 
-    return out.replace(missing=missing, kept=only_if(out.any_posterior, kept, out.kept, state.counts))
+    return out.replace(kept=only_if(out.any_posterior, kept, out.kept, state.counts))
 
 
 def candidate_kernels(
