@@ -47,7 +47,7 @@ def pytest_configure(config: pytest.Config) -> None:
     """One persistent JAX compilation cache for the session, in a fresh temporary folder shared by the xdist workers:
     a program that another test (or the other worker) already compiled with the same HLO is loaded instead of
     compiled again (the runner's programs recur across modules, and :func:`_release_compiled_programs` may drop the
-    in-memory ones). Measured on six of the slowest modules, 2 workers: 386 -> 338 s. It starts empty, so results
+    in-memory ones). Measured on six of the slowest modules, 2 workers: 386 -> 330 s. It starts empty, so results
     cannot depend on an earlier run; subprocesses the tests start do not inherit it."""
     workerinput = getattr(config, "workerinput", None)
     if workerinput is None:
