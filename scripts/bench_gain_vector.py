@@ -57,11 +57,10 @@ def best_times(fns: dict, args: tuple, repeats: int) -> dict[str, tuple[float, f
 
 def eliminate_settings(args: argparse.Namespace) -> None:
     """Compile seconds and best wall / CPU seconds of the elimination alone, per ``block,stages`` setting."""
-    instances = {inst.label: inst for inst in sets.instances(args.set)}
     print("| MDP | S | block | stages | compile s | best wall s | best CPU s |")
     print("|---|---|---|---|---|---|---|")
     for label in args.labels:
-        mdp = instances[label].build(0)
+        mdp = sets.instance(args.set, label).build(0)
         pi = policies(mdp, np.random.default_rng(0), args.redrawn)["random"]
         P = dp.policy_matrix(mdp, pi)
         for setting in args.eliminate:
@@ -93,14 +92,13 @@ def main(argv: list[str] | None = None) -> None:
         eliminate_settings(args)
         return
     base = load_revision(args.baseline, "jaxmdp/dynamic_programming.py", "baseline_dynamic_programming")
-    instances = {inst.label: inst for inst in sets.instances(args.set)}
     rng = np.random.default_rng(0)
     names = (args.baseline, "dense", "banded")
     print("| MDP | S | bandwidth | policy | " + " | ".join(f"{k} wall s" for k in names) + " | ratio | "
           + " | ".join(f"{k} CPU s" for k in names) + " | ratio | max rel. diff |")
     print("|---" * (2 * len(names) + 7) + "|")
     for q, label in enumerate(args.labels):
-        mdp = instances[label].build(0).strip()
+        mdp = sets.instance(args.set, label).build(0).strip()
         order, width = gth.band_order(mdp)
         order = jnp.asarray(order)
         unchecked = dict(check_band=False)

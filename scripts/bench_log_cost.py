@@ -28,7 +28,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--steps", type=int, default=1300)
     ap.add_argument("--log-period", type=int, default=100)
     args = ap.parse_args(argv)
-    mdp = next(i for i in sets.instances(args.set) if i.label == args.label).build(0)
+    mdp = sets.instance(args.set, args.label).build(0)
     base = agents.get(args.agent)
     agent = no_planning(base)
     hp = base.default_hparams

@@ -116,7 +116,7 @@ def main(argv: list[str] | None = None) -> list[str]:
         agent, dense, sparse = ROUTES[name]
         routes = {"dense": jax.jit(dense), "sparse": jax.jit(sparse), "banded": jax.jit(sparse)}
         for label in args.labels or pcp.bucket_labels(args.set):
-            mdp = next(i for i in sets.instances(args.set) if i.label == label).build(0)
+            mdp = sets.instance(args.set, label).build(0)
             hp = agent.default_hparams
             if name == "psrl_continuous":  # the plan's buffer at the MDP's own psi, as the benchmark sizes it
                 hp = hp.replace(max_psi=psrl_continuous.psi(hp, mdp.n_states, mdp.n_actions))

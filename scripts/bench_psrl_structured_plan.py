@@ -71,11 +71,10 @@ def main(argv=None) -> list[dict]:
     args = build_parser().parse_args(argv)
     base = load_file(args.baseline, "psrl_continuous_baseline")
     labels = args.labels or bucket_labels(args.set)
-    insts = {i.label: i for i in sets.instances(args.set)}
     plans = {"baseline": jax.jit(jax.vmap(base.PSRL_CONTINUOUS.plan)), "structured": jax.jit(jax.vmap(pc.plan))}
     rows = []
     for i, label in enumerate(labels):
-        mdp = insts[label].build(0)
+        mdp = sets.instance(args.set, label).build(0)
         S, A = int(np.sum(np.asarray(mdp.state_mask))), int(np.sum(np.asarray(mdp.action_mask)))
         hp = pc.PSRL_CONTINUOUS.default_hparams
         hp = hp.replace(max_psi=pc.psi(hp, S, A))

@@ -67,7 +67,7 @@ def counting_plans(agent: Agent) -> Agent:
 def count(agent_name: str, set_name: str, label: str, n_steps: int, seeds: int, log_period: int) -> dict[str, Any]:
     """Plans per member of ``agent_name`` (benchmark hyperparameters, ``"tuned"``) over ``n_steps`` steps on the
     benchmark MDP ``label`` of ``set_name``, seeds ``0 .. seeds - 1``, with the bound and the run's seconds."""
-    inst = {i.label: i for i in sets.instances(set_name)}[label]
+    inst = sets.instance(set_name, label)
     mdp = inst.build(0)
     hp = benchmark_hparams.fit_static_sizes(agent_name, [benchmark_hparams.hparams_for(agent_name)], [mdp])[0]
     grid = runner.product([mdp], [hp], range(seeds))

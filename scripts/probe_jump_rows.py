@@ -58,10 +58,9 @@ def probe(state, key) -> dict:
 def main(argv: list[str] | None = None) -> list[dict]:
     args = build_parser().parse_args(argv)
     agent = agents.get("psrl_continuous")
-    insts = {i.label: i for i in sets.instances(args.set)}
     rows = []
     for label in args.labels:
-        mdp = insts[label].build(0)
+        mdp = sets.instance(args.set, label).build(0)
         S, A = int(np.sum(np.asarray(mdp.state_mask))), int(np.sum(np.asarray(mdp.action_mask)))
         hp = agent.default_hparams.replace(max_psi=pc.psi(agent.default_hparams, S, A))
         for steps in args.steps:

@@ -128,7 +128,7 @@ def _program_loop(fn):
 
 def profile(agent_name: str, label: str, args) -> dict:
     agent = AGENTS[agent_name]
-    inst = next(i for i in sets.instances(args.set) if i.label == label)
+    inst = sets.instance(args.set, label)
     mdp = inst.build(0)
     S, A = int(np.sum(np.asarray(mdp.state_mask))), int(np.sum(np.asarray(mdp.action_mask)))
     hp = agent.default_hparams

@@ -51,7 +51,7 @@ def main() -> None:
     ap.add_argument("--log-period", type=int, default=100)
     ap.add_argument("--out", type=Path, default=Path("results/psrl_ablation.json"))
     args = ap.parse_args()
-    (inst,) = [i for i in sets.instances(args.set) if i.label == args.mdp]
+    inst = sets.instance(args.set, args.mdp)
     mdp = inst.build(0)
     base = hp_sources.hparams_for(pc.PSRL_CONTINUOUS.name, "reference", "colosseum")
     (hp,) = hp_sources.fit_static_sizes(pc.PSRL_CONTINUOUS.name, [base], [mdp])

@@ -29,6 +29,18 @@ def test_set_names_and_sizes():
     assert len({i.name for i in search}) == 14
 
 
+
+def test_instance_by_label_and_its_errors():
+    every = sets.instances("continuous ergodic")
+    assert [sets.instance("continuous_ergodic", inst.label) for inst in every] == every
+    assert sets.instance("search continuous", "RiverSwim/sample_1", n_per_family=2) == sets.instances(
+        "search continuous", n_per_family=2)[1]
+    with pytest.raises(ValueError, match=r"label 'RiverSwim/prms_9' is not an MDP of the set 'continuous ergodic'; "
+                                         r"did you mean 'RiverSwim/prms_\d'"):
+        sets.instance("continuous ergodic", "RiverSwim/prms_9")
+    with pytest.raises(ValueError, match="unknown benchmark set"):
+        sets.instance("continuous ergodc", "RiverSwim/prms_0")
+
 def test_same_seed_builds_the_same_instance_and_seeds_differ_where_the_family_does():
     fl = next(i for i in sets.instances("episodic quick test") if i.family == "FrozenLake")
     a, b, c = fl.build(3), fl.build(3), fl.build(4)

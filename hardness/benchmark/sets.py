@@ -1,6 +1,7 @@
 """Named sets of benchmark MDPs (benchmark.md §1-3, §7), each MDP a recipe that builds one instance per seed.
 
-Sets, by name (:func:`instances`; spaces, underscores and hyphens are interchangeable):
+Sets, by name (:func:`instances`; one MDP of a set by its label, :func:`instance`; spaces, underscores and hyphens
+are interchangeable in set names):
 
 * the four settings of the paper's benchmark (§3.3, Table 2): ``"episodic ergodic"``, ``"episodic communicating"``,
   ``"continuous ergodic"``, ``"continuous communicating"`` (20 MDPs each, :mod:`hardness.benchmark.suite`);
@@ -34,6 +35,7 @@ __all__ = [
     "canonical_name",
     "is_episodic",
     "instances",
+    "instance",
 ]
 
 #: The paper's four benchmark settings, in its order.
@@ -144,4 +146,19 @@ def instances(name: str, *, n_per_family: int = 5, search_seed: int = 42) -> lis
     from hardness.benchmark import samplers  # a cycle otherwise: samplers builds Instances
 
     return samplers.sample_instances(key == "search episodic", n_per_family, seed=search_seed, set_name=key)
+
+
+def instance(name: str, label: str, **kwargs: int) -> Instance:
+    """The MDP ``label`` (e.g. ``"RiverSwim/prms_0"``) of the set ``name``; ``kwargs`` as for :func:`instances`.
+
+    Raises:
+      ValueError: naming ``label``, the closest labels of the set and all of them, when it is not one of its MDPs.
+    """
+    found = {inst.label: inst for inst in instances(name, **kwargs)}
+    if label not in found:
+        close = difflib.get_close_matches(str(label), list(found), n=3, cutoff=0.5)
+        hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
+        raise ValueError(f"label {label!r} is not an MDP of the set {canonical_name(name)!r}{hint} Its labels: "
+                         f"{', '.join(found)}")
+    return found[label]
 
