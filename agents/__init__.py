@@ -11,8 +11,6 @@ instead (``"colosseum"``, docs/agents.md "Reference mode"), each a separate agen
 
 from __future__ import annotations
 
-import difflib
-
 from agents.deep.actor_critic import ACTOR_CRITIC_CONTINUOUS, ACTOR_CRITIC_EPISODIC
 from agents.deep.actor_critic_rnn import ACTOR_CRITIC_RNN_CONTINUOUS, ACTOR_CRITIC_RNN_EPISODIC
 from agents.deep.boot_dqn import BOOT_DQN_CONTINUOUS, BOOT_DQN_EPISODIC
@@ -23,7 +21,7 @@ from agents.q_learning_continuous import Q_LEARNING_CONTINUOUS, Q_LEARNING_CONTI
 from agents.q_learning_episodic import Q_LEARNING_EPISODIC, Q_LEARNING_EPISODIC_COLOSSEUM
 from agents.random_agent import RANDOM_CONTINUOUS, RANDOM_EPISODIC
 from agents.ucrl2 import UCRL2, UCRL2_COLOSSEUM
-from jaxmdp._checks import VARIANTS, Variant, check_variant
+from jaxmdp._checks import VARIANTS, Variant, check_variant, did_you_mean
 from jaxmdp.experiment.agent_interface import Agent
 
 AGENTS: dict[str, Agent] = {
@@ -75,9 +73,7 @@ def get(name: str, variant: Variant = "paper") -> Agent:
                              f"variant={variant!r})")
         name, variant = base, suffix
     if name not in AGENTS:
-        close = difflib.get_close_matches(name, list(AGENTS), n=3, cutoff=0.5)
-        hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
-        raise ValueError(f"unknown agent {name!r}{hint} Registered: {', '.join(AGENTS)}")
+        raise ValueError(f"unknown agent {name!r}{did_you_mean(name, AGENTS, 0.5)} Registered: {', '.join(AGENTS)}")
     if variant == "paper":
         return AGENTS[name]
     if name not in COLOSSEUM_AGENTS:

@@ -6,17 +6,26 @@ compiles (values are Python or numpy numbers, or whole hyperparameter grids).
 
 from __future__ import annotations
 
+import difflib
 import math
+from collections.abc import Iterable
 from typing import Any, Literal
 
 import numpy as np
 
-__all__ = ["Variant", "VARIANTS", "check_variant", "check_int", "check_range"]
+__all__ = ["Variant", "VARIANTS", "check_variant", "check_int", "check_range", "did_you_mean"]
 
 #: Which definition a measure or an indicator follows: ``"paper"`` (the paper's, computed exactly) or
 #: ``"colosseum"`` (the reference package's procedure and numbers, docs/measures.md).
 Variant = Literal["paper", "colosseum"]
 VARIANTS: tuple[str, ...] = ("paper", "colosseum")
+
+
+def did_you_mean(value: Any, known: Iterable[str], cutoff: float = 0.4) -> str:
+    """``"; did you mean 'a', 'b'?"`` naming the (at most three) names of ``known`` closest to ``value`` (difflib
+    ratio at least ``cutoff``), or ``""`` when none is close: the hint of an unknown-name error."""
+    close = difflib.get_close_matches(str(value), list(known), n=3, cutoff=cutoff)
+    return f"; did you mean {', '.join(map(repr, close))}?" if close else ""
 
 
 def check_variant(variant: Any) -> None:

@@ -6,6 +6,7 @@ import difflib
 import inspect
 from collections.abc import Callable
 
+from jaxmdp._checks import did_you_mean
 from jaxmdp.mdp import MDP
 
 __all__ = ["make", "families", "register"]
@@ -43,7 +44,5 @@ def make(name: str, *, episodic: bool, seed: int, **params) -> MDP:
     if not any(p.kind is inspect.Parameter.VAR_KEYWORD for p in sig.parameters.values()):
         for key in params:
             if key not in sig.parameters:
-                close = difflib.get_close_matches(key, list(sig.parameters), n=3)
-                hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
-                raise ValueError(f"{name} has no parameter {key!r}{hint}")
+                raise ValueError(f"{name} has no parameter {key!r}{did_you_mean(key, sig.parameters, 0.6)}")
     return builder(episodic=episodic, seed=seed, **params)

@@ -29,7 +29,6 @@ def test_set_names_and_sizes():
     assert len({i.name for i in search}) == 14
 
 
-
 def test_instance_by_label_and_its_errors():
     every = sets.instances("continuous ergodic")
     assert [sets.instance("continuous_ergodic", inst.label) for inst in every] == every
@@ -40,6 +39,7 @@ def test_instance_by_label_and_its_errors():
         sets.instance("continuous ergodic", "RiverSwim/prms_9")
     with pytest.raises(ValueError, match="unknown benchmark set"):
         sets.instance("continuous ergodc", "RiverSwim/prms_0")
+
 
 def test_same_seed_builds_the_same_instance_and_seeds_differ_where_the_family_does():
     fl = next(i for i in sets.instances("episodic quick test") if i.family == "FrozenLake")

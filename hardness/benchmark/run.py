@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import difflib
 import hashlib
 import json
 import os
@@ -60,7 +59,7 @@ import jaxmdp
 from hardness.benchmark import hparams as hp_sources
 from hardness.benchmark import sets
 from jaxmdp import runner
-from jaxmdp._checks import check_variant
+from jaxmdp._checks import check_variant, did_you_mean
 from jaxmdp.experiment import records
 from jaxmdp.experiment.members import dynamics
 from jaxmdp.mdp import MDP
@@ -267,9 +266,8 @@ def canonical_emission(emission: str) -> str:
     if name in jaxmdp.EMISSION_KINDS:
         return name
     known = list(jaxmdp.EMISSION_KINDS) + list(REFERENCE_EMISSIONS)
-    close = difflib.get_close_matches(str(emission), known, n=3, cutoff=0.4)
-    hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
-    raise ValueError(f"unknown emission {emission!r}{hint} Known: {', '.join(map(repr, known))}")
+    raise ValueError(f"unknown emission {emission!r}{did_you_mean(emission, known)} "
+                     f"Known: {', '.join(map(repr, known))}")
 
 
 def emission_key(seed: int) -> jax.Array:

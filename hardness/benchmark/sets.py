@@ -18,10 +18,10 @@ but RiverSwim and DeepSea, and any family with ``randomize_actions``) gives each
 from __future__ import annotations
 
 import dataclasses
-import difflib
 from typing import Any
 
 import jaxmdp
+from jaxmdp._checks import did_you_mean
 from hardness.benchmark import suite as benchmark_suite
 from hardness.benchmark.suite import BenchmarkEntry, _entry
 
@@ -119,9 +119,8 @@ def canonical_name(name: str) -> str:
     names otherwise)."""
     key = " ".join(str(name).replace("_", " ").replace("-", " ").lower().split())
     if key not in SET_NAMES:
-        close = difflib.get_close_matches(key, SET_NAMES, n=3, cutoff=0.5)
-        hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
-        raise ValueError(f"unknown benchmark set {name!r}{hint} Known sets: {', '.join(SET_NAMES)}")
+        raise ValueError(f"unknown benchmark set {name!r}{did_you_mean(key, SET_NAMES, 0.5)} "
+                         f"Known sets: {', '.join(SET_NAMES)}")
     return key
 
 
@@ -156,9 +155,8 @@ def instance(name: str, label: str, **kwargs: int) -> Instance:
     """
     found = {inst.label: inst for inst in instances(name, **kwargs)}
     if label not in found:
-        close = difflib.get_close_matches(str(label), list(found), n=3, cutoff=0.5)
-        hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
-        raise ValueError(f"label {label!r} is not an MDP of the set {canonical_name(name)!r}{hint} Its labels: "
+        raise ValueError(f"label {label!r} is not an MDP of the set {canonical_name(name)!r}"
+                         f"{did_you_mean(label, found, 0.5)} Its labels: "
                          f"{', '.join(found)}")
     return found[label]
 

@@ -29,7 +29,6 @@ Tables are built host-side (the renderers are Python) in the MDP's dtype; the ro
 
 from __future__ import annotations
 
-import difflib
 from collections.abc import Sequence
 
 import jax
@@ -37,6 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxmdp import dynamic_programming as dp
+from jaxmdp._checks import did_you_mean
 from jaxmdp.blockmdp.linear_features import linear_value_features, n_linear_features
 from jaxmdp.mdp import MDP
 from jaxmdp.render import render_grid
@@ -81,9 +81,8 @@ def check_emission_kind(kind: str) -> str:
     """``kind`` if it is a known emission kind; otherwise a ``ValueError`` listing the closest names."""
     if kind in EMISSION_KINDS:
         return kind
-    close = difflib.get_close_matches(str(kind), EMISSION_KINDS, n=3, cutoff=0.4)
-    hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
-    raise ValueError(f"unknown emission {kind!r}{hint} Known: {', '.join(map(repr, EMISSION_KINDS))}")
+    raise ValueError(f"unknown emission {kind!r}{did_you_mean(kind, EMISSION_KINDS)} "
+                     f"Known: {', '.join(map(repr, EMISSION_KINDS))}")
 
 
 def _unsupported(mdp: MDP, kind: str, needs: str) -> ValueError:

@@ -19,12 +19,13 @@ correlated draw is one matrix-vector product.
 
 from __future__ import annotations
 
-import difflib
 import math
 from typing import Any
 
 import jax
 import jax.numpy as jnp
+
+from jaxmdp._checks import did_you_mean
 
 __all__ = [
     "NOISE_KINDS",
@@ -53,9 +54,8 @@ def check_noise_kind(noise: str | None) -> str | None:
     """``noise`` if it is ``None`` or a known kind; otherwise a ``ValueError`` listing the closest names."""
     if noise is None or noise in NOISE_KINDS:
         return noise
-    close = difflib.get_close_matches(str(noise), NOISE_KINDS, n=3, cutoff=0.4)
-    hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
-    raise ValueError(f"unknown noise {noise!r}{hint} Known: None, {', '.join(map(repr, NOISE_KINDS))}")
+    raise ValueError(f"unknown noise {noise!r}{did_you_mean(noise, NOISE_KINDS)} "
+                     f"Known: None, {', '.join(map(repr, NOISE_KINDS))}")
 
 
 def noise_parameters(noise: str | None, params: dict[str, Any]) -> dict[str, float]:
@@ -70,9 +70,8 @@ def noise_parameters(noise: str | None, params: dict[str, Any]) -> dict[str, flo
     allowed = NOISE_DEFAULTS[noise]
     for name in params:
         if name not in allowed:
-            close = difflib.get_close_matches(name, list(allowed), n=2, cutoff=0.4)
-            hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
-            raise ValueError(f"noise {noise!r} has no parameter {name!r}{hint} It takes: {', '.join(allowed)}")
+            raise ValueError(f"noise {noise!r} has no parameter {name!r}{did_you_mean(name, allowed)} "
+                             f"It takes: {', '.join(allowed)}")
     out = {}
     for name, default in allowed.items():
         value = params.get(name, default)
