@@ -88,6 +88,17 @@ def test_interrupted_and_resumed_run_gives_the_same_members_csv(full_run, tmp_pa
     assert [r[:cut] for r in resumed] == [r[:cut] for r in straight]
 
 
+def test_more_agents_on_a_finished_folder_run_only_their_batches(full_run, tmp_path):
+    # A batch's key holds its agent, members and settings, not the other agents: the first run's batches are reused.
+    out, _ = full_run
+    first = run.run_benchmark(run.RunConfig(**{**TINY, "agents": ("random_episodic",)}), tmp_path, progress=False)
+    assert first.finished and len(first.ran) == 2
+    second = run.run_benchmark(run.RunConfig(**TINY), tmp_path, progress=False)
+    assert sorted(second.reused) == sorted(first.ran)
+    assert len(second.ran) == 2 and all(".q_learning_episodic." in b for b in second.ran)
+    assert (tmp_path / "members.csv").read_bytes() == (out / "members.csv").read_bytes()
+
+
 def test_report_files_and_table(full_run):
     out, _ = full_run
     for stem in ("curves_episodic_quick_test", "hardness_episodic_quick_test"):
