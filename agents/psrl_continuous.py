@@ -48,8 +48,10 @@ are Dirichlet draws: the plan keeps those of the first ``M = min(S A, 2^22 / (ma
 (``[max_psi, M, S]``, drawn once, only when some pair of some member of a ``vmap`` is at ``eta``); should more pairs be
 at ``eta``, it uses a draw of every pair's rows instead, drawn again at each backup one slot ``[S, A, S]`` at a time
 from the same keys (the same bits each time). Within ``T = 500 000`` steps at most ``T / eta`` pairs reach ``eta``,
-fewer than ``M`` at every size of the benchmark. An improvement step keeps per pair the best candidate (value and row)
-and per state the best real action; an evaluation solves ``(I - gamma P_pi) V = r_pi`` for the chosen rows (``[S, S]``).
+fewer than ``M`` at every size of the benchmark. An improvement step keeps per pair the best candidate (value and slot)
+and per state the best real action, a policy being a real action and a candidate slot per state (:class:`_Choice`); an
+evaluation solves ``(I - gamma P_pi) V = r_pi`` for the chosen rows, built only where the solve reads them (the states
+whose row is not a jump and the states jumped to, or all ``[S, S]`` when there are too many of those).
 Memory is ``O(S A S + max_psi S A)`` per member (kept draws aside). Results do not change as long as ``max_psi >= psi``,
 but ``max_psi`` (a static buffer size) still sets the slot loops' length, so set it to :func:`psi` of the MDPs at hand
 (e.g. 2 for RiverSwim 25 at the defaults). With more than ``M`` pairs at ``eta`` (e.g. optimism off, where every pair
@@ -528,20 +530,25 @@ def _extended_rewards(R: jax.Array, state: PSRLContinuousState, variant: Variant
     return jnp.broadcast_to(copy_action_zero(R, state.action_mask), (K, S, A))
 
 
-def _best_candidates(
-    d: Draws, R_ext: jax.Array, V: jax.Array, gamma: jax.Array
-) -> tuple[jax.Array, jax.Array, Callable[[jax.Array, jax.Array], jax.Array]]:
-    """Per pair the best candidate under values ``V``: ``Q[s, a] = max_k R_ext[k, s, a] + gamma row_k(s, a) . V``, its
-    ``k`` (the lowest among ties), and ``posterior_row(s, a)``: the best posterior rows ``[n, S]`` of pairs
-    ``(s[n], a[n])`` (meaningful for pairs at ``eta``).
+def _kept_position(d: Draws, s: jax.Array, a: jax.Array) -> jax.Array:
+    """The index ``m`` of pair ``(s, a)`` among the kept pairs ``d.pairs`` (0 for a pair not kept)."""
+    A = d.missing.shape[1]
+    M = d.pairs.shape[0]
+    position = jnp.zeros((d.missing.size,), jnp.int32).at[d.pairs].set(jnp.arange(M, dtype=jnp.int32), mode="drop")
+    return position[s * A + a]
+
+
+def _best_candidates(d: Draws, R_ext: jax.Array, V: jax.Array, gamma: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """Per pair the best candidate under values ``V``: ``Q[s, a] = max_k R_ext[k, s, a] + gamma row_k(s, a) . V`` and
+    its ``k`` (the lowest among ties).
 
     Optimistic rows cost ``O(S A K)`` for ``p^- . V`` (on the successor slots) and ``O(max_psi S A)`` for ``V[z]``;
     the kept posterior rows ``O(max_psi M S)``. With more than ``M`` pairs at ``eta`` (some member of a ``vmap``), the
-    posterior rows of all pairs are drawn again, one slot ``[S, A, S]`` at a time, each slot skipped past ``psi``."""
+    posterior rows of all pairs are drawn again, one slot ``[S, A, S]`` at a time, each slot skipped past ``psi``
+    (:func:`_posterior_rows` draws a chosen pair's row again from the same key)."""
     K, S, A = d.z.shape
     M = d.pairs.shape[0]
     dtype = V.dtype
-    expected = lambda rows, values: jnp.sum(rows * values, axis=-1)  # noqa: E731  (kept and redrawn rows alike)
     q_opt = R_ext + gamma * (d.p_minus_dot(V) + d.missing * V[d.z])  # [max_psi, S, A]
     q_opt = jnp.where(d.active[:, None, None], q_opt, -jnp.inf)
     k_opt = jnp.argmax(q_opt, axis=0).astype(jnp.int32)
@@ -550,18 +557,16 @@ def _best_candidates(
     pairs = jnp.minimum(d.pairs, S * A - 1)
 
     def kept_values(V):  # [max_psi, M]; skipped unless some pair is at eta (never at the benchmark's largest sizes)
-        q = R_ext.reshape(K, S * A)[:, pairs] + gamma * expected(d.kept, V)
+        q = R_ext.reshape(K, S * A)[:, pairs] + gamma * jnp.sum(d.kept * V, axis=-1)
         return jnp.where(d.active[:, None], q, -jnp.inf)
 
     q_kept = only_if(d.any_posterior, kept_values, jnp.full((K, M), -jnp.inf, dtype), V)
-    k_kept = jnp.argmax(q_kept, axis=0).astype(jnp.int32)
 
     def scatter(fill, x):  # [M] values of the kept pairs -> [S, A], fill elsewhere
         return jnp.full((S * A,), fill, x.dtype).at[d.pairs].set(x, mode="drop").reshape(S, A)
 
-    q_post, k_post = scatter(-jnp.inf, jnp.max(q_kept, axis=0)), scatter(0, k_kept)
-    position, k_kept = scatter(0, jnp.arange(M, dtype=jnp.int32)), k_post
-    redraw = None  # with more pairs at eta than M: each pair's best slot, its rows drawn again when needed
+    q_post = scatter(-jnp.inf, jnp.max(q_kept, axis=0))
+    k_post = scatter(0, jnp.argmax(q_kept, axis=0).astype(jnp.int32))
 
     if M < S * A:  # static: some pairs' draws may not be kept
 
@@ -571,7 +576,7 @@ def _best_candidates(
         def all_slots(c, dd, V):
             def better(carry, k):
                 q, kk = carry
-                q_k = R_ext[k] + gamma * expected(dd.draw(k), V)
+                q_k = R_ext[k] + gamma * jnp.sum(dd.draw(k) * V, axis=-1)
                 up = q_k > q
                 return jnp.where(up, q_k, q), jnp.where(up, k, kk)
 
@@ -583,15 +588,23 @@ def _best_candidates(
         q_all, k_all = only_if(d.overflow, all_slots, init, init, d, V)
         q_post, k_post = jnp.where(d.overflow, q_all, q_post), jnp.where(d.overflow, k_all, k_post)
 
-        def redraw(s, a, rows, dd):  # the rows [n, S] of slots k_all[s, a], drawn again from the same keys
-            pick = lambda k, r: jnp.where((k_all[s, a] == k)[:, None], dd.draw(k)[s, a], r)  # noqa: E731
-            return jax.lax.fori_loop(0, K, pick, rows)
+    return jnp.where(d.posterior, q_post, best_opt), jnp.where(d.posterior, k_post, k_opt)
 
-    def posterior_row(s, a):
-        row = d.kept[k_kept[s, a], position[s, a]]
-        return row if redraw is None else only_if(d.overflow, redraw, row, s, a, row, d)
 
-    return jnp.where(d.posterior, q_post, best_opt), jnp.where(d.posterior, k_post, k_opt), posterior_row
+def _posterior_rows(d: Draws, s: jax.Array, a: jax.Array, k: jax.Array) -> jax.Array:
+    """The posterior rows ``[n, S]`` of candidates ``k[n]`` of pairs ``(s[n], a[n])`` at ``eta``: kept, or, with more
+    pairs at ``eta`` than kept (``overflow``), drawn again from the same keys (the rows :func:`_best_candidates`
+    compared)."""
+    rows = d.kept[k, _kept_position(d, s, a)]
+    K, S, A = d.z.shape
+    if d.pairs.shape[0] >= S * A:  # static: every pair's draws are kept
+        return rows
+
+    def redraw(s, a, k, rows, dd):
+        pick = lambda j, r: jnp.where((k == j)[:, None], dd.draw(j)[s, a], r)  # noqa: E731
+        return jax.lax.fori_loop(0, K, pick, rows)
+
+    return only_if(d.overflow, redraw, rows, s, a, k, rows, d)
 
 
 # Above this many states, a policy's evaluation first eliminates the states whose chosen row is a jump (a simple
@@ -606,12 +619,46 @@ JUMP_STATES = (64, 256)
 
 
 class _Choice(struct.PyTreeNode):
-    """A deterministic policy of the extended MDP, per state: real action, chosen kernel row, reward."""
+    """A deterministic policy of the extended MDP, per state: real action, candidate, reward. Its kernel rows are
+    built only where needed (:func:`_chosen_rows`): held as ``[S, S]`` rows, the policy's choice, carry and backups
+    cost ``O(S^2)`` per policy-iteration step, about 9x the structured backup itself at 784 states."""
 
     action: jax.Array  # [S] int32
-    row: jax.Array  # [S, S]
+    k: jax.Array  # [S] int32: the candidate slot of the chosen pair
     reward: jax.Array  # [S]
     jump: jax.Array  # [S] int32: the state a row moves to with probability 1 (all its mass missing), else -1
+
+
+def _chosen_rows(d: Draws, pi: _Choice, s: jax.Array) -> jax.Array:
+    """The kernel rows ``[n, S]`` that policy ``pi`` chooses at states ``s[n]``: ``p^-(s, a) + missing(s, a)
+    e_z[k, s, a]``, or the pair's posterior row ``k`` at ``eta``."""
+    S = d.counts.shape[-1]
+    a, k = pi.action[s], pi.k[s]
+    jumps = jax.nn.one_hot(d.z[k, s, a], S, dtype=d.missing.dtype)
+    optimistic = d.p_minus_rows(s, a) + d.missing[s, a][:, None] * jumps
+    posterior = only_if(d.any_posterior, _posterior_rows, jnp.zeros_like(optimistic), d, s, a, k)
+    return jnp.where(d.posterior[s, a][:, None], posterior, optimistic)
+
+
+def _chosen_expectations(d: Draws, pi: _Choice, V: jax.Array) -> jax.Array:
+    """``row(s) . V`` for every state's chosen row: ``O(S K)`` for optimistic rows, the kept posterior rows'
+    ``O(max_psi M S)`` when some pair is at ``eta``, and every chosen row (:func:`_chosen_rows`) only with more pairs
+    at ``eta`` than kept."""
+    K, S, A = d.z.shape
+    s, a, k = jnp.arange(S), pi.action, pi.k
+    slots = jnp.sum(d.p_minus[s, a] * V[d.slot_states[s, a]], axis=-1)
+    dense = lambda c, n1, l4, v: jnp.sum(d._dense(c[s, a], n1[s, a], l4) * v, axis=-1)  # noqa: E731
+    p_minus = _unless_slots_complete(d.slots_complete, dense, slots, d.counts, d.n1, d.log4s, V)
+    optimistic = p_minus + d.missing[s, a] * V[d.z[k, s, a]]
+
+    def kept(dd, V):
+        return jnp.sum(dd.kept * V, axis=-1)[k, _kept_position(dd, s, a)]
+
+    posterior = only_if(d.any_posterior, kept, jnp.zeros_like(V), d, V)
+    if d.pairs.shape[0] < S * A:  # static
+        every = lambda dd, V: jnp.sum(_chosen_rows(dd, pi, s) * V, axis=-1)  # noqa: E731
+        posterior = only_if(d.overflow, every, posterior, d, V)
+    return jnp.where(d.posterior[s, a], posterior, optimistic)
 
 
 def _greedy(
@@ -619,17 +666,17 @@ def _greedy(
 ) -> tuple[jax.Array, _Choice]:
     """One improvement step: ``Q[S, A] = max_k Q_ext(s, (a, k))`` (padded actions mirroring action 0) and the greedy
     extended action per state (lowest real action, then lowest candidate, among ties) as a :class:`_Choice`."""
-    q, k, posterior_row = _best_candidates(d, R_ext, V, gamma)
+    q, k = _best_candidates(d, R_ext, V, gamma)
     q = copy_action_zero(q, action_mask)
     S = q.shape[0]
     s = jnp.arange(S)
     a = dp.greedy_actions(q, action_mask)
     ka = k[s, a]
-    p_minus = d.p_minus_rows(s, a)
-    optimistic = p_minus + d.missing[s, a][:, None] * jax.nn.one_hot(d.z[ka, s, a], S, dtype=V.dtype)
-    row = jnp.where(d.posterior[s, a][:, None], posterior_row(s, a), optimistic)
-    jump = jnp.where(~d.posterior[s, a] & jnp.all(p_minus == 0, axis=-1), d.z[ka, s, a], -1)
-    return q, _Choice(action=a, row=row, reward=R_ext[ka, s, a], jump=jump)
+    dense = lambda c, n1, l4: jnp.all(d._dense(c[s, a], n1[s, a], l4) == 0, axis=-1)  # noqa: E731
+    no_mass = _unless_slots_complete(d.slots_complete, dense, jnp.all(d.p_minus[s, a] == 0, axis=-1), d.counts, d.n1,
+                                     d.log4s)
+    jump = jnp.where(~d.posterior[s, a] & no_mass, d.z[ka, s, a], -1)
+    return q, _Choice(action=a, k=ka, reward=R_ext[ka, s, a], jump=jump)
 
 
 def extended_policy_iteration(
@@ -641,29 +688,30 @@ def extended_policy_iteration(
     ``V0``. Improvement picks per pair the best candidate and per state the best real action (:func:`_greedy`);
     evaluation solves ``(I - gamma P_pi) V = r_pi`` for the chosen rows, with more states than the largest of
     ``jump_states`` (static sizes, tried in increasing order) first eliminating those whose chosen row is a jump
-    (:data:`JUMP_STATES`). ``Q[S, A] = max_k Q_ext(s, (a, k))``."""
+    (:data:`JUMP_STATES`), building the rows of the other states only. ``Q[S, A] = max_k Q_ext(s, (a, k))``."""
     sizes = sorted({jump_states} if isinstance(jump_states, int) else set(jump_states))
+    S = V0.shape[0]
 
-    def dense(row, reward):
-        return dp.discounted_chain_values(row, reward, gamma)
+    def dense(pi, dd):  # dd: the draws as an operand, so that a skipped evaluation's rows are not built anyway
+        return dp.discounted_chain_values(_chosen_rows(dd, pi, jnp.arange(S)), pi.reward, gamma)
 
     def eliminated(size):
-        def values(row, reward, jump):
-            return dp.discounted_jump_chain_values(row, reward, gamma, jump, size)
+        def values(pi, dd):
+            return dp.discounted_jump_chain_values(lambda s: _chosen_rows(dd, pi, s), pi.reward, gamma, pi.jump, size)
 
         return values
 
     def evaluate(pi):
-        if pi.row.shape[0] <= sizes[-1]:  # static
-            return dense(pi.row, pi.reward)
-        V, fits = eliminated(sizes[0])(pi.row, pi.reward, pi.jump)
+        if S <= sizes[-1]:  # static
+            return dense(pi, d)
+        V, fits = eliminated(sizes[0])(pi, d)
         for size in sizes[1:]:
-            V, fits = only_if(~fits, eliminated(size), (V, fits), pi.row, pi.reward, pi.jump)
-        return only_if(~fits, dense, V, pi.row, pi.reward)
+            V, fits = only_if(~fits, eliminated(size), (V, fits), pi, d)
+        return only_if(~fits, dense, V, pi, d)
 
     def improve(pi, V):
         q, proposal = _greedy(d, R_ext, V, gamma, action_mask)
-        current = pi.reward + gamma * (pi.row @ V)
+        current = pi.reward + gamma * _chosen_expectations(d, pi, V)
         return q, jnp.max(jnp.where(action_mask, q, -jnp.inf), axis=-1) - current, proposal
 
     return dp.policy_iteration_by(evaluate, improve, _greedy(d, R_ext, V0, gamma, action_mask)[1])

@@ -362,7 +362,8 @@ def discounted_chain_values_banded(
 
 
 def discounted_jump_chain_values(
-    P: jax.Array, r: jax.Array, gamma: float | jax.Array, jump: jax.Array, size: int
+    P: jax.Array | Callable[[jax.Array], jax.Array], r: jax.Array, gamma: float | jax.Array, jump: jax.Array,
+    size: int,
 ) -> tuple[jax.Array, jax.Array]:
     """:func:`discounted_chain_values` of a chain whose rows with ``jump[s] >= 0`` move deterministically to
     ``jump[s]`` (``P[s] = e_jump[s]``), by eliminating those states: ``(V, fits)``.
@@ -372,19 +373,24 @@ def discounted_jump_chain_values(
     restricted) leaves ``(I - gamma G) V_K = r_K + gamma P[K, ~K] r_~K`` with ``G[k, k'] = P[k, k'] + gamma sum_{j not
     in K, jump[j] = k'} P[k, j]``: one ``|K| x |K|`` solve and ``O(|K| S)`` work instead of an ``S x S`` solve.
     ``size`` (static) bounds ``|K|``; ``fits`` is False when ``|K| > size``, and ``V`` is then meaningless (solve
-    the whole chain instead). Only the rows of ``K`` are read."""
-    S = P.shape[0]
+    the whole chain instead). Only the rows of ``K`` are read: ``P`` is the ``[S, S]`` chain or a function that
+    returns its rows ``[n, S]`` at states ``[n]`` (so that a caller holding the chain in another form never builds
+    it whole)."""
+    S = r.shape[0]
     jumps = jump >= 0
     in_k = ~jumps | jnp.zeros((S,), bool).at[jnp.where(jumps, jump, S)].set(True, mode="drop")
     (idx,) = jnp.nonzero(in_k, size=size, fill_value=S)  # K's states, then S (an empty slot)
     pos = jnp.full((S,), size, jnp.int32).at[idx].set(jnp.arange(size, dtype=jnp.int32), mode="drop")
+    if callable(P):
+        rows = jnp.where((idx < S)[:, None], P(jnp.minimum(idx, S - 1)), 0.0)
+    else:
+        rows = P.at[idx].get(mode="fill", fill_value=0.0)
     # V_j = r_j + gamma V_K[via[j]] for j outside K; column j of P[K] adds to column via[j] of G, gamma-weighted.
     via = jnp.where(in_k, pos, pos[jnp.maximum(jump, 0)])
-    weight = jnp.where(in_k, 1.0, gamma).astype(P.dtype)
-    rows = P.at[idx].get(mode="fill", fill_value=0.0)
+    weight = jnp.where(in_k, 1.0, gamma).astype(rows.dtype)
     G = jax.ops.segment_sum((rows * weight).T, via, num_segments=size + 1).T[:, :size]
     rhs = r.at[idx].get(mode="fill", fill_value=0.0) + gamma * (rows @ jnp.where(in_k, 0.0, r))
-    V_k = jnp.append(linear_solve(jnp.eye(size, dtype=P.dtype) - gamma * G, rhs), 0.0)  # V_k[size]: empty slots
+    V_k = jnp.append(linear_solve(jnp.eye(size, dtype=rows.dtype) - gamma * G, rhs), 0.0)  # V_k[size]: empty slots
     return jnp.where(in_k, V_k[pos], r + gamma * V_k[via]), jnp.sum(in_k) <= size
 
 

@@ -74,3 +74,23 @@ def test_vmap_matches_one_chain_at_a_time():
     V, fits = jax.vmap(lambda p, rr, j: dp.discounted_jump_chain_values(p, rr, g, j, 24))(P, r, jump)
     assert bool(jnp.all(fits))
     _close(V, _float64_values(P, r, g))
+
+
+def test_rows_given_by_a_function_are_read_at_the_eliminated_systems_states_only():
+    # P as a function of the states whose rows are asked for: the same values, and only K's rows (then the clamped
+    # index of the empty slots, whose rows are zeroed) are asked for.
+    S, g = 60, 0.95
+    P, r, jump = _chain(1, S, 0.9, 8)
+    j = np.asarray(jump)
+    K = set(np.flatnonzero(j < 0)) | set(j[j >= 0])
+    asked = []
+
+    def rows(s):
+        asked.append(np.asarray(s))
+        return P[s]
+
+    V, fits = dp.discounted_jump_chain_values(rows, r, g, jump, len(K) + 3)
+    assert bool(fits)
+    _close(V, _float64_values(P, r, g))
+    (states,) = asked
+    assert set(states[: len(K)].tolist()) == K and set(states[len(K):].tolist()) == {S - 1}

@@ -111,6 +111,9 @@ def test_discounted_plan_equals_policy_iteration_on_the_dense_extended_mdp(varia
     # jump_states below S = 8: the evaluations eliminate the jumping states when at most that many others remain (5:
     # often in case "none", where every pair is below eta with at most 4 visits, so p^- = 0), else solve the whole
     # chain (2: mostly); (2, 5): a system of 2 first, then of 5, then the whole chain.
+    # The two float32 planners' values differ by their solves' rounding, amplified up to 1 / (1 - gamma) = 100 times:
+    # measured against a float64 solve of the same final policy (paper, "all", jump_states 5, second key), the
+    # structured plan's values err by 1.8e-4 and the dense planner's by 5.5e-4, at |V| = 309; hence 4e-6 (1 + max|V|).
     agent, state = _state(variant, case)
     plan = jax.jit(functools.partial(agent.plan, jump_states=jump_states))
     gamma, K = 0.99, state.hparams.max_psi
@@ -120,9 +123,9 @@ def test_discounted_plan_equals_policy_iteration_on_the_dense_extended_mdp(varia
         T, R, mask = _dense(k, state, variant)
         ref = _dense_policy_iteration(T, R, mask, state.u, gamma)
         scale = 1 + float(np.abs(ref.V).max())
-        np.testing.assert_allclose(new.u, ref.V, rtol=0, atol=2e-6 * scale)
+        np.testing.assert_allclose(new.u, ref.V, rtol=0, atol=4e-6 * scale)
         Q_ref = np.asarray(ref.Q).reshape(S, A, K).max(-1)
-        np.testing.assert_allclose(new.Q, Q_ref, rtol=0, atol=2e-6 * scale)
+        np.testing.assert_allclose(new.Q, Q_ref, rtol=0, atol=4e-6 * scale)
         V = _float64_optimum(T, R, mask, gamma)[STATE_MASK]
         u = np.asarray(new.u, np.float64)[STATE_MASK]
         eps, eta = 1e-5 * (1 + np.abs(u).max()), 2e-4 * np.abs(V).max()
