@@ -641,15 +641,13 @@ def _chosen_rows(d: Draws, pi: _Choice, s: jax.Array) -> jax.Array:
 
 
 def _chosen_expectations(d: Draws, pi: _Choice, V: jax.Array) -> jax.Array:
-    """``row(s) . V`` for every state's chosen row: ``O(S K)`` for optimistic rows, the kept posterior rows'
-    ``O(max_psi M S)`` when some pair is at ``eta``, and every chosen row (:func:`_chosen_rows`) only with more pairs
-    at ``eta`` than kept."""
+    """``row(s) . V`` for every state's chosen row: for optimistic rows ``p^- . V`` (:meth:`Draws.p_minus_dot`, the
+    expression of the improvement step's backup at the same ``V``) plus the jump's value, the kept posterior rows'
+    ``O(max_psi M S)`` when some pair is at ``eta``, and every chosen row (:func:`_chosen_rows`) only with more pairs at
+    ``eta`` than kept."""
     K, S, A = d.z.shape
     s, a, k = jnp.arange(S), pi.action, pi.k
-    slots = jnp.sum(d.p_minus[s, a] * V[d.slot_states[s, a]], axis=-1)
-    dense = lambda c, n1, l4, v: jnp.sum(d._dense(c[s, a], n1[s, a], l4) * v, axis=-1)  # noqa: E731
-    p_minus = _unless_slots_complete(d.slots_complete, dense, slots, d.counts, d.n1, d.log4s, V)
-    optimistic = p_minus + d.missing[s, a] * V[d.z[k, s, a]]
+    optimistic = d.p_minus_dot(V)[s, a] + d.missing[s, a] * V[d.z[k, s, a]]
 
     def kept(dd, V):
         return jnp.sum(dd.kept * V, axis=-1)[k, _kept_position(dd, s, a)]
