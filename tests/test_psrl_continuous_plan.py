@@ -157,6 +157,30 @@ def test_average_reward_plan_is_gain_optimal_in_the_dense_extended_mdp(variant, 
         np.testing.assert_allclose(d, float(ref.gain), atol=3e-5 + 1e-6 * float(np.abs(np.asarray(new.u)).max()))
 
 
+@pytest.mark.parametrize("keep_limit", [pc.KEEP_LIMIT, 0])
+def test_chosen_rows_and_expectations_agree_at_any_states(keep_limit):
+    # A policy's rows built at a subset of states (as the evaluation's eliminated system asks for them) are the rows of
+    # the whole chain at those states, and the improvement step's expectations of the current policy are those rows
+    # times V: kept posterior rows, and (keep_limit 0: more pairs at eta than kept) rows drawn again from the keys.
+    _, state = _state("paper", "some", seed=4)
+    gamma = jnp.asarray(0.99, jnp.float32)
+
+    @jax.jit
+    def check(k, V, s):
+        R_ext, d = pc.extended_draws(k, state, keep_limit=keep_limit)
+        _, pi = pc._greedy(d, R_ext, V, gamma, state.action_mask)
+        whole = pc._chosen_rows(d, pi, jnp.arange(S))
+        return d.overflow, jnp.any(d.posterior), whole, pc._chosen_rows(d, pi, s), pc._chosen_expectations(d, pi, V)
+
+    V = jax.random.uniform(key(26), (S,), jnp.float32, 0.0, 10.0)
+    s = jnp.array([6, 1, 4, 1], jnp.int32)
+    overflow, any_posterior, whole, part, expected = check(key(27), V, s)
+    assert bool(any_posterior) and bool(overflow) == (keep_limit == 0)
+    np.testing.assert_array_equal(part, whole[np.asarray(s)])
+    np.testing.assert_allclose(expected, np.asarray(whole, np.float64) @ np.asarray(V, np.float64), rtol=1e-6, atol=1e-5)
+    np.testing.assert_allclose(np.asarray(whole).sum(-1)[STATE_MASK], 1.0, atol=1e-5)
+
+
 @pytest.mark.statistical(p=0.0)
 @pytest.mark.parametrize("variant", ["paper", "colosseum"])
 def test_more_pairs_at_eta_than_kept(variant):
