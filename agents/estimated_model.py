@@ -26,6 +26,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
 
 from agents.tabular_common import copy_action_zero, only_if
@@ -35,6 +36,7 @@ __all__ = [
     "SuccessorCounts",
     "empty_counts",
     "record",
+    "scatter_slots",
     "dense_counts",
     "with_dense_counts",
     "SparseKernel",
@@ -98,12 +100,19 @@ def record(table: SuccessorCounts, s: jax.Array, a: jax.Array, s_next: jax.Array
     )
 
 
+def scatter_slots(states: jax.Array, values: jax.Array, n_states: int) -> jax.Array:
+    """Dense rows ``[..., n_states]`` of per-slot ``values[..., K]`` at next states ``states[..., K]``: ``row[s'] =
+    sum_k values[k] [states[k] = s']`` (any leading axes, e.g. a batch of members; ``O(n K)`` writes into zeros)."""
+    *lead, K = states.shape
+    n = int(np.prod(lead, dtype=np.int64))
+    rows = jnp.zeros((n, n_states), values.dtype)
+    rows = rows.at[jnp.arange(n)[:, None], states.reshape(n, K)].add(values.reshape(n, K))
+    return rows.reshape(*lead, n_states)
+
+
 def dense_counts(table: SuccessorCounts) -> jax.Array:
-    """The same counts as a dense ``[S, A, S]`` table."""
-    S, A, K = table.states.shape
-    rows = jnp.zeros((S, A, S), jnp.int32)
-    s, a, _ = jnp.meshgrid(jnp.arange(S), jnp.arange(A), jnp.arange(K), indexing="ij")
-    return rows.at[s, a, table.states].add(table.counts)
+    """The same counts as a dense ``[..., S, A, S]`` table (any leading axes: a batch of tables)."""
+    return scatter_slots(table.states, table.counts, table.states.shape[-3])
 
 
 def with_dense_counts(table: SuccessorCounts, counts: jax.Array) -> SuccessorCounts:

@@ -80,7 +80,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
@@ -174,10 +173,17 @@ class Constants(struct.PyTreeNode):
 
 
 class PSRLContinuousState(struct.PyTreeNode):
-    """Counts (dense, and per observed next state for the policy estimate), epoch counters, reward posterior, the
-    epoch's ``Q`` and bias ``u``, constants and masks."""
+    """Counts of the observed next states (``K = spec.max_successors`` slots per pair, :mod:`agents.estimated_model`),
+    epoch counters, reward posterior, the epoch's ``Q`` and bias ``u``, constants and masks.
 
-    counts: jax.Array
+    No dense ``[S, A, S]`` counts: the slots hold the same counts (:attr:`counts` rebuilds them), and a dense table
+    in the state was moved in and out of every planning round, which then cost 3.3x the plan itself (4 members of
+    948 states: a round with an identity plan 14.6 ms against 0.22 ms without the table;
+    docs/benchmarks/continuous_planning.md). The slots miss counts only if a pair meets more next states than
+    ``spec.max_successors`` promised (a hand-made spec below the MDP's; never with
+    :func:`~jaxmdp.experiment.agent_interface.spec_of`): ``successors.overflowed`` then records it, the agent goes on
+    with the counts it kept, and the runner warns (the ``slots_overflowed`` diagnostic)."""
+
     successors: em.SuccessorCounts
     schedule: EpochSchedule
     rewards: NormalGamma
@@ -191,6 +197,12 @@ class PSRLContinuousState(struct.PyTreeNode):
     state_mask: jax.Array
     action_mask: jax.Array
     hparams: PSRLContinuousHParams
+
+    @property
+    def counts(self) -> jax.Array:
+        """The visit counts ``N(s, a, s')`` as a dense ``[..., S, A, S]`` table, rebuilt from the slots (inspection,
+        the dense reference routes; the plan and the policy estimate read the slots)."""
+        return em.dense_counts(self.successors)
 
 
 def check_hparams(hparams: PSRLContinuousHParams) -> None:
@@ -257,7 +269,6 @@ def init(key: jax.Array, spec: MDPSpec, hparams: PSRLContinuousHParams) -> PSRLC
     )
     consts = constants(hparams, jnp.sum(spec.state_mask), jnp.sum(spec.action_mask), spec.n_steps)
     return PSRLContinuousState(
-        counts=jnp.zeros((S, A, S), jnp.int32),
         successors=em.empty_counts(S, A, spec.max_successors, spec.state_order, spec.bandwidth),
         schedule=epoch_schedule(S, A),
         rewards=rewards,
@@ -285,7 +296,6 @@ def update(state: PSRLContinuousState, tr: Transition) -> PSRLContinuousState:
     s, a = tr.obs, tr.action
     schedule, ends = record_visit(state.schedule, s, a)
     return state.replace(
-        counts=state.counts.at[s, a, tr.next_obs].add(1),
         successors=em.record(state.successors, s, a, tr.next_obs),
         schedule=schedule,
         rewards=normal_gamma_observe(state.rewards, (s, a), tr.reward),
@@ -298,6 +308,7 @@ def needs_plan(state: PSRLContinuousState) -> jax.Array:
 
 
 def _posterior_alpha(state: PSRLContinuousState) -> jax.Array:
+    """The dense posterior concentration ``1/S + N(s, a, .)`` on the real states (the dense reference routes)."""
     dtype = state.Q.dtype
     S = jnp.sum(state.state_mask).astype(dtype)
     return dirichlet_concentration(1.0 / S, state.counts, state.state_mask)
@@ -308,20 +319,6 @@ def _posterior_alpha(state: PSRLContinuousState) -> jax.Array:
 # drawn again from the same keys at every backup. For T = 500 000 at most T / eta pairs reach eta: 52 at S = 948
 # (eta 9 480, M = 73), 125 at S = 400 (M = 174); Taxi (108 x 6, psi 17) keeps all its 648 pairs.
 KEEP_LIMIT = 1 << 22
-
-
-def _unless_slots_complete(
-    complete: jax.Array, dense: Callable[..., jax.Array], slots: jax.Array, *operands: jax.Array
-) -> jax.Array:
-    """``slots`` (a value computed on the successor slots) if ``complete``, else ``dense(*operands)``, computed only if
-    some member of a ``vmap`` overflowed its slots (:func:`agents.tabular_common.only_if`; the dense inputs must come
-    as ``operands``, else XLA hoists the work out of the skip). A fallback, not a skip: the two can differ in the last
-    bit (sums in another order), so tests that force every skip leave it alone (``_SLOTS_FALLBACK`` is bound once, at
-    import)."""
-    return _SLOTS_FALLBACK(~complete, dense, slots, *operands)
-
-
-_SLOTS_FALLBACK = only_if
 
 
 def _p_minus(counts: jax.Array, n1: jax.Array, log4s: jax.Array, colosseum: bool) -> jax.Array:
@@ -342,17 +339,12 @@ class Draws(struct.PyTreeNode):
     of :meth:`draw`. ``active[k]``: slot ``k < psi``.
 
     ``p^-`` (:func:`_p_minus`) is non-zero only at observed next states, so it is held at the pair's successor slots
-    (``p_minus[S, A, K]`` at ``slot_states``) and backed up in ``O(S A K)``; should the slots have overflowed
-    (``slots_complete`` False, impossible with ``K`` from :func:`~jaxmdp.experiment.agent_interface.spec_of`) every
-    use recomputes it from the dense ``counts`` instead. Nor is the dense concentration kept: the posterior rows are
-    drawn from the counts rows of the pairs drawn."""
+    (``p_minus[S, A, K]`` at ``slot_states``) and backed up in ``O(S A K)``. Nor is the dense concentration kept: the
+    posterior rows are drawn from the count rows of the pairs drawn, scattered from the slots."""
 
-    counts: jax.Array  # [S, A, S] int32: the agent's counts N(s, a, s')
-    n1: jax.Array  # [S, A, 1]: max(1, N(s, a))
-    log4s: jax.Array  # ln(4 S), S the real states
+    slot_counts: jax.Array  # [S, A, K] int32: N(s, a, s') at the slots
     slot_states: jax.Array  # [S, A, K] int32
     p_minus: jax.Array  # [S, A, K]: p^- at the slots
-    slots_complete: jax.Array  # bool: no pair met more than K next states
     missing: jax.Array  # [S, A]
     z: jax.Array  # [max_psi, S, A] int32, real states
     posterior: jax.Array  # [S, A] bool: N(s, a) >= eta
@@ -382,45 +374,43 @@ class Draws(struct.PyTreeNode):
             return jnp.where(self.state_mask, (counts.astype(self.missing.dtype) + omega) / kappa, 0.0)
         return dirichlet_concentration(prior, counts, self.state_mask)
 
-    def _dense(self, counts: jax.Array, n1: jax.Array, log4s: jax.Array) -> jax.Array:
-        return _p_minus(counts.astype(self.missing.dtype), n1, log4s, self.colosseum)
+    def dense_counts(self) -> jax.Array:
+        """The counts ``[S, A, S]`` scattered from the slots."""
+        return em.scatter_slots(self.slot_states, self.slot_counts, self.state_mask.shape[0])
 
     def p_minus_dense(self) -> jax.Array:
-        """``p^-`` of every pair, ``[S, A, S]`` (the fallback should the slots overflow, and for inspection)."""
-        return self._dense(self.counts, self.n1, self.log4s)
+        """``p^-`` of every pair, ``[S, A, S]``, scattered from the slots (for inspection; a plan never builds it)."""
+        return em.scatter_slots(self.slot_states, self.p_minus, self.state_mask.shape[0])
 
     def p_minus_dot(self, V: jax.Array) -> jax.Array:
         """``p^-(s, a) . V`` for every pair, ``[S, A]``: on the slots, ``O(S A K)``."""
-        slots = jnp.sum(self.p_minus * V[self.slot_states], axis=-1)
-        dense = lambda c, n1, l4, v: jnp.sum(self._dense(c, n1, l4) * v, axis=-1)  # noqa: E731
-        return _unless_slots_complete(self.slots_complete, dense, slots, self.counts, self.n1, self.log4s, V)
+        return jnp.sum(self.p_minus * V[self.slot_states], axis=-1)
 
     def p_minus_rows(self, s: jax.Array, a: jax.Array) -> jax.Array:
         """The dense rows ``p^-(s[n], a[n])``, ``[n, S]``, scattered from the slots (distinct states, so exact)."""
-        S = self.counts.shape[-1]
-        rows = jnp.zeros((s.shape[0], S), self.p_minus.dtype)
-        rows = rows.at[jnp.arange(s.shape[0])[:, None], self.slot_states[s, a]].add(self.p_minus[s, a])
-        dense = lambda c, n1, l4, s, a: self._dense(c[s, a], n1[s, a], l4)  # noqa: E731
-        return _unless_slots_complete(self.slots_complete, dense, rows, self.counts, self.n1, self.log4s, s, a)
+        return em.scatter_slots(self.slot_states[s, a], self.p_minus[s, a], self.state_mask.shape[0])
 
     def dirichlet(self, k: jax.Array, alpha: jax.Array) -> jax.Array:
         """Candidate ``k``'s posterior draws of concentrations ``alpha[..., S]`` (one key per candidate slot)."""
         return dirichlet_sample(jax.random.fold_in(self.key, k), alpha, offset=self.offset)
 
-    def kept_alpha(self, counts: jax.Array) -> jax.Array:
-        """The concentrations ``[M, S]`` of the kept pairs, from the counts ``[S, A, S]``."""
-        S = counts.shape[-1]
-        return self.alpha(counts).reshape(-1, S)[jnp.minimum(self.pairs, self.missing.size - 1)]
+    def kept_alpha(self) -> jax.Array:
+        """The concentrations ``[M, S]`` of the kept pairs, from their slots."""
+        K = self.slot_states.shape[-1]
+        m = jnp.minimum(self.pairs, self.missing.size - 1)
+        S = self.state_mask.shape[0]
+        rows = em.scatter_slots(self.slot_states.reshape(-1, K)[m], self.slot_counts.reshape(-1, K)[m], S)
+        return self.alpha(rows)
 
     def draw(self, k: jax.Array) -> jax.Array:
         """Candidate ``k``'s posterior draws ``[S, A, S]`` for every pair, used when ``overflow``."""
-        return self.dirichlet(k, self.alpha(self.counts))
+        return self.dirichlet(k, self.alpha(self.dense_counts()))
 
     def posterior_draw(self, k: jax.Array) -> jax.Array:
         """The ``[S, A, S]`` posterior candidates ``k`` that a plan uses (rows of pairs not at ``eta`` meaningless)."""
-        S = self.counts.shape[-1]
+        S = self.state_mask.shape[0]
         kept = jnp.zeros((self.missing.size, S), self.missing.dtype).at[self.pairs].set(self.kept[k], mode="drop")
-        return jnp.where(self.overflow, self.draw(k), kept.reshape(self.counts.shape))
+        return jnp.where(self.overflow, self.draw(k), kept.reshape(self.missing.shape + (S,)))
 
 
 def draws(
@@ -454,24 +444,21 @@ def draws(
     posterior = N >= c.eta
     M = min(S * A, max(1, keep_limit // (K * S)))
     (pairs,) = jnp.nonzero(posterior.reshape(-1), size=M, fill_value=S * A)
-    dense_missing = lambda c, n, l4: 1.0 - jnp.sum(_p_minus(c.astype(dtype), n, l4, colosseum), axis=-1)  # noqa: E731
-    missing = _unless_slots_complete(~succ.overflowed, dense_missing, 1.0 - jnp.sum(p_minus, axis=-1),
-                                     state.counts, n1, log4s)
-    out = Draws(counts=state.counts, n1=n1, log4s=log4s, slot_states=succ.states, p_minus=p_minus,
-                slots_complete=~succ.overflowed, missing=missing, z=z.astype(jnp.int32),
+    out = Draws(slot_counts=succ.counts, slot_states=succ.states, p_minus=p_minus,
+                missing=1.0 - jnp.sum(p_minus, axis=-1), z=z.astype(jnp.int32),
                 posterior=posterior, concentration=jnp.stack([1.0 / n_real, c.omega, c.kappa]).astype(dtype),
                 state_mask=mask, key=k_dir, active=jnp.arange(K) < c.psi, pairs=pairs.astype(jnp.int32),
                 kept=jnp.zeros((K, M, S), dtype), offset=COLOSSEUM_DIRICHLET_OFFSET if colosseum else 0.0,
                 colosseum=colosseum, scaled=hp.scaled_dirichlet)
     zeros = jnp.zeros((M, S), dtype)
 
-    # The kept pairs' concentrations are computed densely, then gathered, once per plan that draws any: gathered
-    # first, a batched program's draws differed from a single member's in the last bit.
-    def kept(counts):
-        alpha = out.kept_alpha(counts)
-        return jax.lax.map(lambda k: only_if(out.active[k], out.dirichlet, zeros, k, alpha), jnp.arange(K))
+    # The draws come in as an operand, so that the concentrations are computed inside the skip, once per plan that
+    # draws any.
+    def kept(d):
+        alpha = d.kept_alpha()
+        return jax.lax.map(lambda k: only_if(d.active[k], d.dirichlet, zeros, k, alpha), jnp.arange(K))
 
-    return out.replace(kept=only_if(out.any_posterior, kept, out.kept, state.counts))
+    return out.replace(kept=only_if(out.any_posterior, kept, out.kept, out))
 
 
 def candidate_kernels(
@@ -486,7 +473,7 @@ def candidate_kernels(
     ``z_k``; posterior draws are normalised by ``sum + 1e-5``. ``keep_limit``: as for :func:`draws`."""
     d = draws(key, state, variant=variant, keep_limit=keep_limit)
     S = state.Q.shape[0]
-    zeros = jnp.zeros(d.counts.shape, d.missing.dtype)
+    zeros = jnp.zeros(d.missing.shape + (S,), d.missing.dtype)
     p_minus = d.p_minus_dense()
 
     def one(k):
@@ -632,7 +619,7 @@ class _Choice(struct.PyTreeNode):
 def _chosen_rows(d: Draws, pi: _Choice, s: jax.Array) -> jax.Array:
     """The kernel rows ``[n, S]`` that policy ``pi`` chooses at states ``s[n]``: ``p^-(s, a) + missing(s, a)
     e_z[k, s, a]``, or the pair's posterior row ``k`` at ``eta``."""
-    S = d.counts.shape[-1]
+    S = d.state_mask.shape[0]
     a, k = pi.action[s], pi.k[s]
     jumps = jax.nn.one_hot(d.z[k, s, a], S, dtype=d.missing.dtype)
     optimistic = d.p_minus_rows(s, a) + d.missing[s, a][:, None] * jumps
@@ -670,9 +657,7 @@ def _greedy(
     s = jnp.arange(S)
     a = dp.greedy_actions(q, action_mask)
     ka = k[s, a]
-    dense = lambda c, n1, l4: jnp.all(d._dense(c[s, a], n1[s, a], l4) == 0, axis=-1)  # noqa: E731
-    no_mass = _unless_slots_complete(d.slots_complete, dense, jnp.all(d.p_minus[s, a] == 0, axis=-1), d.counts, d.n1,
-                                     d.log4s)
+    no_mass = jnp.all(d.p_minus[s, a] == 0, axis=-1)
     jump = jnp.where(~d.posterior[s, a] & no_mass, d.z[ka, s, a], -1)
     return q, _Choice(action=a, k=ka, reward=R_ext[ka, s, a], jump=jump)
 
@@ -806,7 +791,7 @@ def posterior_mean_kernel(state: PSRLContinuousState) -> em.SparseKernel:
 
 
 def _dense_policy(state: PSRLContinuousState) -> jax.Array:
-    """The policy estimate on the dense posterior mean (the fallback should the slots overflow)."""
+    """The policy estimate on the dense posterior mean: :func:`policy`'s dense reference route (tests, benchmarks)."""
     P = dirichlet_mean(_posterior_alpha(state))
     R = normal_gamma_mean(state.rewards)
     return discounted_greedy_policy(P, R, state.hparams.policy_discount, state.action_mask)
@@ -814,20 +799,17 @@ def _dense_policy(state: PSRLContinuousState) -> jax.Array:
 
 def policy(state: PSRLContinuousState) -> jax.Array:
     """Greedy ``[S, A]`` policy of the discounted optimal values of the posterior-mean MDP, its backups on the
-    observed next states (:func:`posterior_mean_kernel`, :func:`agents.estimated_model.discounted_greedy_policy`;
-    the dense posterior mean should the slots overflow)."""
+    observed next states (:func:`posterior_mean_kernel`, :func:`agents.estimated_model.discounted_greedy_policy`)."""
     return warm_policy(state, None)[0]
 
 
 def warm_policy(state: PSRLContinuousState, start: jax.Array | None) -> tuple[jax.Array, jax.Array]:
     """:func:`policy` with its value iteration started from ``start`` (``[S]``, the values the previous call returned;
     ``None``: zeros) and the exact values of the returned policy, the next call's start
-    (:func:`agents.estimated_model.warm_greedy_policy`; ``Agent.warm_policy``). Should the slots have overflowed,
-    the dense fallback starts cold and hands on the slots' values, which it never uses."""
+    (:func:`agents.estimated_model.warm_greedy_policy`; ``Agent.warm_policy``)."""
     R = normal_gamma_mean(state.rewards)
-    sparse = em.warm_greedy_policy(posterior_mean_kernel(state), R, state.hparams.policy_discount,
-                                   state.action_mask, start)
-    return only_if(state.successors.overflowed, lambda st, u: (_dense_policy(st), u), sparse, state, sparse[1])
+    return em.warm_greedy_policy(posterior_mean_kernel(state), R, state.hparams.policy_discount, state.action_mask,
+                                 start)
 
 
 def policy_start(state: PSRLContinuousState) -> jax.Array:
@@ -848,7 +830,10 @@ PSRL_CONTINUOUS = Agent(
     needs_plan=needs_plan,
     plan=plan,
     check_hparams=check_hparams,
-    diagnostics=lambda state: {"plans_unconverged": state.plans_unconverged},
+    diagnostics=lambda state: {
+        "plans_unconverged": state.plans_unconverged,
+        "slots_overflowed": state.successors.overflowed.astype(jnp.int32),  # a spec below the MDP's successors
+    },
     # Epochs end member by member, so most members ask together only before the first action: the runner plans in
     # rounds only and compiles the plan once, not twice (RiverSwim-10, 24 seeds: compile 23.0 -> 12.1 s;
     # docs/benchmarks/bench_whole_batch_plans.md).

@@ -15,8 +15,8 @@ With ``N(s, a)`` visits, ``N' = max(1, N)``, ``N'' = max(1, N - 1)``, ``t`` the 
   intersected with the simplex over the real states;
 * an unvisited pair is unconstrained: ``r~ = r_max`` and any next-state distribution.
 
-Per step the agent only counts (``O(K)``: dense counts, and ``K`` slots per pair of the observed next states, on
-which planning and the policy estimate back up; ``K = MDPSpec.max_successors``); planning costs
+Per step the agent only counts (``O(K)``: ``K`` slots per pair of the observed next states, on which planning and
+the policy estimate back up; ``K = MDPSpec.max_successors``); planning costs
 ``O(S log S + S A K log S)`` per EVI sweep. The EVI sweep count is reported in the state (``evi_iterations``,
 ``evi_converged``, and ``plans_unconverged``: the count of plans that stopped at ``evi_max_iter``, which the runner
 reports).
@@ -62,7 +62,7 @@ from agents.extended_value_iteration import (
     extended_value_iteration,
     sparse_extended_value_iteration,
 )
-from agents.tabular_common import discounted_greedy_policy, greedy_action, only_if, valid_counts
+from agents.tabular_common import discounted_greedy_policy, greedy_action, valid_counts
 from jaxmdp._checks import check_int, check_range
 from jaxmdp.dynamic_programming import PlanResult
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
@@ -99,10 +99,15 @@ class UCRL2HParams(struct.PyTreeNode):
 
 
 class UCRL2State(struct.PyTreeNode):
-    """Counts (dense ``[S, A, S]`` for planning, and per observed next state for the policy estimate), epoch
-    counters, empirical mean rewards, step count and the current optimistic ``Q`` and bias ``u``."""
+    """Counts of the observed next states (``K`` slots per pair, :mod:`agents.estimated_model`), epoch counters,
+    empirical mean rewards, step count and the current optimistic ``Q`` and bias ``u``.
 
-    counts: jax.Array
+    No dense ``[S, A, S]`` counts, for the reason of :class:`agents.psrl_continuous.PSRLContinuousState` (a planning
+    round moved them in and out); :attr:`counts` rebuilds them from the slots. Should a pair meet more next states
+    than ``spec.max_successors`` (a hand-made spec below the MDP's; never with
+    :func:`~jaxmdp.experiment.agent_interface.spec_of`), ``successors.overflowed`` records it, the agent goes on
+    with the counts it kept, and the runner warns (the ``slots_overflowed`` diagnostic)."""
+
     successors: em.SuccessorCounts
     schedule: EpochSchedule
     reward_mean: jax.Array
@@ -116,6 +121,12 @@ class UCRL2State(struct.PyTreeNode):
     state_mask: jax.Array
     action_mask: jax.Array
     hparams: UCRL2HParams
+
+    @property
+    def counts(self) -> jax.Array:
+        """The visit counts ``N(s, a, s')`` as a dense ``[..., S, A, S]`` table, rebuilt from the slots (inspection,
+        the dense reference routes, reference mode's lagged model)."""
+        return em.dense_counts(self.successors)
 
 
 def check_hparams(hparams: UCRL2HParams) -> None:
@@ -137,7 +148,6 @@ def init(key: jax.Array, spec: MDPSpec, hparams: UCRL2HParams) -> UCRL2State:
     S, A = spec.n_states, spec.n_actions
     dtype = jnp.result_type(float)
     return UCRL2State(
-        counts=jnp.zeros((S, A, S), jnp.int32),
         successors=em.empty_counts(S, A, spec.max_successors, spec.state_order, spec.bandwidth),
         schedule=epoch_schedule(S, A),
         reward_mean=jnp.zeros((S, A), dtype),
@@ -167,7 +177,6 @@ def update(state: UCRL2State, tr: Transition) -> UCRL2State:
     n = schedule.visits[s, a].astype(state.reward_mean.dtype)
     old = state.reward_mean[s, a]
     return state.replace(
-        counts=state.counts.at[s, a, tr.next_obs].add(1),
         successors=em.record(state.successors, s, a, tr.next_obs),
         schedule=schedule,
         reward_mean=state.reward_mean.at[s, a].set(old + (tr.reward - old) / n),
@@ -242,7 +251,7 @@ def sparse_confidence(state: UCRL2State) -> tuple[jax.Array, jax.Array, jax.Arra
 
 
 def _dense_plan(state: UCRL2State) -> PlanResult:
-    """Extended value iteration on the dense counts (the fallback should the slots overflow)."""
+    """Extended value iteration on the dense counts: :func:`plan`'s dense reference route (tests)."""
     p_hat, width_p, r_tilde = confidence_widths(state)
     hp = state.hparams
     return extended_value_iteration(
@@ -255,7 +264,7 @@ def plan(key: jax.Array, state: UCRL2State) -> UCRL2State:
     """Start an epoch: extended value iteration on the current plausible set (warm-started from the last bias), its
     boxes given on each pair's observed next states (:func:`sparse_confidence`,
     :func:`agents.extended_value_iteration.sparse_extended_value_iteration`: ``O(S A K log S)`` per sweep instead of
-    ``O(S^2 A)``; the dense counts only should the slots overflow).
+    ``O(S^2 A)``).
 
     A no-op unless :func:`needs_plan` (the runner keeps the result only for members that asked; skipping the
     iterations of the others keeps a batched EVI from waiting for them).
@@ -272,7 +281,6 @@ def plan(key: jax.Array, state: UCRL2State) -> UCRL2State:
         aperiodicity=hp.aperiodicity,
         active=state.plan_due,
     )
-    res = only_if(state.successors.overflowed & state.plan_due, _dense_plan, res, state)
     return where_due(state.plan_due, _start_epoch(state, res.Q, res), state)
 
 
@@ -312,25 +320,22 @@ def sparse_estimated_model(state: UCRL2State) -> tuple[em.SparseKernel, jax.Arra
 
 
 def _dense_policy(state: UCRL2State) -> jax.Array:
-    """The policy estimate on the dense counts (the fallback should the slots overflow)."""
+    """The policy estimate on the dense counts: :func:`policy`'s dense reference route (tests, benchmarks)."""
     return discounted_greedy_policy(*estimated_model(state), state.hparams.policy_discount, state.action_mask)
 
 
 def policy(state: UCRL2State) -> jax.Array:
     """Greedy ``[S, A]`` policy of the discounted optimal values of the estimated MDP (``O(S A K)`` backups on the
-    observed next states, :func:`agents.estimated_model.discounted_greedy_policy`). Should the slots have overflowed
-    (a spec whose ``max_successors`` is below the MDP's), the dense route on the dense counts, for that member only."""
+    observed next states, :func:`agents.estimated_model.discounted_greedy_policy`)."""
     return warm_policy(state, None)[0]
 
 
 def warm_policy(state: UCRL2State, start: jax.Array | None) -> tuple[jax.Array, jax.Array]:
     """:func:`policy` with its value iteration started from ``start`` (``[S]``, the values the previous call returned;
     ``None``: zeros) and the exact values of the returned policy, the next call's start
-    (:func:`agents.estimated_model.warm_greedy_policy`; ``Agent.warm_policy``). Should the slots have overflowed,
-    the dense fallback starts cold and hands on the slots' values, which it never uses."""
+    (:func:`agents.estimated_model.warm_greedy_policy`; ``Agent.warm_policy``)."""
     kernel, R = sparse_estimated_model(state)
-    sparse = em.warm_greedy_policy(kernel, R, state.hparams.policy_discount, state.action_mask, start)
-    return only_if(state.successors.overflowed, lambda st, u: (_dense_policy(st), u), sparse, state, sparse[1])
+    return em.warm_greedy_policy(kernel, R, state.hparams.policy_discount, state.action_mask, start)
 
 
 def policy_start(state: UCRL2State) -> jax.Array:
@@ -351,7 +356,10 @@ UCRL2 = Agent(
     needs_plan=needs_plan,
     plan=plan,
     check_hparams=check_hparams,
-    diagnostics=lambda state: {"plans_unconverged": state.plans_unconverged},
+    diagnostics=lambda state: {
+        "plans_unconverged": state.plans_unconverged,
+        "slots_overflowed": state.successors.overflowed.astype(jnp.int32),  # a spec below the MDP's successors
+    },
     # Epochs end member by member: planning in rounds only is as fast, and the runner compiles the plan once, not
     # twice (RiverSwim-10, 24-192 seeds: 3-5 s less compile; docs/benchmarks/bench_whole_batch_plans.md).
     whole_batch_plans=0,

@@ -63,7 +63,7 @@ def at_eta(state, n: int, seed: int = 0):
     t = rng.choice(np.flatnonzero(np.asarray(state.state_mask)), n)
     add = int(np.ceil(float(state.constants.eta)))
     counts = state.counts.at[s, a, t].add(add)
-    return state.replace(counts=counts, successors=em.with_dense_counts(state.successors, counts),
+    return state.replace(successors=em.with_dense_counts(state.successors, counts),
                          schedule=state.schedule.replace(visits=counts.sum(-1)))
 
 

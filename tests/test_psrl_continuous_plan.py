@@ -49,7 +49,7 @@ def _state(variant, case, discount=0.99, seed=0):
     counts = np.stack([[rng.multinomial(visits[s, a], p) for a in range(A)] for s in range(S)])
     counts = jnp.asarray(counts, jnp.int32)
     mu = jnp.asarray(rng.uniform(0, 1, (S, A)), jnp.float32)
-    state = state.replace(counts=counts, successors=em.with_dense_counts(state.successors, counts),
+    state = state.replace(successors=em.with_dense_counts(state.successors, counts),
                           schedule=state.schedule.replace(visits=counts.sum(-1)),
                           rewards=state.rewards.replace(mu=mu), u=jnp.asarray(rng.uniform(0, 3, S), jnp.float32))
     assert int(state.constants.psi) == 3 and float(state.constants.eta) == 5.0
