@@ -52,8 +52,8 @@ __all__ = [
 class SuccessorCounts(struct.PyTreeNode):
     """Visit counts of the observed next states: ``states[S, A, K]`` (int32) and ``counts[S, A, K]`` (int32, 0 for
     an empty slot; the filled slots of a pair come first, in order of first observation), and ``overflowed``, set
-    when a pair met more than ``K`` distinct next states: then the slots miss some counts and the agent must use its
-    dense counts (impossible with ``K`` from :func:`~jaxmdp.experiment.agent_interface.spec_of`)."""
+    when a pair met more than ``K`` distinct next states: then the slots miss the extra next states' counts (impossible
+    with ``K`` from :func:`~jaxmdp.experiment.agent_interface.spec_of`; the agents report it as a diagnostic)."""
 
     states: jax.Array
     counts: jax.Array

@@ -52,7 +52,8 @@ fewer than ``M`` at every size of the benchmark. An improvement step keeps per p
 and per state the best real action, a policy being a real action and a candidate slot per state (:class:`_Choice`); an
 evaluation solves ``(I - gamma P_pi) V = r_pi`` for the chosen rows, built only where the solve reads them (the states
 whose row is not a jump and the states jumped to, or all ``[S, S]`` when there are too many of those).
-Memory is ``O(S A S + max_psi S A)`` per member (kept draws aside). Results do not change as long as ``max_psi >= psi``,
+The agent state is ``O(S A K)`` (counts at the successor slots, no dense ``[S, A, S]`` table); a plan's working
+memory ``O(S^2 + max_psi S A)`` per member (kept draws aside). Results do not change as long as ``max_psi >= psi``,
 but ``max_psi`` (a static buffer size) still sets the slot loops' length, so set it to :func:`psi` of the MDPs at hand
 (e.g. 2 for RiverSwim 25 at the defaults). With more than ``M`` pairs at ``eta`` (e.g. optimism off, where every pair
 is), every backup pays ``psi`` Dirichlet draws of ``[S, A, S]``: a few per discounted plan, one per sweep of relative

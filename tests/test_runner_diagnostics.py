@@ -1,5 +1,6 @@
-"""Silent degradation made visible: UCRL2's and optimistic PSRL's count of unconverged plans (``Agent.diagnostics``)
-is a column of the runner's records and CSV, and a run that ends with a non-zero count warns."""
+"""Silent degradation made visible: UCRL2's and optimistic PSRL's count of unconverged plans and their slot-overflow
+flag (``Agent.diagnostics``) are columns of the runner's records and CSV, and a run that ends with a non-zero count
+warns."""
 
 from __future__ import annotations
 
@@ -35,20 +36,21 @@ def test_an_iteration_cap_of_one_is_counted_recorded_and_warned(name, tmp_path):
     g = runner.product([MDP], [CAPPED[name]], seeds=[0, 1])
     with pytest.warns(RuntimeWarning, match=rf"{name}: plans_unconverged = \d+ over the run \(2 of 2 members\)"):
         res = runner.run(agent, g, 400, log_period=50, n_records=4, csv_path=tmp_path / "run.csv")
-    assert res.diagnostic_names == ("plans_unconverged",)
+    assert res.diagnostic_names == ("plans_unconverged", "slots_overflowed")
     final = np.asarray(res.agent_state.plans_unconverged)
     # Every plan is unconverged: the init plan plus one per epoch start, all counted.
     assert np.all(final >= 2)
-    counts = res.values[..., -1]
+    counts, overflowed = res.values[..., -2], res.values[..., -1]
     assert np.all(np.diff(counts, axis=0) >= 0)
     np.testing.assert_array_equal(counts[-1], final)
+    assert not np.any(overflowed)  # the runner's spec_of: the slots hold every next state
     header, rows = _read(tmp_path / "run.csv")
-    assert header == list(runner.MEMBER_COLUMNS + CSV_COLUMNS) + ["plans_unconverged"]
-    column = np.array([int(r[-1]) for r in rows]).reshape(len(res.steps), 2)
+    assert header == list(runner.MEMBER_COLUMNS + CSV_COLUMNS) + ["plans_unconverged", "slots_overflowed"]
+    column = np.array([int(r[-2]) for r in rows]).reshape(len(res.steps), 2)
     np.testing.assert_array_equal(column, counts)
     res.write_csv(tmp_path / "again.csv")
     again_header, again = _read(tmp_path / "again.csv")
-    assert again_header == header and [r[-1] for r in again] == [r[-1] for r in rows]
+    assert again_header == header and [r[-2:] for r in again] == [r[-2:] for r in rows]
 
 
 def test_converged_planning_records_zero_and_does_not_warn():
@@ -57,7 +59,7 @@ def test_converged_planning_records_zero_and_does_not_warn():
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = runner.run(agent, g, 400, log_period=50, n_records=4)
-    assert int(res.agent_state.plans_unconverged[0]) == 0 == res.values[..., -1].max()
+    assert int(res.agent_state.plans_unconverged[0]) == 0 == res.values[..., -2:].max()
     assert not [w for w in caught if "plans_unconverged" in str(w.message)]
 
 
