@@ -178,9 +178,9 @@ class PSRLContinuousState(struct.PyTreeNode):
     epoch counters, reward posterior, the epoch's ``Q`` and bias ``u``, constants and masks.
 
     No dense ``[S, A, S]`` counts: the slots hold the same counts (:attr:`counts` rebuilds them), and a dense table
-    in the state was moved in and out of every planning round, which then cost 3.3x the plan itself (4 members of
-    948 states: a round with an identity plan 14.6 ms against 0.22 ms without the table;
-    docs/benchmarks/continuous_planning.md). The slots miss counts only if a pair meets more next states than
+    in the state was moved in and out of every planning round (4 members of 948 states: a round with an unchanged
+    plan 13.4 ms with the table, 0.46 ms without; a round with the plan 46.2 -> 14.6 ms;
+    docs/benchmarks/bench_plan_rounds.md). The slots miss counts only if a pair meets more next states than
     ``spec.max_successors`` promised (a hand-made spec below the MDP's; never with
     :func:`~jaxmdp.experiment.agent_interface.spec_of`): ``successors.overflowed`` then records it, the agent goes on
     with the counts it kept, and the runner warns (the ``slots_overflowed`` diagnostic)."""

@@ -75,6 +75,27 @@ def test_with_dense_counts_holds_the_same_counts_in_index_order():
     np.testing.assert_array_equal(flagged.counts[2, 1], np.arange(1, K + 1))
 
 
+def test_epoch_agent_states_hold_no_dense_table_and_rebuild_the_counts_from_the_slots():
+    """What a planning round moves is the agent state (jaxmdp.experiment.planning): UCRL2's and PSRL continuous's
+    hold no leaf of ``S A S`` entries (docs/benchmarks/bench_plan_rounds.md), and their ``counts`` (batched: any
+    leading axes) is numpy's scatter of the slots."""
+    mdp = jaxmdp.make("MiniGridEmpty", episodic=False, seed=0, size=5, p_lazy=0.3, n_starting_states=2)
+    spec = spec_of(mdp, 500)
+    S, A, K = mdp.n_states, mdp.n_actions, mdp.max_successors
+    for agent in (ucrl2.UCRL2, psrl_continuous.PSRL_CONTINUOUS):
+        state = agent.init(jax.random.key(0), spec, agent.default_hparams)
+        assert max(np.size(x) for x in jax.tree.leaves(state)) == S * A * K < S * A * S
+    rng = np.random.default_rng(4)
+    states = rng.integers(0, S, (3, S, A, K))
+    counts = rng.integers(0, 5, (3, S, A, K))
+    want = np.zeros((3, S, A, S), np.int64)
+    for b, i, j, k in itertools.product(range(3), range(S), range(A), range(K)):
+        want[b, i, j, states[b, i, j, k]] += counts[b, i, j, k]
+    table = em.SuccessorCounts(states=jnp.asarray(states, jnp.int32), counts=jnp.asarray(counts, jnp.int32),
+                               overflowed=jnp.zeros(3, bool))
+    np.testing.assert_array_equal(em.dense_counts(table), want)
+
+
 def test_overflow_is_flagged_and_reported_by_the_agents_diagnostics():
     S, A = 4, 1
     table = _record_all(em.empty_counts(S, A, 2), [0, 0, 0, 0], [0, 0, 0, 0], [1, 2, 1, 3])
