@@ -15,17 +15,19 @@ Policy estimate (for regret): backward induction on the posterior means (Dirichl
 
 Differences from the reference (Colosseum), each deliberate:
 
-* The last step of an episode also updates the transition posterior (``learn_final_transition``): here its next
-  state is a real draw from the same stationary kernel, whereas the reference never observes it. Set it to False for
-  the reference's behaviour.
+* The last step of an episode also updates the transition posterior (``final_transition="learn"``): here its next
+  state is a real draw from the same stationary kernel, whereas the reference observes ``-1`` there. The reference at
+  the commit docs/agents.md describes skips that update (``"skip"``); its earlier code, which made the paper's
+  published numbers (docs/benchmark.md §22), passed the ``-1`` on to its count vector, where numpy's index ``-1``
+  counted a visit to the MDP's *last* state (``"last_state"``).
 * Dirichlet draws are normalised exactly (the reference divides by ``sum + 1e-5``) and computed in log space, and a
   reward draw's standard deviation is capped at ``e^30`` so it is always finite.
 * Exact ties in ``Q~`` are broken with the agent's key; the policy estimate breaks ties towards the lowest action
   index (the reference re-seeds 42, docs/measures.md §1.4).
 
-``PSRL_EPISODIC_COLOSSEUM`` (``agents.get("psrl_episodic", variant="colosseum")``) never learns the last transition
-of an episode (``learn_final_transition=False``) and normalises its Dirichlet draws by ``sum + 1e-5`` (reference mode,
-docs/agents.md).
+``PSRL_EPISODIC_COLOSSEUM`` (``agents.get("psrl_episodic", variant="colosseum")``) counts an episode's last
+transition as a visit to the last state (``final_transition="last_state"``, the code of the published numbers) and
+normalises its Dirichlet draws by ``sum + 1e-5`` (reference mode, docs/agents.md).
 """
 
 from __future__ import annotations
@@ -55,7 +57,16 @@ from jaxmdp import dynamic_programming as dp
 from jaxmdp._checks import Variant, check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
 
-__all__ = ["PSRLEpisodicHParams", "PSRLEpisodicState", "PSRL_EPISODIC", "PSRL_EPISODIC_COLOSSEUM"]
+__all__ = [
+    "FINAL_TRANSITIONS",
+    "PSRLEpisodicHParams",
+    "PSRLEpisodicState",
+    "PSRL_EPISODIC",
+    "PSRL_EPISODIC_COLOSSEUM",
+]
+
+#: Values of ``PSRLEpisodicHParams.final_transition``: the paper's rule, then the reference's two.
+FINAL_TRANSITIONS: tuple[str, ...] = ("learn", "skip", "last_state")
 
 
 class PSRLEpisodicHParams(struct.PyTreeNode):
@@ -65,7 +76,9 @@ class PSRLEpisodicHParams(struct.PyTreeNode):
       prior_mean, reward_prior_count, reward_prior_precision, reward_prior_precision_count: the Normal-Gamma reward
         prior ``[mu0, n_mu, tau0, n_tau]`` (the benchmark searches ``prior_mean ~ U(0.001, 2)``, the rest is 1).
       transition_prior: Dirichlet concentration on every real next state (searched in ``U(0.001, 2)``).
-      learn_final_transition: static; whether the last step of an episode updates the transition posterior.
+      final_transition: static; what the last step of an episode does to the transition posterior (one of
+        :data:`FINAL_TRANSITIONS`): ``"learn"`` counts its real next state, ``"skip"`` nothing, ``"last_state"`` a
+        visit to the MDP's last real state (module docstring).
     """
 
     prior_mean: float | jax.Array = 0.41854463543357456
@@ -73,7 +86,7 @@ class PSRLEpisodicHParams(struct.PyTreeNode):
     reward_prior_count: float | jax.Array = 1.0
     reward_prior_precision: float | jax.Array = 1.0
     reward_prior_precision_count: float | jax.Array = 1.0
-    learn_final_transition: bool = struct.field(pytree_node=False, default=True)
+    final_transition: str = struct.field(pytree_node=False, default="learn")
 
 
 class PSRLEpisodicState(struct.PyTreeNode):
@@ -91,6 +104,8 @@ class PSRLEpisodicState(struct.PyTreeNode):
 
 def check_hparams(hparams: PSRLEpisodicHParams) -> None:
     """Validate on the host; the search space of docs/agents.md §1 lies inside these domains."""
+    if hparams.final_transition not in FINAL_TRANSITIONS:
+        raise ValueError(f"final_transition must be one of {FINAL_TRANSITIONS}, got {hparams.final_transition!r}")
     check_range("prior_mean", hparams.prior_mean)
     check_range("transition_prior", hparams.transition_prior, 0.0, low_open=True)
     check_range("reward_prior_count", hparams.reward_prior_count, 0.0, low_open=True)
@@ -131,10 +146,17 @@ def act(key: jax.Array, state: PSRLEpisodicState, obs: jax.Array, h: jax.Array) 
 
 
 def update(state: PSRLEpisodicState, tr: Transition) -> PSRLEpisodicState:
-    """Fold the reward (always) and the next state (unless it ends the episode and ``learn_final_transition`` is
-    False) into the posteriors; an episode end schedules a plan."""
-    learn = ~tr.terminated if not state.hparams.learn_final_transition else jnp.ones((), bool)
-    counts = state.counts.at[tr.obs, tr.action, tr.next_obs].add(learn.astype(jnp.int32))
+    """Fold the reward (always) and the next state into the posteriors; an episode end schedules a plan.
+
+    The step that ends an episode counts its next state, nothing, or a visit to the last real state of the MDP, as
+    ``final_transition`` says (``"learn"``, ``"skip"``, ``"last_state"``)."""
+    rule = state.hparams.final_transition
+    learn = ~tr.terminated if rule == "skip" else jnp.ones((), bool)
+    next_obs = tr.next_obs
+    if rule == "last_state":  # the reference's count of observation -1: numpy's x[-1] is the last (real) state
+        last = state.state_mask.shape[0] - 1 - jnp.argmax(state.state_mask[::-1])
+        next_obs = jnp.where(tr.terminated, last, next_obs)
+    counts = state.counts.at[tr.obs, tr.action, next_obs].add(learn.astype(jnp.int32))
     rewards = normal_gamma_observe(state.rewards, (tr.obs, tr.action), tr.reward)
     return state.replace(counts=counts, rewards=rewards, plan_due=state.plan_due | tr.terminated)
 
@@ -196,11 +218,11 @@ PSRL_EPISODIC = Agent(
 )
 
 
-#: Reference mode (docs/agents.md, "Reference mode"): the episode's last transition is not learned and the Dirichlet
-#: draws are normalised by ``sum + 1e-5``.
+#: Reference mode (docs/agents.md, "Reference mode"): the episode's last transition counts a visit to the last state
+#: and the Dirichlet draws are normalised by ``sum + 1e-5``.
 PSRL_EPISODIC_COLOSSEUM = dataclasses.replace(
     PSRL_EPISODIC,
     name="psrl_episodic@colosseum",
-    default_hparams=PSRLEpisodicHParams(learn_final_transition=False),
+    default_hparams=PSRLEpisodicHParams(final_transition="last_state"),
     plan=functools.partial(plan, variant="colosseum"),
 )

@@ -93,14 +93,14 @@ def _fresh(hp, S=3, A=2, H=2):
     return AGENT.init(jax.random.key(0), spec_of(mdp, 100), hp)
 
 
-@pytest.mark.parametrize("learn_final", [True, False])
-def test_update_closed_form(learn_final):
-    hp = PSRLEpisodicHParams(learn_final_transition=learn_final)
+@pytest.mark.parametrize("rule", ["learn", "skip", "last_state"])
+def test_update_closed_form(rule):
+    hp = PSRLEpisodicHParams(final_transition=rule)
     state = _fresh(hp)
     assert bool(AGENT.needs_plan(state))  # a fresh agent plans before acting
     state = state.replace(plan_due=jnp.zeros((), bool))
     update = jax.jit(AGENT.update)
-    # Two episodes of H = 2: (s, a, r, s', h, terminated).
+    # Two episodes of H = 2: (s, a, r, s', h, terminated); the real final next states (1, 0) are not the last state 2.
     stream = [(0, 1, 0.5, 2, 0, False), (2, 0, 1.0, 1, 1, True), (0, 1, 0.25, 2, 0, False), (2, 0, 0.0, 0, 1, True)]
     due = []
     for s, a, r, s2, h, term in stream:
@@ -111,8 +111,10 @@ def test_update_closed_form(learn_final):
     assert due == [False, True, False, True]
     expected = np.zeros((3, 2, 3), int)
     expected[0, 1, 2] = 2
-    if learn_final:
+    if rule == "learn":
         expected[2, 0, 1] = expected[2, 0, 0] = 1
+    elif rule == "last_state":  # the reference's numpy count of observation -1
+        expected[2, 0, 2] = 2
     np.testing.assert_array_equal(state.counts, expected)
     # Rewards are always learnt: prior (mu0, 1, 1/2, 1/2) then 1.0, 0.0 at (2, 0): mu = mu0 / 3 + 1/3, and
     # beta = 1/2 + (1/2)(1 (1 - mu0)^2 / 2) + (1/2)(2 (0 - mu1)^2 / 3) with mu1 = (mu0 + 1) / 2.
@@ -121,6 +123,21 @@ def test_update_closed_form(learn_final):
     np.testing.assert_allclose(state.rewards.mu[2, 0], (mu0 + 1.0) / 3, rtol=1e-6)
     np.testing.assert_allclose(state.rewards.beta[2, 0], 0.5 + 0.25 * (1 - mu0) ** 2 + mu1**2 / 3, rtol=1e-6)
     np.testing.assert_allclose(state.rewards.alpha[0, 1], 1.5)
+
+
+def test_last_state_rule_counts_the_last_real_state_of_a_padded_spec():
+    # 3 real states padded to 5: the reference's index -1 is its own last state, 2, never a padded one.
+    mdp = jaxmdp.custom_mdp(np.full((3, 2, 3), 1.0 / 3), R=np.zeros((3, 2)), H=2)
+    spec = spec_of(jaxmdp.pad(mdp, 5, 2, 3, 2), 100)
+    state = AGENT.init(jax.random.key(0), spec, PSRLEpisodicHParams(final_transition="last_state"))
+    tr = Transition(jnp.int32(1), jnp.int32(1), jnp.float32(0.0), jnp.int32(0), jnp.int32(1), jnp.asarray(True))
+    counts = jax.jit(AGENT.update)(state, tr).counts
+    assert counts.shape == (5, 2, 5) and int(counts[1, 1, 2]) == 1 and int(counts.sum()) == 1
+
+
+def test_final_transition_rule_is_checked():
+    with pytest.raises(ValueError, match="final_transition must be one of"):
+        AGENT.check_hparams(PSRLEpisodicHParams(final_transition="drop"))
 
 
 def _backward_induction(P, R, H):

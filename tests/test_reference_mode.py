@@ -396,15 +396,17 @@ def test_psrl_episodic_stream(variant):
     # their means (std ~ 1e-6).
     hp = agent.default_hparams.replace(transition_prior=1e-6, prior_mean=0.5, reward_prior_precision=1e12)
     state = agent.init(jax.random.key(0), _spec(2, 1, H=2), hp).replace(plan_due=jnp.zeros((), bool))
-    # One episode: 0 -> 0 (h = 0), then 0 -> 1 at the last step (h = 1).
-    state = _feed(agent, state, [(0, 0, 0.5, 0, 0, False), (0, 0, 0.5, 1, 1, True)])
+    # One episode: 0 -> 0 (h = 0), then 0 -> 0 again at the last step (h = 1). The paper's rule learns that second
+    # transition; the reference's code of the published numbers counts its terminal observation -1 as numpy's x[-1],
+    # a visit to the last state, 1.
+    state = _feed(agent, state, [(0, 0, 0.5, 0, 0, False), (0, 0, 0.5, 0, 1, True)])
     learns_final = variant == "paper"
-    np.testing.assert_array_equal(state.counts[0, 0], [1, int(learns_final)])
+    np.testing.assert_array_equal(state.counts[0, 0], [2, 0] if learns_final else [1, 1])
     assert bool(agent.needs_plan(state))
     state = agent.plan(jax.random.key(1), state, _log_of_concentration)
-    # Rewards 0.5 everywhere. Row of state 1 (unvisited): alpha = (1e-6, 1e-6). Row of state 0: alpha = (1 + 1e-6,
-    # [1] + 1e-6).
-    alpha0 = np.array([1 + 1e-6, 1e-6 + learns_final])
+    # Rewards 0.5 everywhere. Row of state 1 (unvisited): alpha = (1e-6, 1e-6). Row of state 0: alpha = (2 + 1e-6,
+    # 1e-6) (paper) or (1 + 1e-6, 1 + 1e-6) (reference).
+    alpha0 = np.array([2 + 1e-6, 1e-6]) if learns_final else np.array([1 + 1e-6, 1 + 1e-6])
     alpha1 = np.array([1e-6, 1e-6])
     offset = 0.0 if variant == "paper" else 1e-5
     P = np.stack([alpha0 / (alpha0.sum() + offset), alpha1 / (alpha1.sum() + offset)])
