@@ -16,9 +16,9 @@ Policy estimate (for regret): backward induction on the posterior means (Dirichl
 Differences from the reference (Colosseum), each deliberate:
 
 * The last step of an episode also updates the transition posterior (``final_transition="learn"``): here its next
-  state is a real draw from the same stationary kernel, whereas the reference observes ``-1`` there. The reference at
-  the commit docs/agents.md describes skips that update (``"skip"``); its earlier code, which made the paper's
-  published numbers (docs/benchmark.md §22), passed the ``-1`` on to its count vector, where numpy's index ``-1``
+  state is a real draw from the same stationary kernel, whereas the reference observes ``-1`` there. The reference
+  docs/agents.md describes skips that update (``"skip"``); another version of its code, whose behaviour the paper's
+  published numbers show (docs/benchmark.md §22), passed the ``-1`` on to its count vector, where numpy's index ``-1``
   counted a visit to the MDP's *last* state (``"last_state"``).
 * Dirichlet draws are normalised exactly (the reference divides by ``sum + 1e-5``) and computed in log space, and a
   reward draw's standard deviation is capped at ``e^30`` so it is always finite.
