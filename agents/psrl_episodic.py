@@ -54,7 +54,7 @@ from agents.posteriors import (
 )
 from agents.tabular_common import copy_action_zero, greedy_action
 from jaxmdp import dynamic_programming as dp
-from jaxmdp._checks import Variant, check_range
+from jaxmdp._checks import Variant, check_range, did_you_mean
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
 
 __all__ = [
@@ -105,7 +105,8 @@ class PSRLEpisodicState(struct.PyTreeNode):
 def check_hparams(hparams: PSRLEpisodicHParams) -> None:
     """Validate on the host; the search space of docs/agents.md §1 lies inside these domains."""
     if hparams.final_transition not in FINAL_TRANSITIONS:
-        raise ValueError(f"final_transition must be one of {FINAL_TRANSITIONS}, got {hparams.final_transition!r}")
+        raise ValueError(f"final_transition must be one of {FINAL_TRANSITIONS}; got {hparams.final_transition!r}"
+                         f"{did_you_mean(hparams.final_transition, FINAL_TRANSITIONS)}")
     check_range("prior_mean", hparams.prior_mean)
     check_range("transition_prior", hparams.transition_prior, 0.0, low_open=True)
     check_range("reward_prior_count", hparams.reward_prior_count, 0.0, low_open=True)

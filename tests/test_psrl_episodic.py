@@ -136,8 +136,8 @@ def test_last_state_rule_counts_the_last_real_state_of_a_padded_spec():
 
 
 def test_final_transition_rule_is_checked():
-    with pytest.raises(ValueError, match="final_transition must be one of"):
-        AGENT.check_hparams(PSRLEpisodicHParams(final_transition="drop"))
+    with pytest.raises(ValueError, match=r"final_transition must be one of .*; got 'last'; did you mean 'last_state'"):
+        AGENT.check_hparams(PSRLEpisodicHParams(final_transition="last"))
 
 
 def _backward_induction(P, R, H):
