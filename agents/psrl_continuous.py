@@ -104,6 +104,7 @@ from agents.tabular_common import copy_action_zero, discounted_greedy_policy, gr
 from jaxmdp import dynamic_programming as dp
 from jaxmdp._checks import VARIANTS, Variant, check_int, check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
+from jaxmdp.sampling import fused_random
 
 __all__ = [
     "PSRLContinuousHParams",
@@ -419,7 +420,8 @@ def draws(
 ) -> Draws:
     """The candidates of one plan (module docstring) without their dense kernels.
 
-    The state receiving the missing mass is one ``randint`` over the real states (``state_mask``, in index order,
+    The state receiving the missing mass is one ``randint`` (:func:`jaxmdp.sampling.fused_random.randint`) over the
+    real states (``state_mask``, in index order,
     wherever the padding lies) per pair and slot (``variant="colosseum"``: per slot, shared by all pairs). The
     colosseum variant's deviation divides by ``max(1, N(s, a, s'))`` and its posterior draws are normalised by ``sum +
     1e-5``. ``p^-`` is computed at the successor slots only (:class:`Draws`). The posterior draws of the first ``M =
@@ -440,7 +442,8 @@ def draws(
     p_minus = _p_minus(succ.counts.astype(dtype), n1, log4s, colosseum)
     k_dir, k_z = jax.random.split(key)
     real_states = jnp.argsort(~mask, stable=True)  # the real states first, in index order
-    index = jax.random.randint(k_z, (K,) if colosseum else (K, S, A), 0, jnp.sum(mask))
+    # jax.random.randint's draws, bit for bit, hashed in the plan's own fusion (3x faster at 60 x 948 x 3 on CPU).
+    index = fused_random.randint(k_z, (K,) if colosseum else (K, S, A), 0, jnp.sum(mask).astype(jnp.int32))
     z = jnp.broadcast_to(real_states[index].reshape((K, 1, 1) if colosseum else (K, S, A)), (K, S, A))
     posterior = N >= c.eta
     M = min(S * A, max(1, keep_limit // (K * S)))

@@ -1,4 +1,4 @@
-"""jaxmdp.sampling.fused_random: jax.random's fold_in, split and uniform, bit for bit, for every kind of key."""
+"""jaxmdp.sampling.fused_random: jax.random's fold_in, split, uniform and randint, bit for bit, for every kind of key."""
 
 import jax
 import jax.numpy as jnp
@@ -81,9 +81,46 @@ def test_other_keys_and_types_go_to_jax_random():
         assert same_bits(fr.uniform(key, (5,)), jax.random.uniform(key, (5,)))
 
 
+# Spans: 1, powers of two, odd, just past 2^16 (where the multiplier's square wraps uint32), int32's whole range,
+# an empty range (hi <= lo: always lo) and negative bounds.
+RANGES = [(0, 1), (0, 2), (0, 3), (0, 948), (-5, 7), (0, 2**16), (0, 2**16 + 1), (3, 2**31 - 1),
+          (-(2**31), 2**31 - 1), (4, 4), (9, 2)]
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_randint_equals_jax_random(seed):
+    key = jax.random.key(seed)
+    draw = jax.jit(fr.randint, static_argnums=1)
+    for lo, hi in RANGES:
+        for shape in [(), (5,), (3, 4)]:
+            expected = jax.random.randint(key, shape, lo, hi)
+            assert same_bits(fr.randint(key, shape, lo, hi), expected), (lo, hi, shape)
+            assert same_bits(draw(key, shape, jnp.int32(lo), jnp.int32(hi)), expected), (lo, hi, shape)
+
+
+def test_randint_with_array_bounds_and_a_batch_of_keys_equals_jax_random():
+    key = jax.random.key(11)
+    lo, hi = jnp.array([0, -3, 7], jnp.int32), jnp.array([[5], [1000]], jnp.int32)  # broadcast to (2, 3)
+    assert same_bits(fr.randint(key, (2, 3), lo, hi), jax.random.randint(key, (2, 3), lo, hi))
+    keys, n = jax.random.split(key, 4), jnp.array([1, 2, 948, 2**20], jnp.int32)
+    expected = jax.vmap(lambda k, m: jax.random.randint(k, (6, 2), 0, m))(keys, n)
+    assert same_bits(jax.vmap(lambda k, m: fr.randint(k, (6, 2), 0, m))(keys, n), expected)
+
+
+def test_randint_of_other_keys_and_types_goes_to_jax_random():
+    rbg, raw, key = jax.random.key(0, impl="rbg"), jax.random.PRNGKey(4), jax.random.key(2)
+    assert same_bits(fr.randint(rbg, (4,), 0, 9), jax.random.randint(rbg, (4,), 0, 9))
+    assert same_bits(fr.randint(raw, (4,), 0, 9), jax.random.randint(raw, (4,), 0, 9))
+    assert same_bits(fr.randint(key, (4,), 0, 9, jnp.uint8), jax.random.randint(key, (4,), 0, 9, jnp.uint8))
+    with jax.threefry_partitionable(False):
+        assert same_bits(fr.randint(key, (5,), 0, 9), jax.random.randint(key, (5,), 0, 9))
+
+
 def test_split_and_uniform_want_one_key():
     keys = jax.random.split(jax.random.key(0), 2)
     with pytest.raises(ValueError, match="single key"):
         fr.split(keys)
     with pytest.raises(ValueError, match="single key"):
         fr.uniform(keys, (2,))
+    with pytest.raises(ValueError, match="single key"):
+        fr.randint(keys, (2,), 0, 3)

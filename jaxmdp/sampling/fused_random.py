@@ -1,4 +1,5 @@
-"""``fold_in``, ``split`` and ``uniform`` of ``jax.random``, bit for bit, with the hash written out so that XLA fuses it.
+"""``fold_in``, ``split``, ``uniform`` and ``randint`` of ``jax.random``, bit for bit, with the hash written out so that
+XLA fuses it.
 
 A lockstep step calls ``jax.random`` a few times per member: the runner folds the step index into two member keys, the
 environment splits its key and draws two uniforms, an agent draws a tie-breaking uniform. Each call hashes with
@@ -15,6 +16,9 @@ jax 0.5):
 * ``uniform(key, shape)`` hashes the counters ``(0, i)``, ``i`` the flat index of an entry. float32 takes the XOR of
   the two words, and float64 the 64-bit word ``(y0 << 32) | y1``. The top mantissa bits under the exponent of 1.0
   give a float in ``[1, 2)``, and 1 is subtracted from it (exact).
+* ``randint(key, shape, lo, hi)`` (int32) splits the key in two and takes 32 bits per entry from each as above (the
+  XOR of the words), ``b_hi`` and ``b_lo``; with ``n = hi - lo`` (1 where ``hi <= lo``) and ``m = (2^16 mod n)^2 mod
+  n`` (``2^32 mod n``), the draw is ``lo + ((b_hi mod n) m + b_lo mod n) mod n`` in wrapping ``uint32`` arithmetic.
 
 Raw ``uint32`` keys, keys of another implementation (``rbg``, ``unsafe_rbg``), the non-partitionable Threefry layout
 and other float types go to ``jax.random`` itself, so every key gets ``jax.random``'s values.
@@ -24,7 +28,8 @@ Q-learning's action draw, which chains it to the runner's ``fold_in``, it made t
 ``jax.lax.optimization_barrier`` did not stop the copies. So the agents' draws keep ``jax.random``. These functions are
 used where they were measured to pay: the runner's per-step keys, the environment's step, the random agent's action
 (1.16-1.44x faster episodic runs of the random agent, 1.5-2.3x faster environment steps on CPU;
-docs/benchmarks/bench_agents_tabular.md, docs/benchmarks/bench_env.md).
+docs/benchmarks/bench_agents_tabular.md, docs/benchmarks/bench_env.md), and PSRL continuous's ``psi x S x A``
+candidate states of a plan (a ``(60, 948, 3)`` draw 5.3 -> 1.7 ms on CPU; docs/benchmarks/bench_plan_rounds.md).
 """
 
 from __future__ import annotations
@@ -37,7 +42,7 @@ import numpy as np
 
 from jaxmdp.sampling.threefry import join_words, threefry2x32, unit_floats
 
-__all__ = ["fold_in", "split", "uniform"]
+__all__ = ["fold_in", "randint", "split", "uniform"]
 
 
 def _written_out(key: jax.Array) -> bool:
@@ -93,3 +98,33 @@ def uniform(key: jax.Array, shape: tuple[int, ...] = (), dtype: Any = None) -> j
         raise ValueError(f"key must be a single key (shape ()), got shape {key.shape}; vmap over a batch of keys")
     y0, y1 = _hash(key, jnp.arange(size, dtype=jnp.uint32).reshape(shape))
     return unit_floats(y0 ^ y1 if dtype == jnp.float32 else join_words(y0, y1), dtype)
+
+
+def _bits32(key: jax.Array, counter: jax.Array) -> jax.Array:
+    """``jax.random.bits(key, shape, uint32)`` at the flat indices ``counter``: the XOR of the hash's two words."""
+    y0, y1 = _hash(key, counter)
+    return y0 ^ y1
+
+
+def randint(key: jax.Array, shape: tuple[int, ...], minval: Any, maxval: Any, dtype: Any = jnp.int32) -> jax.Array:
+    """``jax.random.randint(key, shape, minval, maxval, dtype)`` for a single ``key``: ``int32`` draws in ``[minval,
+    maxval)`` from 64 random bits each (module docstring; ``jax.random``'s bias for spans that are not powers of two
+    included). ``minval``/``maxval`` are ``int32`` scalars or arrays that broadcast to ``shape``; other integer types
+    and keys go to ``jax.random``."""
+    dtype = jax.dtypes.canonicalize_dtype(dtype)
+    lo, hi = jnp.asarray(minval), jnp.asarray(maxval)
+    size = int(np.prod(shape, dtype=np.int64))
+    if (not _written_out(key) or dtype != jnp.int32 or lo.dtype != jnp.int32 or hi.dtype != jnp.int32
+            or size >= 2**32):
+        return jax.random.randint(key, shape, minval, maxval, dtype)
+    if key.shape:
+        raise ValueError(f"key must be a single key (shape ()), got shape {key.shape}; vmap over a batch of keys")
+    k_hi, k_lo = split(key, 2)
+    counter = jnp.arange(size, dtype=jnp.uint32).reshape(shape)
+    b_hi, b_lo = _bits32(k_hi, counter), _bits32(k_lo, counter)
+    lo, hi = jax.lax.broadcast_to_rank(lo, len(shape)), jax.lax.broadcast_to_rank(hi, len(shape))
+    span = jnp.where(hi <= lo, jnp.uint32(1), (hi - lo).astype(jnp.uint32))
+    multiplier = jnp.uint32(2**16) % span
+    multiplier = multiplier * multiplier % span
+    offset = ((b_hi % span) * multiplier + b_lo % span) % span
+    return lo + offset.astype(jnp.int32)
