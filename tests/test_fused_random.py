@@ -1,4 +1,4 @@
-"""jaxmdp.sampling.fused_random: jax.random's fold_in, split, uniform and randint, bit for bit, for every kind of key."""
+"""jaxmdp.sampling.fused_random: jax.random's fold_in, split, uniform and randint, bit for bit, for all keys."""
 
 import jax
 import jax.numpy as jnp
@@ -124,3 +124,5 @@ def test_split_and_uniform_want_one_key():
         fr.uniform(keys, (2,))
     with pytest.raises(ValueError, match="single key"):
         fr.randint(keys, (2,), 0, 3)
+    with pytest.raises(ValueError, match=r"must broadcast to shape \(2,\); got shapes \(3,\) and \(\)"):
+        fr.randint(keys[0], (2,), jnp.zeros(3, jnp.int32), 3)

@@ -119,6 +119,13 @@ def randint(key: jax.Array, shape: tuple[int, ...], minval: Any, maxval: Any, dt
         return jax.random.randint(key, shape, minval, maxval, dtype)
     if key.shape:
         raise ValueError(f"key must be a single key (shape ()), got shape {key.shape}; vmap over a batch of keys")
+    try:
+        fits = np.broadcast_shapes(tuple(shape), lo.shape, hi.shape) == tuple(shape)
+    except ValueError:
+        fits = False
+    if not fits:
+        raise ValueError(f"minval and maxval must broadcast to shape {tuple(shape)}; "
+                         f"got shapes {lo.shape} and {hi.shape}")
     k_hi, k_lo = split(key, 2)
     counter = jnp.arange(size, dtype=jnp.uint32).reshape(shape)
     b_hi, b_lo = _bits32(k_hi, counter), _bits32(k_lo, counter)
