@@ -65,6 +65,18 @@ def _keys_from(key: jax.Array, y0: jax.Array, y1: jax.Array) -> jax.Array:
     return jax.random.wrap_key_data(jnp.stack([y0, y1], axis=-1), impl=jax.random.key_impl(key))
 
 
+def _check_single(key: jax.Array) -> None:
+    """A written-out draw takes one key (``vmap`` over a batch): the error names the shape it got."""
+    if key.shape:
+        raise ValueError(f"key must be a single key (shape ()), got shape {key.shape}; vmap over a batch of keys")
+
+
+def _words(key: jax.Array, shape: tuple[int, ...]) -> tuple[jax.Array, jax.Array]:
+    """The two words of the hash of ``(0, i)`` for every entry ``i`` (flat index) of ``shape``; their XOR is
+    ``jax.random.bits(key, shape, uint32)``."""
+    return _hash(key, jnp.arange(int(np.prod(shape, dtype=np.int64)), dtype=jnp.uint32).reshape(shape))
+
+
 def fold_in(key: jax.Array, data: jax.Array | int) -> jax.Array:
     """``jax.random.fold_in(key, data)``: the key hashed with the counter ``(0, data)``, for typed ``key`` of any
     shape and an integer ``data`` that broadcasts to it (converted to ``uint32`` as ``jax.random`` converts it)."""
@@ -81,8 +93,7 @@ def split(key: jax.Array, num: int | tuple[int, ...] = 2) -> jax.Array:
     shape ``num`` goes to ``jax.random.split``)."""
     if not _written_out(key) or not isinstance(num, int):
         return jax.random.split(key, num)
-    if key.shape:
-        raise ValueError(f"key must be a single key (shape ()), got shape {key.shape}; vmap over a batch of keys")
+    _check_single(key)
     return _keys_from(key, *_hash(key, jnp.arange(num, dtype=jnp.uint32)))
 
 
@@ -94,16 +105,9 @@ def uniform(key: jax.Array, shape: tuple[int, ...] = (), dtype: Any = None) -> j
     size = int(np.prod(shape, dtype=np.int64))
     if not _written_out(key) or dtype not in (jnp.float32, jnp.float64) or size >= 2**32:
         return jax.random.uniform(key, shape, dtype)
-    if key.shape:
-        raise ValueError(f"key must be a single key (shape ()), got shape {key.shape}; vmap over a batch of keys")
-    y0, y1 = _hash(key, jnp.arange(size, dtype=jnp.uint32).reshape(shape))
+    _check_single(key)
+    y0, y1 = _words(key, shape)
     return unit_floats(y0 ^ y1 if dtype == jnp.float32 else join_words(y0, y1), dtype)
-
-
-def _bits32(key: jax.Array, counter: jax.Array) -> jax.Array:
-    """``jax.random.bits(key, shape, uint32)`` at the flat indices ``counter``: the XOR of the hash's two words."""
-    y0, y1 = _hash(key, counter)
-    return y0 ^ y1
 
 
 def randint(key: jax.Array, shape: tuple[int, ...], minval: Any, maxval: Any, dtype: Any = jnp.int32) -> jax.Array:
@@ -117,8 +121,7 @@ def randint(key: jax.Array, shape: tuple[int, ...], minval: Any, maxval: Any, dt
     if (not _written_out(key) or dtype != jnp.int32 or lo.dtype != jnp.int32 or hi.dtype != jnp.int32
             or size >= 2**32):
         return jax.random.randint(key, shape, minval, maxval, dtype)
-    if key.shape:
-        raise ValueError(f"key must be a single key (shape ()), got shape {key.shape}; vmap over a batch of keys")
+    _check_single(key)
     try:
         fits = np.broadcast_shapes(tuple(shape), lo.shape, hi.shape) == tuple(shape)
     except ValueError:
@@ -127,8 +130,7 @@ def randint(key: jax.Array, shape: tuple[int, ...], minval: Any, maxval: Any, dt
         raise ValueError(f"minval and maxval must broadcast to shape {tuple(shape)}; "
                          f"got shapes {lo.shape} and {hi.shape}")
     k_hi, k_lo = split(key, 2)
-    counter = jnp.arange(size, dtype=jnp.uint32).reshape(shape)
-    b_hi, b_lo = _bits32(k_hi, counter), _bits32(k_lo, counter)
+    b_hi, b_lo = (jnp.bitwise_xor(*_words(k, tuple(shape))) for k in (k_hi, k_lo))
     lo, hi = jax.lax.broadcast_to_rank(lo, len(shape)), jax.lax.broadcast_to_rank(hi, len(shape))
     span = jnp.where(hi <= lo, jnp.uint32(1), (hi - lo).astype(jnp.uint32))
     multiplier = jnp.uint32(2**16) % span
