@@ -45,6 +45,52 @@ def test_plan_due_equals_planning_the_whole_batch(slots, whole_batch, lone_round
             np.testing.assert_array_equal(got[name], want[name], err_msg=f"{name}, due {due}")
 
 
+def _scatter_shapes(jaxpr) -> list[tuple[int, ...]]:
+    """The output shapes of every scatter in ``jaxpr`` and in the jaxprs of its loops, conditionals and calls."""
+    shapes = []
+    for eqn in jaxpr.eqns:
+        if eqn.primitive.name.startswith("scatter"):
+            shapes.append(tuple(eqn.outvars[0].aval.shape))
+        for value in eqn.params.values():
+            for sub in value if isinstance(value, (tuple, list)) else [value]:
+                sub = getattr(sub, "jaxpr", sub)  # a ClosedJaxpr holds its Jaxpr
+                if hasattr(sub, "eqns"):
+                    shapes += _scatter_shapes(sub)
+    return shapes
+
+
+@pytest.mark.parametrize("slots", [1, 2])
+def test_plan_due_does_not_write_back_the_leaves_a_plan_passes_through(slots):
+    # A plan that reads a large leaf and returns it as it is (episodic PSRL's dense counts): writing it back is a
+    # no-op that XLA turned into two copies of the whole leaf per round with one slot. The rounds scatter the
+    # planned leaf and leave the passed-through one alone; the results are those of planning the whole batch.
+    B = 5
+    states = {"q": jnp.zeros((B, 2)), "counts": jnp.arange(B * 12, dtype=jnp.int32).reshape(B, 4, 3)}
+    keys = jax.random.split(jax.random.key(0), B)
+
+    def plan(key, state):
+        q = state["q"] + jnp.sum(state["counts"]).astype(jnp.float32) + jax.random.uniform(key)
+        return where_due(jnp.asarray(True), {"q": q, "counts": state["counts"]}, state)
+
+    due = jnp.asarray([True, False, True, True, False])
+    rounds = lambda due: plan_due(plan, slots, due, keys, states, False, lone_rounds=False)  # noqa: E731
+    shapes = _scatter_shapes(jax.make_jaxpr(rounds)(due).jaxpr)
+    assert (B, 2) in shapes and (B, 4, 3) not in shapes, shapes
+    want = where_due(due, jax.vmap(plan)(keys, states), states)
+    got = jax.jit(rounds)(due)
+    for name in states:
+        np.testing.assert_array_equal(got[name], want[name], err_msg=name)
+
+
+def test_where_due_keeps_a_passed_through_leaf_as_it_is():
+    old = {"a": jnp.arange(3.0), "b": jnp.zeros(3)}
+    new = {"a": old["a"], "b": jnp.ones(3)}
+    for due in (jnp.asarray(False), jnp.asarray([True, False, True])):
+        merged = where_due(due, new, old)
+        assert merged["a"] is old["a"]
+        np.testing.assert_array_equal(merged["b"], jnp.where(due, 1.0, 0.0) * jnp.ones(3))
+
+
 def test_default_plan_slots():
     assert [default_plan_slots(b) for b in (1, 15, 16, 17, 90, 180)] == [1, 1, 1, 2, 6, 12]
 

@@ -219,9 +219,14 @@ def where_due(due: jax.Array, new: Any, old: Any) -> Any:
     ``due`` is a boolean scalar (one member: an agent's ``plan`` applies it to itself, so that a plan requested by a
     member that does not need one is a no-op whoever calls it) or ``[B]`` over the leading member axis of every leaf
     (the runner, which plans a batch of members and keeps the result only for those that asked: all members when
-    most asked, else rounds of those that did, :mod:`jaxmdp.experiment.planning`).
+    most asked, else rounds of those that did, :mod:`jaxmdp.experiment.planning`). A leaf that ``new`` takes from
+    ``old`` unchanged (the same object) is returned as it is, so that the rounds do not write it back.
     """
     due = jnp.asarray(due)
-    if due.ndim == 0:
-        return jax.tree.map(lambda n, o: jnp.where(due, n, o), new, old)
-    return jax.tree.map(lambda n, o: jnp.where(due.reshape(due.shape + (1,) * (n.ndim - due.ndim)), n, o), new, old)
+
+    def merge(n, o):
+        if n is o:
+            return o
+        return jnp.where(due if due.ndim == 0 else due.reshape(due.shape + (1,) * (n.ndim - due.ndim)), n, o)
+
+    return jax.tree.map(merge, new, old)
