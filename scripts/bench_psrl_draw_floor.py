@@ -8,12 +8,14 @@ each over its batch's padded ``S`` and ``A``. This script
 
 1. counts those Gamma variates for every episodic PSRL batch of :func:`hardness.benchmark.run.plan` (20 seeds, both
    episodic settings), padded as the runner pads them and, for comparison, at each MDP's own size;
-2. times one draw (:func:`agents.posteriors.dirichlet_sample`, the agent's own sampler and normalisation) inside one
-   compiled program, as the runner pays it (:func:`scripts.profile_continuous_plans.in_program_seconds`), on a
-   posterior with ``N(s,a,.) = 10 P(.|s,a)`` rounded up over each pair's successors (shapes at and above 1) besides
-   the ``1/S`` prior (shapes far below 1, the boosted branch);
-3. writes the draws' seconds alone, spread perfectly over the host's cores: a lower bound on what episodic PSRL costs
-   with any implementation that draws the posterior exactly (the cheapest timed variate stands for all);
+2. times one draw (:func:`agents.posteriors.dirichlet_sample`, the agent's own sampler and normalisation) on one
+   core (the process's CPU affinity, where the platform has one), inside one compiled program, as the runner pays
+   it (:func:`scripts.profile_continuous_plans.in_program_seconds`), on a posterior with ``N(s,a,.) = 10 P(.|s,a)``
+   rounded up over each pair's successors (shapes at and above 1) besides the ``1/S`` prior (shapes far below 1,
+   the boosted branch);
+3. writes the draws' seconds alone, spread perfectly over the full run's cores (one shard per core): a lower bound
+   on what episodic PSRL costs with any implementation that draws the posterior exactly (the cheapest timed variate
+   stands for all);
 4. prints, for each of the four settings and each ``--buckets`` count, how much the size buckets pad the dense model
    work of a step (:func:`padding_factor`), which is what :data:`hardness.benchmark.run.PLANNING_BUCKETS` trims.
 
@@ -24,10 +26,15 @@ from __future__ import annotations
 
 import os
 
-if __name__ == "__main__" and "xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = (  # one program per core, as the benchmark runs (set before JAX starts)
-        os.environ.get("XLA_FLAGS", "") + f" --xla_force_host_platform_device_count={os.cpu_count() or 1}"
-    ).strip()
+#: The cores the full run spreads its shards over (one lockstep program per core, as scripts/run_benchmark.py runs).
+RUN_CORES = os.cpu_count() or 1
+
+if __name__ == "__main__" and hasattr(os, "sched_setaffinity"):
+    # The draw is timed on one core (set before JAX starts its threads). A program of its own spreads the draw over
+    # every core, while in the full run each core runs a shard of its own: timed on both cores of the 2-core
+    # machine and then divided by the cores again, the floor came out 1.5-1.8x too low (docs/benchmarks/
+    # bench_psrl_draw_floor.md, 2026-11-30).
+    os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
 
 import argparse  # noqa: E402
 import functools  # noqa: E402
@@ -126,7 +133,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{label} {tuple(alpha.shape)}: {s * 1e9:.2f} ns per Gamma variate (in one program)", flush=True)
     ns = min(t["ns_per_gamma"] for t in timed)  # a floor: the cheapest variate measured
 
-    cores = len(jax.devices())
+    cores = RUN_CORES
+    timed_on = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else cores
+    if timed_on > 1:
+        print(f"timed on {timed_on} cores (no CPU affinity here): the hours below understate the floor", flush=True)
     counted = {}
     for n_buckets in args.buckets:
         rows = draw_counts(n_buckets=n_buckets)
@@ -145,7 +155,8 @@ def main(argv: list[str] | None = None) -> int:
     for set_name, factors in padding.items():
         print(f"{set_name}: dense model work per step padded by " + ", ".join(
             f"{f:.2f} ({n} buckets)" for n, f in factors.items()), flush=True)
-    (args.out / "floor.json").write_text(json.dumps(dict(timed=timed, ns_per_gamma=ns, cores=cores, buckets=counted,
+    (args.out / "floor.json").write_text(json.dumps(dict(timed=timed, ns_per_gamma=ns, cores=cores,
+                                                         timed_on_cores=timed_on, buckets=counted,
                                                          padding=padding, command=" ".join(sys.argv)), indent=1))
     return 0
 
