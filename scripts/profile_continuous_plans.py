@@ -97,6 +97,9 @@ def best_of(fn, *args, repeats: int) -> tuple[float, object]:
 def in_program_seconds(fn, keys, states, *, calls: int = 4, repeats: int = 3) -> float:
     """Seconds of one call ``fn(keys, states)`` (e.g. a ``vmap``-ed plan) inside one compiled program, as the runner
     pays it: ``(t(1 + calls) - t(1)) / calls``, with ``t(m)`` the best of ``repeats`` runs of a loop of ``m`` calls.
+    Wall time: on a CPU the program spreads its work over every core it may use, while the runner runs one shard per
+    core, so a cost per core needs the process pinned to one (``taskset -c 0``; a posterior draw of episodic PSRL
+    at 400 states: 4.5 ms on two cores, 6.7 ms on one; docs/benchmarks/bench_psrl_draw_floor.md).
 
     A call of its own program costs more on a CPU (PSRL continuous at 948 states: a plan 155 ms per call, 75-85 ms
     in a loop; docs/benchmarks/continuous_planning.md). Likely, not proven: XLA allocates the program's temporary
