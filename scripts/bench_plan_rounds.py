@@ -3,11 +3,12 @@
 The runner plans the members that asked in rounds (:func:`jaxmdp.experiment.planning.plan_due`): it gathers their
 agent states into the round's slots, plans them and scatters the states back. Late in a continuous run most rounds
 hold one member; a shard of at most 16 members plans with one slot (episodic PSRL too, e.g. ``--agents
-psrl_episodic --set "episodic communicating" --label MiniGridEmpty/prms_3 --members 16``). For each agent, ``--members`` members of one benchmark MDP (default: the communicating set's
-MiniGrid-Rooms ``prms_0``, 948 states, a shard of its size bucket) after ``--play`` uniformly random steps (``update``
-only) and a plan, one member due; timed in turn, best of ``--repeats``: a round whose plan returns the state
-unchanged (the data movement alone), a round with the agent's plan, and the agent's plan of that member alone (a
-``vmap`` of one, no round), with the agent state's bytes per member.
+psrl_episodic --set "episodic communicating" --label MiniGridEmpty/prms_3 --members 16``). For each agent,
+``--members`` members of one benchmark MDP (default: the communicating set's MiniGrid-Rooms ``prms_0``, 948 states,
+a shard of its size bucket) after ``--play`` uniformly random steps (``update`` only) and a plan, one member due;
+timed in turn, best of ``--repeats``: a round whose plan returns the state unchanged (the data movement alone), a
+round with the agent's plan, and the agent's plan of that member alone (a ``vmap`` of one, no round), with the agent
+state's bytes per member.
 
 Run it in two checkouts to compare them (docs/benchmarks/bench_plan_rounds.md):
 

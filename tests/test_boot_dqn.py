@@ -18,6 +18,7 @@ from jaxmdp import dynamic_programming as dp
 from tests import q_probes
 from tests.stat_checks import Checks, failure_rate_bound, key, mostly, seed
 from tests.test_dqn import make_spec, np_q, transition
+from tests.jaxpr_eqns import equations
 
 SMALL = boot_dqn.BootDQNHParams(network_width=3, network_depth=1, batch_size=4, replay_capacity=512, n_ensemble=3)
 
@@ -131,15 +132,7 @@ def test_identical_heads_diverge_only_through_masks_or_noise():
 
 def _count_dot_generals(jaxpr) -> int:
     """Matrix products in a jaxpr, sub-jaxprs (cond branches, custom derivatives, pjit) included."""
-    n = 0
-    for eqn in jaxpr.eqns:
-        n += eqn.primitive.name == "dot_general"
-        for value in eqn.params.values():
-            for sub in value if isinstance(value, (tuple, list)) else (value,):
-                sub = getattr(sub, "jaxpr", sub)
-                if hasattr(sub, "eqns"):
-                    n += _count_dot_generals(sub)
-    return n
+    return sum(eqn.primitive.name == "dot_general" for eqn in equations(jaxpr))
 
 
 def test_one_sgd_call_trains_every_head_through_one_vmapped_network():

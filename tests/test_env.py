@@ -13,6 +13,7 @@ from jaxmdp.experiment.members import member_mdp
 
 from conftest import random_mdp
 from stat_checks import Checks, key
+from jaxpr_eqns import equations
 
 
 def rollout(key, mdp, n_steps):
@@ -271,14 +272,8 @@ def test_sparse_fields_agree_with_the_dense_arrays_after_every_transform():
 
 def _out_shapes(jaxpr):
     """Shapes of every equation's outputs, nested jaxprs (jit, scan, cond) included."""
-    for eqn in jaxpr.eqns:
+    for eqn in equations(jaxpr):
         yield from (v.aval.shape for v in eqn.outvars if hasattr(v.aval, "shape"))
-        for value in eqn.params.values():
-            for sub in value if isinstance(value, (tuple, list)) else (value,):
-                if isinstance(sub, jax.extend.core.ClosedJaxpr):
-                    yield from _out_shapes(sub.jaxpr)
-                elif isinstance(sub, jax.extend.core.Jaxpr):
-                    yield from _out_shapes(sub)
 
 
 @pytest.mark.parametrize("family, params", [("DeepSea", dict(size=20)), ("Taxi", dict(size=5))])

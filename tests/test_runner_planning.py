@@ -19,6 +19,7 @@ from jaxmdp.experiment import runner
 from jaxmdp.experiment.agent_interface import where_due
 from jaxmdp.experiment.planning import default_plan_slots, plan_due
 from progress_run import run_on_host_devices
+from jaxpr_eqns import equations
 
 
 def _toy_plan(key, state):
@@ -47,16 +48,7 @@ def test_plan_due_equals_planning_the_whole_batch(slots, whole_batch, lone_round
 
 def _scatter_shapes(jaxpr) -> list[tuple[int, ...]]:
     """The output shapes of every scatter in ``jaxpr`` and in the jaxprs of its loops, conditionals and calls."""
-    shapes = []
-    for eqn in jaxpr.eqns:
-        if eqn.primitive.name.startswith("scatter"):
-            shapes.append(tuple(eqn.outvars[0].aval.shape))
-        for value in eqn.params.values():
-            for sub in value if isinstance(value, (tuple, list)) else [value]:
-                sub = getattr(sub, "jaxpr", sub)  # a ClosedJaxpr holds its Jaxpr
-                if hasattr(sub, "eqns"):
-                    shapes += _scatter_shapes(sub)
-    return shapes
+    return [tuple(e.outvars[0].aval.shape) for e in equations(jaxpr) if e.primitive.name.startswith("scatter")]
 
 
 @pytest.mark.parametrize("slots", [1, 2])
