@@ -83,7 +83,8 @@ def plan_due(
             # A leaf the plan passes through (``y is t``, e.g. episodic PSRL's dense counts) is not written back:
             # the write changes nothing, and with one slot XLA made it a dynamic-update-slice of the batch's leaf
             # from itself and copied the whole leaf twice per round (episodic PSRL, 16 members of 400 states: a
-            # round 18.6-19.0 -> 6.7-8.0 ms; docs/benchmarks/bench_plan_rounds.md).
+            # round 18.6-19.0 -> 6.7-8.0 ms; docs/benchmarks/bench_plan_rounds.md). Through the lone-round ``cond``
+            # every leaf is a new value and is written back: the continuous agents' states it serves are small.
             return x if y is t else x.at[index].set(y, mode="drop", unique_indices=True)
 
         return (jax.tree.map(put, states, taken, planned),
