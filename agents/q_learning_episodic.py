@@ -249,6 +249,7 @@ Q_LEARNING_EPISODIC = Agent(
     policy=policy,
     greedy_actions=greedy_actions,
     check_hparams=check_hparams,
+    act_apart=True,  # its act reads a row of the member's table: jaxmdp.experiment.runner._apart
 )
 
 

@@ -204,6 +204,24 @@ def _evaluate_changed(
     return jax.lax.map(one, (mdp_index, policy, changed, cache, mdp_index if orders is None else orders))
 
 
+def _apart(fn: Callable, *args: Any) -> Any:
+    """``fn(*args)``, computed apart from the code that uses its result: on CPU inside a ``lax.cond`` whose
+    predicate XLA cannot fold (``optimization_barrier(True)``, unbatched under ``vmap``), elsewhere as it is.
+
+    XLA does not fuse a conditional's computations into their users. The runner computes each step's action this
+    way when the agent asks (:attr:`~jaxmdp.experiment.agent_interface.Agent.act_apart`). Fused into the step,
+    Q-learning's action (its tie-break from the draw's words) went into the fusions that read the tables at the
+    action (the optimised HLO of an episodic Taxi run), where it is recomputed for every element they read.
+    Q-learning at 1 024 members on the 2-core CPU, indicators every 100 steps: 1.04-1.16x the agent-steps per
+    second, the agent's share of an episodic Taxi step 110-114 -> 85-86 ns, with the same results (docs/benchmarks/bench_agents_tabular.md). On a GPU a conditional would cost a synchronisation."""
+    if jax.default_backend() != "cpu":
+        return fn(*args)
+    out = jax.eval_shape(fn, *args)
+    always = jax.lax.optimization_barrier(jnp.asarray(True))
+    zeros = lambda _: jax.tree.map(lambda o: jnp.zeros(o.shape, o.dtype), out)  # noqa: E731
+    return jax.lax.cond(always, lambda a: fn(*a), zeros, args)
+
+
 def _policy_of(agent: Agent) -> Callable:
     """What the indicators evaluate: the agent's ``greedy_actions`` (action indices) where it has them, else its
     ``policy`` (probabilities); the same policy either way."""
@@ -330,7 +348,7 @@ def _chunk_program(
                 # obs: the state index, or for a BlockMDP the observation sample that step() returned last (so
                 # the transition's next_obs is the very sample the agent acts on next, not a second noise draw).
                 h = env_state.h
-                action = agent.act(ka, state, obs, h)
+                action = _apart(agent.act, ka, state, obs, h) if agent.act_apart else agent.act(ka, state, obs, h)
                 if stacked:  # one gather from the stack per table read (env.step_member)
                     obs2, env_state2, reward, terminated, _, info = env.step_member(ke, env_state, action, mdps, i)
                 else:
