@@ -5,7 +5,8 @@ update with ``table[h, s, a]`` indexing (the previous code, kept here as :func:`
 One jitted ``lax.scan`` of ``--steps`` updates vmapped over ``--members`` members of one of the benchmark MDPs of
 ``scripts/bench_agents.py`` (``--family``, episodic), on transitions drawn before the loop (so only the update is
 timed); the variants interleaved ``--repeats`` times, best of each, in one process. Also checks that both give the
-same tables bit for bit. Prints a table and appends it, with the command, to ``docs/benchmarks/bench_table_access.md``.
+same tables bit for bit. Prints a table and appends it, with the command, to
+``docs/benchmarks/bench_table_access.md``.
 
 ``--floor`` adds two variants that bound what any update with these tables costs: the update's memory traffic alone
 (:func:`bare_access`: the same three row reads and two writes at the same indices, with only the arithmetic that
@@ -35,6 +36,7 @@ import jaxmdp
 from agents import q_learning_episodic as ql
 from agents.tabular_common import read_at, write_at
 from bench_agents import BENCH_MDPS
+from bench_doc import interleaved_best
 from jaxmdp.experiment import compilation
 from jaxmdp.experiment.agent_interface import Transition, spec_of
 
@@ -85,7 +87,7 @@ def random_episodes(key: jax.Array, mdp, members: int, steps: int) -> Transition
             obs, env = carry
             k_a, k_s = jax.random.split(k_t)
             a = jaxmdp.sample_action(k_a, mdp)
-            nxt, env2, r, term, trunc, info = jaxmdp.step(k_s, env, a, mdp)
+            nxt, env2, r, term, _, info = jaxmdp.step(k_s, env, a, mdp)
             tr = Transition(obs=obs, action=a, reward=r, next_obs=info["final_observation"], h=env.h,
                             terminated=term)
             return (nxt, env2), tr
@@ -132,15 +134,9 @@ def main() -> None:
     if args.floor:
         variants |= {"reads and writes alone (bare_access)": program(bare_access),
                      "no table (no_table)": program(no_table)}
-    outs = {name: jax.block_until_ready(run(trs, state)) for name, run in variants.items()}
-    a, b = list(outs.values())[:2]
+    a, b = (run(trs, state) for run in list(variants.values())[:2])
     same = bool(np.array_equal(a.q, b.q) and np.array_equal(a.stats, b.stats))
-    best = dict.fromkeys(variants, float("inf"))
-    for _ in range(args.repeats):
-        for name, run in variants.items():
-            t0 = time.perf_counter()
-            jax.block_until_ready(run(trs, state))
-            best[name] = min(best[name], time.perf_counter() - t0)
+    best = interleaved_best(variants, (trs, state), args.repeats)
     ns = {name: 1e9 * v / (M * T) for name, v in best.items()}
     draws = "random episodes" if args.trajectories else "uniform (h, s, a, s')"
     base = ns["table[h, s, a] (previous)"]

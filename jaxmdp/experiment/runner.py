@@ -213,7 +213,8 @@ def _apart(fn: Callable, *args: Any) -> Any:
     Q-learning's action (its tie-break from the draw's words) went into the fusions that read the tables at the
     action (the optimised HLO of an episodic Taxi run), where it is recomputed for every element they read.
     Q-learning at 1 024 members on the 2-core CPU, indicators every 100 steps: 1.04-1.16x the agent-steps per
-    second, the agent's share of an episodic Taxi step 110-114 -> 85-86 ns, with the same results (docs/benchmarks/bench_agents_tabular.md). On a GPU a conditional would cost a synchronisation."""
+    second, the agent's share of an episodic Taxi step 110-114 -> 85-86 ns, with the same results
+    (docs/benchmarks/bench_agents_tabular.md). On a GPU a conditional would cost a synchronisation."""
     if jax.default_backend() != "cpu":
         return fn(*args)
     out = jax.eval_shape(fn, *args)
