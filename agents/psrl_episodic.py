@@ -216,6 +216,11 @@ PSRL_EPISODIC = Agent(
     # 64 seeds of 100 states are 9 MB of agent state; a whole batch's draws then leave the caches.
     whole_batch_plans=64,
     whole_batch_bytes=8 * 2**20,
+    # One plan a round once a member's state passes 256 KiB (108 states and more in the benchmark): on the 20-seed
+    # benchmark batches of 108-400 states one slot a round ran 1.03-1.16x faster than ceil(members / 16) (3-4), and
+    # at 40-64 states the slots made no difference (docs/benchmarks/bench_plan_slots.md). A plan's draws over
+    # ``[S, A, S]`` are long enough to vectorise alone, so more slots save only rounds and cost cache.
+    plan_slot_bytes=2**18,
 )
 
 

@@ -196,8 +196,8 @@ def test_the_whole_batch_bytes_bound_the_agent_states_of_a_shard():
     assert plans_whole(agent(whole_batch_bytes=size, whole_batch_plans=2), states)
 
 
-@pytest.mark.parametrize("field", ["whole_batch_plans", "whole_batch_bytes"])
-def test_a_bad_whole_batch_limit_is_refused_before_compiling(field):
+@pytest.mark.parametrize("field", ["whole_batch_plans", "whole_batch_bytes", "plan_slot_bytes"])
+def test_a_bad_planning_limit_is_refused_before_compiling(field):
     g = runner.product([river_swim(False)], [ScriptedHParams()], seeds=[0])
     for bad in (-1, 2.5, "64", True):
         agent = dataclasses.replace(SCRIPTED[False], **{field: bad})

@@ -4,6 +4,7 @@ device and on two (shard_map)."""
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import textwrap
@@ -16,7 +17,8 @@ import pytest
 import agents
 import jaxmdp
 from jaxmdp.experiment import runner
-from jaxmdp.experiment.agent_interface import where_due
+from jaxmdp.experiment.agent_interface import spec_of, where_due
+from jaxmdp.experiment.members import member_mdp
 from jaxmdp.experiment.planning import default_plan_slots, plan_due
 from progress_run import run_on_host_devices
 from jaxpr_eqns import equations
@@ -85,6 +87,37 @@ def test_where_due_keeps_a_passed_through_leaf_as_it_is():
 
 def test_default_plan_slots():
     assert [default_plan_slots(b) for b in (1, 15, 16, 17, 90, 180)] == [1, 1, 1, 2, 6, 12]
+    # A byte cap: at most slot_bytes // member_bytes slots, at least one, never more than without it.
+    assert [default_plan_slots(90, 1000, cap) for cap in (None, 0, 999, 1000, 2999, 3000, 10**9)] == [6, 1, 1, 1, 2,
+                                                                                                      3, 6]
+    assert default_plan_slots(90, 0, 10) == 6  # no state: nothing to cap
+
+
+def test_plan_slots_for_caps_by_one_member_s_state_on_a_cpu():
+    agent = agents.get("psrl_episodic")
+    states = {"counts": jax.ShapeDtypeStruct((40, 10, 100), jnp.int32),
+              "q": jax.ShapeDtypeStruct((40, 250), jnp.float32)}
+    member = 10 * 100 * 4 + 250 * 4  # 5 000 bytes
+    on_cpu = jax.default_backend() == "cpu"
+    for cap, want in ((None, 3), (2 * member, 2 if on_cpu else 3), (member - 1, 1 if on_cpu else 3)):
+        assert runner.plan_slots_for(dataclasses.replace(agent, plan_slot_bytes=cap), states) == want, cap
+    assert runner.plan_slots_for(agent, jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), states)) == 3
+
+
+def test_the_runner_picks_the_slots_by_the_agent_s_state_bytes(monkeypatch):
+    # The runner's default slots come from the shard's agent states (their shapes) and the agent's plan_slot_bytes,
+    # and give the results of planning the whole batch.
+    calls = []
+    real = runner.default_plan_slots
+    monkeypatch.setattr(runner, "default_plan_slots", lambda *args: calls.append(args) or real(*args))
+    agent = dataclasses.replace(agents.get("psrl_episodic"), plan_slot_bytes=12345)  # a new program, traced here
+    g = _episodic_grid(agent)
+    got = runner.run(agent, g, 150, log_period=10, n_records=5)
+    hp = jax.tree.map(lambda x: jnp.asarray(x[0]), g.hparams)  # float32, as the runner holds them
+    one = agent.init(jax.random.key(0), spec_of(member_mdp(g.mdps, 0), 150), hp)
+    member_bytes = sum(x.nbytes for x in jax.tree.leaves(one))
+    assert calls and set(calls) == {(g.n_members, member_bytes, 12345 if jax.default_backend() == "cpu" else None)}
+    _assert_same_run(got, _whole_batch_run("psrl_episodic", _episodic_grid, 150))
 
 
 def _assert_same_run(a, b):

@@ -75,6 +75,7 @@ __all__ = [
     "default_agents",
     "quick_config",
     "plan",
+    "batch_grid",
     "run_benchmark",
 ]
 
@@ -464,6 +465,13 @@ def _grid(batch: Batch, config: RunConfig, hp: Any, agent_name: str) -> runner.G
     return dataclasses.replace(g, mdp_labels=tuple(labels))
 
 
+def batch_grid(batch: Batch, config: RunConfig) -> runner.Grid:
+    """The runner grid of one batch of :func:`plan` (its members with their hyperparameters, from ``config``), as
+    :func:`run_benchmark` runs it: for timing or inspecting a batch outside a run."""
+    hp = hp_sources.hparams_for(batch.agent, config.hparams, config.agent_variant)
+    return _grid(batch, config, hp, batch.agent)
+
+
 def _finals(batch: Batch, result: runner.RunResult) -> list[dict[str, Any]]:
     n = float(result.n_steps)
     cols = {c: result.column(c)[-1] for c in (
@@ -488,7 +496,7 @@ def _run_batch(batch: Batch, config: RunConfig, run_dir: Path, stop_after_chunks
     """Run (or continue from its checkpoint) one batch, stopping after ``stop_after_chunks`` runner chunks if given;
     returns whether it finished."""
     agent = agent_registry.get(batch.agent, config.agent_variant)
-    g = _grid(batch, config, hp_sources.hparams_for(batch.agent, config.hparams, config.agent_variant), batch.agent)
+    g = batch_grid(batch, config)
     period = config.period(batch.set_name)
     # One runner call per batch: each call recomputes the members' indicator constants, which is not free.
     result = runner.run(agent, g, config.n_steps, log_period=period, n_records=config.n_records,

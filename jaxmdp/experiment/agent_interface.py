@@ -31,6 +31,8 @@ hyperparameter sets and drives them in lockstep:
   seldom ask together (epochs that end member by member) sets 0, and its runner compiles the plan once, not twice.
   ``whole_batch_bytes`` (default ``None``: no limit) bounds the same by the batch's agent states' bytes, for an
   agent whose plan's working set grows with its state (a whole batch that leaves the caches plans slower).
+  ``plan_slot_bytes`` (default ``None``: no cap) caps, on a CPU, the planning slots the runner picks by the bytes of
+  agent state they hold together (:func:`jaxmdp.experiment.planning.default_plan_slots`), for the same reason.
 * ``diagnostics(state) -> {name: int scalar}`` (optional): counters of silent degradation kept in the state, e.g.
   plans that stopped at their iteration cap; the runner writes each as a column of its per-record CSV and warns at
   the end of a run where one is non-zero.
@@ -200,6 +202,10 @@ class Agent:
     #: The largest total size in bytes of a lockstep batch's agent states that the runner plans whole (``None``: any);
     #: a batch above it plans in rounds like one above ``whole_batch_plans``.
     whole_batch_bytes: int | None = None
+    #: On a CPU, the most bytes of agent state that a planning round's slots hold together when the runner picks the
+    #: slots itself (``plan_slots=None``): at most ``plan_slot_bytes // (one member's state bytes)`` slots, at least
+    #: one (``None``: no cap; :func:`jaxmdp.experiment.planning.default_plan_slots`).
+    plan_slot_bytes: int | None = None
 
     def __post_init__(self) -> None:
         if (self.warm_policy is None) != (self.policy_start is None):

@@ -28,9 +28,18 @@ from jaxmdp.sampling.compaction import compact
 __all__ = ["plan_due", "default_plan_slots"]
 
 
-def default_plan_slots(n_members: int) -> int:
-    """Planning slots for a lockstep loop of ``n_members`` members: ``ceil(n_members / 16)`` (at least one)."""
-    return max(1, -(-n_members // 16))
+def default_plan_slots(n_members: int, member_bytes: int = 0, slot_bytes: int | None = None) -> int:
+    """Planning slots for a lockstep loop of ``n_members`` members: ``ceil(n_members / 16)``, and with ``slot_bytes``
+    at most ``slot_bytes // member_bytes`` (``member_bytes``: one member's agent state), at least one.
+
+    The cap is for a plan whose working set grows with the state it reads (episodic PSRL's Dirichlet draws over its
+    dense counts): on a CPU, slots whose states no longer fit the caches together plan slower than fewer slots in more
+    rounds (400 states, 1.9 MB of counts a member: one slot 1.25x faster than two;
+    docs/benchmarks/bench_plan_slots.md)."""
+    slots = max(1, -(-n_members // 16))
+    if slot_bytes is not None and member_bytes > 0:
+        slots = min(slots, max(1, slot_bytes // member_bytes))
+    return slots
 
 
 def plan_due(

@@ -77,7 +77,7 @@ from jaxmdp.sampling import fused_random
 
 __all__ = [
     "Grid", "grid", "product", "seed_keys", "stack_hparams", "RunResult", "run", "record_steps", "MEMBER_COLUMNS",
-    "ProgramTooLarge", "DEFAULT_CHUNKS", "default_chunk_steps",
+    "ProgramTooLarge", "DEFAULT_CHUNKS", "default_chunk_steps", "plan_slots_for",
 ]
 
 
@@ -287,6 +287,17 @@ def _init_program(agent: Agent, record_visits: bool = False, bandwidth: int | No
     return jax.jit(init)
 
 
+def plan_slots_for(agent: Agent, states: Any) -> int:
+    """Planning slots of a lockstep loop (paper App. A.1) over ``states`` (member axis first; arrays, tracers or
+    shapes): ``ceil(B / 16)`` for ``B`` members, on a CPU at most ``agent.plan_slot_bytes // m`` (at least one), ``m``
+    one member's state bytes (:func:`~jaxmdp.experiment.planning.default_plan_slots`)."""
+    leaves = jax.tree.leaves(states)
+    members = leaves[0].shape[0] if leaves else 1
+    member_bytes = sum(np.prod(x.shape, dtype=int) * np.dtype(x.dtype).itemsize for x in leaves) // max(members, 1)
+    cap = agent.plan_slot_bytes if jax.default_backend() == "cpu" else None
+    return default_plan_slots(members, member_bytes, cap)
+
+
 @functools.lru_cache(maxsize=_MAX_CACHED_PROGRAMS)
 def _chunk_program(
     agent: Agent,
@@ -306,18 +317,17 @@ def _chunk_program(
     With ``n_shards > 1`` the members are split over that many local devices with ``shard_map``; each shard runs its
     own loop (its own "some member needs to plan" predicate), so shards never communicate. A grid whose stacked MDPs
     have no Beta reward anywhere (static ``MDP.stochastic_rewards``) compiles no reward draw. ``plan_slots``: members
-    planned at once (:func:`jaxmdp.experiment.planning.plan_due`; default
-    :func:`~jaxmdp.experiment.planning.default_plan_slots` of a shard's members); at least a shard's members, the
-    whole shard is planned whenever one member asks and the result kept for those that did. A shard of more than
-    ``agent.whole_batch_plans`` members, or of more than ``agent.whole_batch_bytes`` bytes of agent state, plans in
-    rounds only.
+    planned at once (:func:`jaxmdp.experiment.planning.plan_due`; default :func:`plan_slots_for` a shard); at
+    least a shard's members, the whole shard is planned whenever one member asks and the result kept for those that
+    did. A shard of more than ``agent.whole_batch_plans`` members, or of more than ``agent.whole_batch_bytes`` bytes
+    of agent state, plans in rounds only.
     """
 
     def chunk(
         carry: Carry, mdps: MDP | BlockMDP, mdp_index: jax.Array, consts: IndicatorConstants, sched: Schedule, n
     ):
         B = mdp_index.shape[0]
-        slots = default_plan_slots(B) if plan_slots is None else plan_slots
+        slots = plan_slots_for(agent, carry.agent_state) if plan_slots is None else plan_slots
         dyn = dynamics(mdps)  # the indicators evaluate policies on the states' dynamics
         dtype = dyn.dtype
 
@@ -515,7 +525,7 @@ def _n_shards(n_members: int, shards: int | None) -> int:
 def _validate(agent: Agent, g: Grid, variant: str) -> None:
     if not isinstance(agent, Agent):
         raise ValueError(f"agent must be a jaxmdp.experiment.agent_interface.Agent; got {type(agent).__name__}")
-    for field in ("whole_batch_plans", "whole_batch_bytes"):
+    for field in ("whole_batch_plans", "whole_batch_bytes", "plan_slot_bytes"):
         if getattr(agent, field) is not None:
             check_int(f"Agent.{field}", getattr(agent, field), 0, context=f" or None (agent {agent.name!r})")
     if not isinstance(g, Grid):
@@ -867,7 +877,8 @@ def run(
         carries and computes nothing for it.
       plan_slots: members planned at once when some members of a lockstep loop (a shard) need a plan
         (:mod:`jaxmdp.experiment.planning`): rounds of this many until all are served, so planning costs in
-        proportion to the members that asked; default ``ceil(members / 16)`` per shard. A value at least a shard's
+        proportion to the members that asked; default ``ceil(members / 16)`` per shard, on a CPU at most
+        ``agent.plan_slot_bytes`` of agent state a round (:func:`plan_slots_for`). A value at least a shard's
         members plans the whole shard whenever one member asks (the earlier scheme). The results do not depend on it.
       memory_limit: bytes the compiled programs may need (all shards together on a CPU, per device on an
         accelerator); default what the devices have available (:mod:`jaxmdp.experiment.memory`).
