@@ -102,6 +102,9 @@ def test_plan_slots_for_caps_by_one_member_s_state_on_a_cpu():
     for cap, want in ((None, 3), (2 * member, 2 if on_cpu else 3), (member - 1, 1 if on_cpu else 3)):
         assert runner.plan_slots_for(dataclasses.replace(agent, plan_slot_bytes=cap), states) == want, cap
     assert runner.plan_slots_for(agent, jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), states)) == 3
+    # Continuous PSRL plans one member a round on a CPU whatever its state (a cap of 0 bytes); UCRL2 is not capped.
+    assert runner.plan_slots_for(agents.get("psrl_continuous"), states) == (1 if on_cpu else 3)
+    assert runner.plan_slots_for(agents.get("ucrl2"), states) == 3
 
 
 def test_the_runner_picks_the_slots_by_the_agent_s_state_bytes(monkeypatch):
