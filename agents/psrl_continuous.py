@@ -843,9 +843,9 @@ PSRL_CONTINUOUS = Agent(
     # docs/benchmarks/bench_whole_batch_plans.md).
     whole_batch_plans=0,
     # One member a round on a CPU, whatever its state's size (a cap of 0 bytes): a plan's policy iteration solves a
-    # dense S x S system, and under vmap every slot waits for the slowest member's iterations. In the first 300-1 000
-    # steps of 20-seed benchmark batches (108 and 948 states), where most plans fall, one slot a round ran 1.63x and
-    # 1.33x faster than 3-4 (docs/benchmarks/bench_plan_slots.md).
+    # dense S x S system, and under vmap every slot waits for the slowest member's iterations. Over the first 300-10 000
+    # steps of 20-seed benchmark batches (108-948 states), where its plans fall thickest, one slot a round ran
+    # 1.33-2.23x faster than 3-4 (docs/benchmarks/bench_plan_slots.md).
     plan_slot_bytes=0,
 )
 

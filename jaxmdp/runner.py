@@ -9,6 +9,7 @@ from jaxmdp.experiment.runner import (  # noqa: F401
     RunResult,
     default_chunk_steps,
     grid,
+    plan_slots_for,
     product,
     record_steps,
     run,

@@ -32,7 +32,8 @@ hyperparameter sets and drives them in lockstep:
   ``whole_batch_bytes`` (default ``None``: no limit) bounds the same by the batch's agent states' bytes, for an
   agent whose plan's working set grows with its state (a whole batch that leaves the caches plans slower).
   ``plan_slot_bytes`` (default ``None``: no cap) caps, on a CPU, the planning slots the runner picks by the bytes of
-  agent state they hold together (:func:`jaxmdp.experiment.planning.default_plan_slots`), for the same reason.
+  agent state they hold together (:func:`jaxmdp.experiment.planning.default_plan_slots`), for the same reason; 0
+  plans one member a round (a plan that iterates until its slowest slot converges).
 * ``diagnostics(state) -> {name: int scalar}`` (optional): counters of silent degradation kept in the state, e.g.
   plans that stopped at their iteration cap; the runner writes each as a column of its per-record CSV and warns at
   the end of a run where one is non-zero.

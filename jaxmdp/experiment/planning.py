@@ -34,8 +34,8 @@ def default_plan_slots(n_members: int, member_bytes: int = 0, slot_bytes: int | 
 
     The cap is for a plan whose working set grows with the state it reads (episodic PSRL's Dirichlet draws over its
     dense counts): on a CPU, slots whose states no longer fit the caches together plan slower than fewer slots in more
-    rounds (400 states, 1.9 MB of counts a member: one slot 1.25x faster than two;
-    docs/benchmarks/bench_plan_slots.md)."""
+    rounds (108-400 states: one slot a round 1.02-1.16x faster than 2-4; docs/benchmarks/bench_plan_slots.md).
+    ``slot_bytes = 0`` plans one member a round."""
     slots = max(1, -(-n_members // 16))
     if slot_bytes is not None and member_bytes > 0:
         slots = min(slots, max(1, slot_bytes // member_bytes))
