@@ -33,6 +33,8 @@ from pathlib import Path  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from hardness.benchmark import run as bench  # noqa: E402
+
 DEFAULT_BATCHES = (
     "episodic_ergodic.psrl_episodic.b1",  # 108 states, 80 members
     "episodic_ergodic.psrl_episodic.b2",  # 256 states, 80 members
@@ -40,6 +42,9 @@ DEFAULT_BATCHES = (
     "episodic_communicating.psrl_episodic.b5",  # 400 states, 100 members
 )
 DEFAULT_DOC = ROOT / "docs" / "benchmarks" / "bench_plan_slots.md"
+#: The full benchmark (20 seeds, the four settings): the batches named by ``--batches``.
+FULL = bench.RunConfig(sets=("episodic ergodic", "episodic communicating", "continuous ergodic",
+                             "continuous communicating"))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -53,64 +58,44 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def measure(batch_id: str, slot_values: list[str], steps: int, repeats: int) -> list[str]:
-    """Table rows (one per slot value) for one batch: slots per shard, best run seconds, agent-steps/s and the time
-    against ``uncapped``; raises if two values give different records."""
+def measure(batch, slot_values: list[str], steps: int, repeats: int) -> list[str]:
+    """Table rows (one per slot value) for one batch of the full plan: slots per shard, best run seconds,
+    agent-steps/s and the time against ``uncapped``; stops if two values give different records."""
     import jax
+    import jax.numpy as jnp
     import numpy as np
 
     import agents as agent_registry
-    from hardness.benchmark import run as bench
-    from jaxmdp.experiment import runner
-    from jaxmdp.experiment.planning import default_plan_slots
-
-    config = bench.RunConfig(sets=("episodic ergodic", "episodic communicating", "continuous ergodic",
-                                   "continuous communicating"))
-    _, batches = bench.plan(config)
-    by_id = {b.id: b for b in batches}
-    if batch_id not in by_id:
-        raise SystemExit(f"--batches: no batch {batch_id!r} in the full plan; e.g. {sorted(by_id)[:3]}")
-    batch = by_id[batch_id]
-    agent = agent_registry.get(batch.agent, config.agent_variant)
-    grid = bench.batch_grid(batch, config)
-    shards = max(d for d in range(1, jax.local_device_count() + 1) if grid.n_members % d == 0)
-    per_shard = grid.n_members // shards
-    rule = _rule_slots(agent, grid, per_shard)
-    chosen = {"rule": None, "uncapped": default_plan_slots(per_shard)}
-    best, records, slots_of = {}, {}, {}
-    for name in slot_values:
-        value = chosen[name] if name in chosen else int(name)
-        slots_of[name] = rule if value is None else value
-    for _ in range(repeats):
-        for name in slot_values:
-            value = chosen[name] if name in chosen else int(name)
-            result = runner.run(agent, grid, steps, log_period=100, n_records=10, plan_slots=value)
-            best[name] = min(best.get(name, float("inf")), result.run_s)
-            digest = np.asarray(result.values).tobytes()
-            if records.setdefault("ref", digest) != digest:
-                raise SystemExit(f"{batch_id}: slots {name} gave different records")
-            print(f"  {batch_id} slots {name} ({slots_of[name]}): {result.run_s:.2f} s", flush=True)
-    base = best.get("uncapped")
-    rows = []
-    for name in slot_values:
-        ratio = f"{base / best[name]:.2f}x" if base else ""
-        rows.append(f"| {batch_id} | {grid.n_members} ({shards} x {per_shard}) | {name} | {slots_of[name]} | "
-                    f"{best[name]:.2f} | {grid.n_members * steps / best[name]:,.0f} | {ratio} |")
-    return rows
-
-
-def _rule_slots(agent, grid, per_shard: int) -> int:
-    """The slots the runner picks for a shard of ``per_shard`` members of ``grid`` (its agent states' shapes)."""
-    import jax
-
     from jaxmdp.experiment import runner
     from jaxmdp.experiment.agent_interface import spec_of
     from jaxmdp.experiment.members import member_mdp
+    from jaxmdp.experiment.planning import default_plan_slots
 
-    hp = jax.tree.map(lambda x: x[0], grid.hparams)
-    one = jax.eval_shape(lambda: agent.init(jax.random.key(0), spec_of(member_mdp(grid.mdps, 0), 1), hp))
-    states = jax.tree.map(lambda x: jax.ShapeDtypeStruct((per_shard,) + x.shape, x.dtype), one)
-    return runner.plan_slots_for(agent, states)
+    agent = agent_registry.get(batch.agent, FULL.agent_variant)
+    grid = bench.batch_grid(batch, FULL)
+    shards = max(d for d in range(1, jax.local_device_count() + 1) if grid.n_members % d == 0)
+    per_shard = grid.n_members // shards
+    # The slots the runner picks for a shard: its agent states' shapes (hyperparameters in float32, as it holds them).
+    hp = jax.tree.map(lambda x: jnp.asarray(x[0]), grid.hparams)
+    one = jax.eval_shape(lambda: agent.init(jax.random.key(0), spec_of(member_mdp(grid.mdps, 0), steps), hp))
+    shard = jax.tree.map(lambda x: jax.ShapeDtypeStruct((per_shard,) + x.shape, x.dtype), one)
+    values = {name: None if name == "rule" else default_plan_slots(per_shard) if name == "uncapped" else int(name)
+              for name in slot_values}
+    slots_of = {name: runner.plan_slots_for(agent, shard) if v is None else v for name, v in values.items()}
+    best, reference = dict.fromkeys(values, float("inf")), None
+    for _ in range(repeats):
+        for name, value in values.items():
+            result = runner.run(agent, grid, steps, log_period=100, n_records=10, plan_slots=value)
+            best[name] = min(best[name], result.run_s)
+            records = np.asarray(result.values).tobytes()
+            if reference is not None and records != reference:
+                raise SystemExit(f"{batch.id}: slots {name} gave different records")
+            reference = records
+            print(f"  {batch.id} slots {name} ({slots_of[name]}): {result.run_s:.2f} s", flush=True)
+    base = best.get("uncapped")
+    return [f"| {batch.id} | {grid.n_members} ({shards} x {per_shard}) | {name} | {slots_of[name]} | "
+            f"{best[name]:.2f} | {grid.n_members * steps / best[name]:,.0f} | "
+            f"{f'{base / best[name]:.2f}x' if base else ''} |" for name in values]
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -118,9 +103,11 @@ def main(argv: list[str] | None = None) -> None:
     for name in args.slots:
         if name not in ("rule", "uncapped") and not (name.isdigit() and int(name) > 0):
             raise SystemExit(f"--slots: {name!r} is not rule, uncapped or a positive integer")
-    rows = []
-    for batch_id in args.batches:
-        rows += measure(batch_id, args.slots, args.steps, args.repeats)
+    by_id = {b.id: b for b in bench.plan(FULL)[1]}
+    unknown = [b for b in args.batches if b not in by_id]
+    if unknown:
+        raise SystemExit(f"--batches: no batch {unknown} in the full plan; e.g. {sorted(by_id)[:3]}")
+    rows = [row for batch_id in args.batches for row in measure(by_id[batch_id], args.slots, args.steps, args.repeats)]
     body = [
         f"{args.steps} steps a run, indicators every 100 steps, best of {args.repeats} interleaved runs; every value "
         "gave the same records bit for bit. `x`: the time of `uncapped` over this one's.",

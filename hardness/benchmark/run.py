@@ -443,9 +443,12 @@ def _distinct(members: Sequence[tuple[str, int]], set_name: str, emission: str |
     return distinct, labels, mdp_index, emission_seeds
 
 
-def _grid(batch: Batch, config: RunConfig, hp: Any, agent_name: str) -> runner.Grid:
-    """The batch's members: each distinct instance once, labelled by its MDP label (and seed where it matters); a
-    part of a split batch padded and sized like the whole (:func:`split_batch`)."""
+def batch_grid(batch: Batch, config: RunConfig) -> runner.Grid:
+    """The runner grid of one batch of :func:`plan`, as :func:`run_benchmark` runs it (also for timing or inspecting a
+    batch outside a run): each distinct instance once, labelled by its MDP label (and seed where it matters), with
+    ``config``'s hyperparameters of the batch's agent; a part of a split batch padded and sized like the whole
+    (:func:`split_batch`)."""
+    hp = hp_sources.hparams_for(batch.agent, config.hparams, config.agent_variant)
     emission = None if config.emission is None else canonical_emission(config.emission)
     distinct, labels, mdp_index, emission_seeds = _distinct(batch.members, batch.set_name, emission)
     like = distinct
@@ -456,20 +459,13 @@ def _grid(batch: Batch, config: RunConfig, hp: Any, agent_name: str) -> runner.G
             H = max(m.H for m in like) if like[0].episodic else None
             starts = max(m.max_starts for m in like)
             distinct = [jaxmdp.pad(m, S, A, K, H, starts) for m in distinct]
-    fitted = hp_sources.fit_static_sizes(agent_name, [hp], like)[0]
+    fitted = hp_sources.fit_static_sizes(batch.agent, [hp], like)[0]
     seeds = [s for _, s in batch.members]
     hparams = runner.stack_hparams([fitted] * len(seeds))
     mdps = distinct if emission is None else [to_block_mdp(m, emission, s) for m, s in zip(distinct, emission_seeds)]
     g = runner.grid(mdps, hparams, runner.seed_keys(seeds), mdp_index=mdp_index,
                     hparams_index=[0] * len(seeds), seeds=seeds)
     return dataclasses.replace(g, mdp_labels=tuple(labels))
-
-
-def batch_grid(batch: Batch, config: RunConfig) -> runner.Grid:
-    """The runner grid of one batch of :func:`plan` (its members with their hyperparameters, from ``config``), as
-    :func:`run_benchmark` runs it: for timing or inspecting a batch outside a run."""
-    hp = hp_sources.hparams_for(batch.agent, config.hparams, config.agent_variant)
-    return _grid(batch, config, hp, batch.agent)
 
 
 def _finals(batch: Batch, result: runner.RunResult) -> list[dict[str, Any]]:

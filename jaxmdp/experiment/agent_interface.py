@@ -220,12 +220,18 @@ class Agent:
         return self.plan is not _no_plan
 
 
+def batch_bytes(states: Any) -> tuple[int, int]:
+    """``(members, bytes)`` of a lockstep batch of ``states`` (member axis first; arrays, tracers or
+    ``jax.ShapeDtypeStruct``s: static shapes only)."""
+    leaves = jax.tree.leaves(states)
+    members = leaves[0].shape[0] if leaves else 0
+    return members, sum(int(np.prod(x.shape)) * np.dtype(x.dtype).itemsize for x in leaves)
+
+
 def plans_whole(agent: Agent, states: Any) -> bool:
     """Whether the runner may plan a lockstep batch of ``states`` (member axis first) whole: at most
     ``agent.whole_batch_plans`` members and at most ``agent.whole_batch_bytes`` bytes of state (static shapes)."""
-    leaves = jax.tree.leaves(states)
-    members = leaves[0].shape[0] if leaves else 0
-    nbytes = sum(x.nbytes for x in leaves)  # static: tracers carry their shapes
+    members, nbytes = batch_bytes(states)
     return ((agent.whole_batch_plans is None or members <= agent.whole_batch_plans)
             and (agent.whole_batch_bytes is None or nbytes <= agent.whole_batch_bytes))
 

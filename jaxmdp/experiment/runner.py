@@ -56,7 +56,7 @@ from jaxmdp import dynamic_programming as dp
 from jaxmdp import env
 from jaxmdp.gth import band_order
 from jaxmdp._checks import VARIANTS, Variant, check_int, check_variant
-from jaxmdp.experiment.agent_interface import Agent, Transition, plans_whole, spec_of, where_due
+from jaxmdp.experiment.agent_interface import Agent, Transition, batch_bytes, plans_whole, spec_of, where_due
 from jaxmdp.experiment.checkpoints import fingerprint, load_checkpoint, save_checkpoint
 from jaxmdp.experiment.memory import ProgramTooLarge, check_fits
 from jaxmdp.experiment.indicators import (
@@ -291,11 +291,9 @@ def plan_slots_for(agent: Agent, states: Any) -> int:
     """Planning slots of a lockstep loop (paper App. A.1) over ``states`` (member axis first; arrays, tracers or
     shapes): ``ceil(B / 16)`` for ``B`` members, on a CPU at most ``agent.plan_slot_bytes // m`` (at least one), ``m``
     one member's state bytes (:func:`~jaxmdp.experiment.planning.default_plan_slots`)."""
-    leaves = jax.tree.leaves(states)
-    members = leaves[0].shape[0] if leaves else 1
-    member_bytes = sum(np.prod(x.shape, dtype=int) * np.dtype(x.dtype).itemsize for x in leaves) // max(members, 1)
+    members, nbytes = batch_bytes(states)
     cap = agent.plan_slot_bytes if jax.default_backend() == "cpu" else None
-    return default_plan_slots(members, member_bytes, cap)
+    return default_plan_slots(members, nbytes // max(members, 1), cap)
 
 
 @functools.lru_cache(maxsize=_MAX_CACHED_PROGRAMS)
