@@ -28,10 +28,10 @@ def did_you_mean(value: Any, known: Iterable[str], cutoff: float = 0.4) -> str:
     return f"; did you mean {', '.join(map(repr, close))}?" if close else ""
 
 
-def check_variant(variant: Any) -> None:
-    """Raise ``ValueError`` unless ``variant`` is one of :data:`VARIANTS`."""
+def check_variant(variant: Any, name: str = "variant") -> None:
+    """Raise ``ValueError`` (naming the parameter ``name``) unless ``variant`` is one of :data:`VARIANTS`."""
     if variant not in VARIANTS:
-        raise ValueError(f"variant must be 'paper' or 'colosseum'; got {variant!r}")
+        raise ValueError(f"{name} must be 'paper' or 'colosseum'; got {variant!r}")
 
 
 def check_int(name: str, value: Any, low: int = 1, high: float | None = None, *, context: str = "") -> int:

@@ -9,6 +9,8 @@ size; results are written as each batch finishes, and running again on the same 
     python scripts/run_benchmark.py --settings episodic_ergodic --seeds 20 --steps 500000 --out results/benchmark
     python scripts/run_benchmark.py --settings continuous_ergodic --agents ucrl2 --hparams reference --out DIR
     python scripts/run_benchmark.py --quick --hparams reference --agent-variant colosseum --out DIR   # reference mode
+    python scripts/run_benchmark.py --quick --hparams reference --agent-variant colosseum --indicators colosseum \
+        --out DIR                                         # reference mode with the reference's regret indicators
     python scripts/run_benchmark.py --quick --emission StateInfo --agents dqn_episodic random_episodic --out DIR
 """
 
@@ -50,6 +52,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="paper: the agents follow their algorithms' papers (default); colosseum: reference mode, the "
                         "tabular agents with the reference package's update rules (docs/agents.md); with --hparams "
                         "reference the like-for-like counterpart of the paper's Table 2")
+    p.add_argument("--indicators", default="paper", choices=("paper", "colosseum"),
+                   help="paper: the exact expected regret as the paper defines it (default); colosseum: the "
+                        "reference's indicators (episodic regret at the last episode's start, rho* of the "
+                        "0.99-discounted greedy policy, regrets <= 1e-3 zeroed; docs/measures.md)")
     p.add_argument("--buckets", type=int, default=None,
                    help="size buckets per set for every agent (default 4, and 8 for episodic PSRL, whose posterior "
                         "draws pay for the padding at every episode; --quick 1)")
@@ -80,7 +86,7 @@ def config_from_args(args: argparse.Namespace) -> run.RunConfig:
                  only=tuple(args.mdps) if args.mdps else None,
                  memory_limit=None if args.memory_limit is None else int(args.memory_limit * 2**30))
     config = {**base, **{k: v for k, v in given.items() if v is not None}, "hparams": args.hparams,
-              "agent_variant": args.agent_variant}
+              "agent_variant": args.agent_variant, "indicator_variant": args.indicators}
     if args.buckets is not None:
         config.update(agent_buckets={})  # --buckets N: N for every agent
     if args.log_period is not None:

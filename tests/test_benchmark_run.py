@@ -431,3 +431,34 @@ def test_reference_mode_runs_the_colosseum_agents_in_their_own_batches(full_run,
         run.plan(run.RunConfig(**{**DEEP, "agent_variant": "colosseum"}))
     with pytest.raises(ValueError, match="variant must be 'paper' or 'colosseum'"):
         run.plan(run.RunConfig(**{**TINY, "agent_variant": "reference"}))
+
+
+def test_the_reference_indicators_are_an_option_of_the_run(tmp_path):
+    # --indicators colosseum: the runner's colosseum indicators (docs/measures.md §6) for every batch, recorded in the
+    # plan and in the batch keys; the members' scores are those of a direct runner call with them, and differ from the
+    # paper's indicators (the MiniGrid's episodes start in several states: the reference scores the last episode's
+    # start, the paper the start distribution).
+    cfg = dict(sets=("episodic quick test",), agents=("random_episodic",), seeds=(0, 1), n_steps=300,
+               log_period=50, n_buckets=1, hparams="reference", only=("MiniGridEmpty",))
+    scores, keys = {}, {}
+    for variant in ("paper", "colosseum"):
+        config = run.RunConfig(**cfg, indicator_variant=variant)
+        out = tmp_path / variant
+        summary = run.run_benchmark(config, out, progress=False, report=False)
+        assert summary.finished
+        assert json.loads((out / "plan.json").read_text())["settings"]["variant"] == variant
+        with (out / "members.csv").open(newline="") as f:
+            scores[variant] = [float(r["normalized_cumulative_regret"]) for r in csv.DictReader(f)]
+        [batch] = run.plan(config)[1]
+        keys[variant] = batch.key
+        direct = runner.run(run.agent_registry.get("random_episodic"), run.batch_grid(batch, config), 300,
+                            log_period=50, n_records=config.n_records, variant=variant)
+        np.testing.assert_allclose(scores[variant], direct.column("normalized_cumulative_regret")[-1], rtol=1e-6)
+    assert keys["paper"] != keys["colosseum"]
+    assert all(abs(p - c) > 1e-3 for p, c in zip(scores["paper"], scores["colosseum"])), scores
+    with pytest.raises(ValueError, match="indicator_variant must be 'paper' or 'colosseum'; got 'reference'"):
+        run.plan(run.RunConfig(**cfg, indicator_variant="reference"))
+    cli = load_script("run_benchmark")
+    parse = cli.build_parser().parse_args
+    assert cli.config_from_args(parse(["--out", "x"])).indicator_variant == "paper"
+    assert cli.config_from_args(parse(["--out", "x", "--indicators", "colosseum"])).indicator_variant == "colosseum"

@@ -138,6 +138,11 @@ class RunConfig:
       agent_variant: ``"paper"`` (the algorithms as published) or ``"colosseum"`` (reference mode: the tabular agents
         with the reference's update rules, :func:`agents.get`); with ``hparams="reference"`` the like-for-like
         counterpart of the paper's published numbers.
+      indicator_variant: the regret indicators (:mod:`jaxmdp.experiment.indicators`): ``"paper"`` (exact expected
+        regret from the start distribution, gain-optimal ``rho*``; the default) or ``"colosseum"`` (the reference's:
+        the episodic regret at the last episode's start, ``rho*`` of the 0.99-discounted greedy policy, regrets up to
+        ``1e-3`` zeroed; docs/measures.md §6). With ``agent_variant="colosseum"`` and ``hparams="reference"``, the
+        reference's pipeline but for its random streams, its policy estimates' ties and its cut-offs.
     """
 
     sets: tuple[str, ...]
@@ -155,6 +160,7 @@ class RunConfig:
     only: tuple[str, ...] | None = None
     agent_variant: str = "paper"
     memory_limit: int | None = None
+    indicator_variant: str = "paper"
 
     def period(self, set_name: str) -> int:
         return int(self.log_periods.get(set_name, self.log_period))
@@ -221,7 +227,8 @@ def _check(config: RunConfig) -> list[str]:
     if config.emission is not None and config.agent_variant != "paper":
         raise ValueError("agent_variant 'colosseum' (reference mode) exists for the tabular agents only, not with an "
                          "emission")
-    check_variant(config.agent_variant)
+    check_variant(config.agent_variant, "agent_variant")
+    check_variant(config.indicator_variant, "indicator_variant")
     for name in config.agents or ():
         agent = agent_registry.get(name, config.agent_variant)
         if not any(sets.is_episodic(s) == agent.episodic for s in names):
@@ -303,7 +310,8 @@ def _settings(config: RunConfig, names: Sequence[str]) -> dict[str, Any]:
         agent_variant=config.agent_variant,
         n_buckets=int(config.n_buckets), max_members=config.max_members, n_records=int(config.n_records),
         agent_buckets={a: config.buckets(a) for a in all_agents if config.buckets(a) != config.n_buckets},
-        emission=None if config.emission is None else canonical_emission(config.emission), variant="paper",
+        emission=None if config.emission is None else canonical_emission(config.emission),
+        variant=config.indicator_variant,
         only=list(config.only) if config.only else None,
     )
 
@@ -496,6 +504,7 @@ def _run_batch(batch: Batch, config: RunConfig, run_dir: Path, stop_after_chunks
     period = config.period(batch.set_name)
     # One runner call per batch: each call recomputes the members' indicator constants, which is not free.
     result = runner.run(agent, g, config.n_steps, log_period=period, n_records=config.n_records,
+                        variant=config.indicator_variant,
                         csv_path=run_dir / f"{batch.id}.csv", checkpoint_path=run_dir / f"{batch.id}.ckpt.npz",
                         stop_after_chunks=stop_after_chunks, memory_limit=config.memory_limit)
     done = int(result.steps[-1]) if result.steps.size else 0
