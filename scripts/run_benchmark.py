@@ -56,6 +56,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="paper: the exact expected regret as the paper defines it (default); colosseum: the "
                         "reference's indicators (episodic regret at the last episode's start, rho* of the "
                         "0.99-discounted greedy policy, regrets <= 1e-3 zeroed; docs/measures.md)")
+    p.add_argument("--stop-when-converged", action="store_true",
+                   help="the reference's convergence stop: a run whose normalised regret stayed near 0 for ten logs "
+                        "past a fifth of its steps stops learning (docs/measures.md; off: learn to the end)")
     p.add_argument("--buckets", type=int, default=None,
                    help="size buckets per set for every agent (default 4, and 8 for episodic PSRL, whose posterior "
                         "draws pay for the padding at every episode; --quick 1)")
@@ -86,7 +89,8 @@ def config_from_args(args: argparse.Namespace) -> run.RunConfig:
                  only=tuple(args.mdps) if args.mdps else None,
                  memory_limit=None if args.memory_limit is None else int(args.memory_limit * 2**30))
     config = {**base, **{k: v for k, v in given.items() if v is not None}, "hparams": args.hparams,
-              "agent_variant": args.agent_variant, "indicator_variant": args.indicators}
+              "agent_variant": args.agent_variant, "indicator_variant": args.indicators,
+              "stop_when_converged": args.stop_when_converged}
     if args.buckets is not None:
         config.update(agent_buckets={})  # --buckets N: N for every agent
     if args.log_period is not None:

@@ -462,3 +462,28 @@ def test_the_reference_indicators_are_an_option_of_the_run(tmp_path):
     parse = cli.build_parser().parse_args
     assert cli.config_from_args(parse(["--out", "x"])).indicator_variant == "paper"
     assert cli.config_from_args(parse(["--out", "x", "--indicators", "colosseum"])).indicator_variant == "colosseum"
+
+
+def test_the_reference_s_convergence_stop_is_an_option_of_the_run(tmp_path, monkeypatch):
+    # --stop-when-converged: every runner call of the run gets it; the plan and the batch keys name it only when it is
+    # on, so the plans of runs without it keep their keys (and their finished batches).
+    cfg = dict(sets=("episodic quick test",), agents=("random_episodic",), seeds=(0,), n_steps=100, log_period=50,
+               n_buckets=1, hparams="reference", only=("RiverSwim",))
+    off_settings, [off] = run.plan(run.RunConfig(**cfg))
+    on_settings, [on] = run.plan(run.RunConfig(**cfg, stop_when_converged=True))
+    assert "stop_when_converged" not in off_settings and on_settings["stop_when_converged"] is True
+    assert on.key != off.key
+    assert off.key == run._batch_key({k: v for k, v in on_settings.items() if k != "stop_when_converged"},
+                                     off.set_name, off.agent, off.members)
+    seen = []
+    real = run.runner.run
+    monkeypatch.setattr(run.runner, "run", lambda *a, **kw: seen.append(kw["stop_when_converged"]) or real(*a, **kw))
+    assert run.run_benchmark(run.RunConfig(**cfg, stop_when_converged=True), tmp_path, progress=False,
+                             report=False).finished
+    assert seen == [True]
+    with pytest.raises(ValueError, match="stop_when_converged must be True or False; got 'yes'"):
+        run.plan(run.RunConfig(**cfg, stop_when_converged="yes"))
+    cli = load_script("run_benchmark")
+    parse = cli.build_parser().parse_args
+    assert cli.config_from_args(parse(["--out", "x", "--stop-when-converged"])).stop_when_converged
+    assert not cli.config_from_args(parse(["--out", "x"])).stop_when_converged

@@ -648,3 +648,71 @@ def test_a_warm_policy_that_does_not_fit_is_refused_before_compiling(returned, m
     with pytest.raises(ValueError, match=match):
         runner.run(agent, g, 10, log_period=5)
 
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The reference's convergence stop (run(..., stop_when_converged=True), docs/measures.md §6.4)
+# ---------------------------------------------------------------------------------------------------------------
+
+
+class SwitchHParams(struct.PyTreeNode):
+    switch_at: int | jax.Array = 500  # updates after which the agent turns LEFT (0: from the start)
+
+
+class SwitchState(struct.PyTreeNode):
+    c: jax.Array
+    plans: jax.Array
+    switch_at: jax.Array
+
+
+def _switch_action(state):
+    return jnp.where(state.c < state.switch_at, 1, 0).astype(jnp.int32)  # RiverSwim: 1 = RIGHT, optimal
+
+
+SWITCH = Agent(
+    name="switch_right_then_left", episodic=False, default_hparams=SwitchHParams(),
+    init=lambda key, spec, hp: SwitchState(jnp.int32(0), jnp.int32(0), jnp.asarray(hp.switch_at, jnp.int32)),
+    act=lambda key, state, obs, h: _switch_action(state),
+    update=lambda state, tr: state.replace(c=state.c + 1),
+    policy=lambda state: jnp.broadcast_to(jax.nn.one_hot(_switch_action(state), 2), (5, 2)),
+    needs_plan=lambda state: (state.c > 0) & (state.c % 7 == 0),
+    plan=lambda key, state: state.replace(plans=state.plans + 1),
+)
+
+
+def test_the_reference_s_convergence_stop_freezes_a_member_whose_regret_stayed_at_zero(tmp_path):
+    # Continuous RiverSwim 5: RIGHT everywhere has regret 0, LEFT 0.995 (normalised). Member 0 goes RIGHT for its first
+    # 500 updates, then LEFT; member 1 LEFT from the start. Logs every 10 of 1 000 steps. With the stop, member 0's
+    # regret has been 0 at ten logs in a row at the first log past a fifth of the run, t = 210 (t = 200 is not past
+    # it): it stops learning there, so it keeps c = 210 and goes RIGHT to the end (cumulative regret 0), and plans no
+    # more (its plans: before the first action, then at c = 7, 14, ..., 203: 30). Member 1 never stops. Without the
+    # stop, member 0 turns LEFT after 500 updates.
+    g = runner.product([river_swim(False)], [SwitchHParams(500), SwitchHParams(0)], seeds=[0])
+    stop = runner.run(SWITCH, g, 1000, log_period=10, n_records=10, stop_when_converged=True)
+    np.testing.assert_array_equal(stop.stopped_at, [210, 0])
+    np.testing.assert_array_equal(stop.agent_state.c, [210, 1000])
+    np.testing.assert_array_equal(stop.agent_state.plans, [30, 1 + 998 // 7])
+    normalized = stop.column("normalized_cumulative_regret")
+    assert normalized[-1, 0] == 0.0
+    np.testing.assert_allclose(normalized[-1, 1], 0.995 * 1000, rtol=1e-5)
+    free = runner.run(SWITCH, g, 1000, log_period=10, n_records=10)
+    assert free.stopped_at is None
+    np.testing.assert_array_equal(free.agent_state.c, [1000, 1000])
+    # LEFT from the log after update 500 on, each log charging the ten steps before it: 51 logs.
+    np.testing.assert_allclose(free.column("normalized_cumulative_regret")[-1, 0], 0.995 * 510, rtol=1e-5)
+    np.testing.assert_array_equal(free.values[:, 1], stop.values[:, 1])  # member 1 alike either way
+    # A member stops only after ten logs at 0: with logs every 100 steps there are two past a fifth of the run (at
+    # 300 and 400) before member 0 turns, and then its regret is 0.995: no stop.
+    sparse = runner.run(SWITCH, g, 1000, log_period=100, n_records=10, stop_when_converged=True)
+    np.testing.assert_array_equal(sparse.stopped_at, [0, 0])
+    # Interrupted and resumed: the same run (the checkpoint carries the window and the stop).
+    ckpt = tmp_path / "stop.npz"
+    part = runner.run(SWITCH, g, 1000, log_period=10, n_records=10, stop_when_converged=True, chunk_steps=100,
+                      checkpoint_path=ckpt, stop_after_chunks=3)
+    assert part.steps[-1] == 300
+    resumed = runner.run(SWITCH, g, 1000, log_period=10, n_records=10, stop_when_converged=True, chunk_steps=100,
+                         checkpoint_path=ckpt)
+    np.testing.assert_array_equal(resumed.stopped_at, [210, 0])
+    np.testing.assert_array_equal(resumed.values, stop.values)
+    with pytest.raises(ValueError, match="stop_when_converged must be True or False; got 1"):
+        runner.run(SWITCH, g, 100, stop_when_converged=1)

@@ -370,13 +370,15 @@ def write_report(out: str | os.PathLike) -> list[Path]:
     the files written."""
     s = summarize(out)
     written = []
+    stop = ", with the reference's convergence stop" if s.settings.get("stop_when_converged") else ""
     md = [
         "# Benchmark report",
         "",
         f"{s.n_steps:,} steps per run, seeds {', '.join(map(str, s.settings['seeds']))}, indicators every "
         f"{', '.join(f'{v} ({k})' for k, v in s.settings['log_periods'].items())} steps, hyperparameters: "
         f"{s.settings['hparams_source']}, agent rules: {s.settings.get('agent_variant', 'paper')} (colosseum: "
-        f"reference mode), indicators: {s.settings.get('variant', 'paper')} (colosseum: the reference's). Every run completed its steps (no wall-clock cut-off). Score: final "
+        f"reference mode), indicators: {s.settings.get('variant', 'paper')} (colosseum: the reference's){stop}. "
+        "Every run completed its steps (no wall-clock cut-off). Score: final "
         "`normalized_cumulative_regret` / steps (App. E), mean ± std over seeds; bold: the lowest learning agent per "
         f"row{_paper_source(s.settings.get('emission'))}",
         "",

@@ -143,6 +143,9 @@ class RunConfig:
         the episodic regret at the last episode's start, ``rho*`` of the 0.99-discounted greedy policy, regrets up to
         ``1e-3`` zeroed; docs/measures.md §6). With ``agent_variant="colosseum"`` and ``hparams="reference"``, the
         reference's pipeline but for its random streams, its policy estimates' ties and its cut-offs.
+      stop_when_converged: the reference's convergence stop (:func:`jaxmdp.runner.run`; docs/measures.md §6.4): a
+        member whose normalised regret stayed near 0 for ten logs past a fifth of the run stops learning. Off by
+        default (the paper's protocol learns to the end); with reference mode, the reference's loop.
     """
 
     sets: tuple[str, ...]
@@ -161,6 +164,7 @@ class RunConfig:
     agent_variant: str = "paper"
     memory_limit: int | None = None
     indicator_variant: str = "paper"
+    stop_when_converged: bool = False
 
     def period(self, set_name: str) -> int:
         return int(self.log_periods.get(set_name, self.log_period))
@@ -229,6 +233,8 @@ def _check(config: RunConfig) -> list[str]:
                          "emission")
     check_variant(config.agent_variant, "agent_variant")
     check_variant(config.indicator_variant, "indicator_variant")
+    if not isinstance(config.stop_when_converged, bool):
+        raise ValueError(f"stop_when_converged must be True or False; got {config.stop_when_converged!r}")
     for name in config.agents or ():
         agent = agent_registry.get(name, config.agent_variant)
         if not any(sets.is_episodic(s) == agent.episodic for s in names):
@@ -302,6 +308,8 @@ def _settings(config: RunConfig, names: Sequence[str]) -> dict[str, Any]:
     """Everything a plan depends on (JSON), the agents' resolved hyperparameters included."""
     agents_by_set = {s: _agents_of(config, s) for s in names}
     all_agents = list(dict.fromkeys(a for s in names for a in agents_by_set[s]))
+    # Named only when on, so that the plans and batch keys of runs without it stay what they were.
+    stop = {"stop_when_converged": True} if config.stop_when_converged else {}
     return dict(
         sets=list(names), agents=agents_by_set, seeds=[int(s) for s in config.seeds], n_steps=int(config.n_steps),
         log_periods={s: config.period(s) for s in names}, hparams_source=str(config.hparams),
@@ -312,7 +320,7 @@ def _settings(config: RunConfig, names: Sequence[str]) -> dict[str, Any]:
         agent_buckets={a: config.buckets(a) for a in all_agents if config.buckets(a) != config.n_buckets},
         emission=None if config.emission is None else canonical_emission(config.emission),
         variant=config.indicator_variant,
-        only=list(config.only) if config.only else None,
+        only=list(config.only) if config.only else None, **stop,
     )
 
 
@@ -361,7 +369,8 @@ def plan(config: RunConfig, out: str | os.PathLike | None = None) -> tuple[dict[
 
 def _batch_key(settings: dict, set_name: str, agent: str, members: Sequence, whole: Sequence | None = None) -> str:
     """Hash of everything a batch's results depend on (a part's key includes the batch it was split from)."""
-    key = {k: settings[k] for k in ("n_steps", "n_records", "emission", "variant", "agent_variant")}
+    key = {k: settings[k] for k in ("n_steps", "n_records", "emission", "variant", "agent_variant",
+                                    "stop_when_converged") if k in settings}
     key.update(set=set_name, agent=agent, members=[list(m) for m in members],
                log_period=settings["log_periods"][set_name], hparams=settings["hparams"][agent])
     if whole is not None:
@@ -504,7 +513,7 @@ def _run_batch(batch: Batch, config: RunConfig, run_dir: Path, stop_after_chunks
     period = config.period(batch.set_name)
     # One runner call per batch: each call recomputes the members' indicator constants, which is not free.
     result = runner.run(agent, g, config.n_steps, log_period=period, n_records=config.n_records,
-                        variant=config.indicator_variant,
+                        variant=config.indicator_variant, stop_when_converged=config.stop_when_converged,
                         csv_path=run_dir / f"{batch.id}.csv", checkpoint_path=run_dir / f"{batch.id}.ckpt.npz",
                         stop_after_chunks=stop_after_chunks, memory_limit=config.memory_limit)
     done = int(result.steps[-1]) if result.steps.size else 0

@@ -64,6 +64,8 @@ class RunResult:
       visits: ``[B, S]`` counts of the states each member acted in, when the run was asked to record them
         (``run(..., record_visits=True)``), else None.
       diagnostic_names: the agent's diagnostics (``Agent.diagnostics``), the last columns of ``values`` and the CSV.
+      stopped_at: ``[B]`` the step after which each member stopped learning (0: it never did), for a run with the
+        reference's convergence stop (``run(..., stop_when_converged=True)``), else None.
     """
 
     steps: np.ndarray
@@ -80,6 +82,7 @@ class RunResult:
     agent_state: Any = None
     visits: np.ndarray | None = None
     diagnostic_names: tuple[str, ...] = ()
+    stopped_at: np.ndarray | None = None
 
     @property
     def agent_steps_per_second(self) -> float:

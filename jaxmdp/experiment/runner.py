@@ -26,8 +26,10 @@ through ``n_steps`` agent/MDP interaction steps (paper §3.3 and App. A.1; docs/
 The host runs the compiled loop in chunks (:func:`run`), shows progress, appends each chunk's records to a CSV and
 can checkpoint the carry so that an interrupted run resumes without losing finished work. Every random draw comes
 from the member's key folded with the step index, so a run's results do not depend on how it was chunked or whether
-it was resumed. Learning always runs for ``n_steps`` steps; compute time is reported beside the results (the
-reference instead stops learning after a wall-clock budget, docs/benchmark.md §2).
+it was resumed. Learning runs for ``n_steps`` steps and compute time is reported beside the results (the reference
+instead stops learning after a wall-clock budget, docs/benchmark.md §2). ``stop_when_converged=True`` adds the
+reference's other stop (docs/measures.md §6.4): a member whose normalised regret has been near 0 at ten logs in a row
+past a fifth of the run stops learning and acts with its agent as it is for the rest of the run.
 
 Step bookkeeping (differs from the reference's off-by-one, docs/measures.md §6.1, which logs at loop index ``t`` with
 ``t + 1`` steps done but labels and charges ``t``): the record labelled ``steps = c`` is made after exactly ``c``
@@ -81,6 +83,15 @@ __all__ = [
 ]
 
 
+#: The reference's convergence stop (``run(..., stop_when_converged=True)``, docs/measures.md §6.4): past
+#: ``CONVERGED_AFTER`` of the steps, when the last ``CONVERGED_LOGS`` logged normalised regrets are all within the
+#: tolerance of 0 (``1e-4`` episodic, ``1e-5`` continuous) and the current one within ``1e-8``, the member stops
+#: learning.
+CONVERGED_LOGS = 10
+CONVERGED_AFTER = 0.2
+CONVERGED_TOLERANCE = {True: 1e-4, False: 1e-5}  # by MDP.episodic
+CONVERGED_CURRENT_TOLERANCE = 1e-8
+
 # Sub-keys of a member's key: environment, actions, planning, initialisation.
 _N_SUBKEYS = 4
 # Tags of the initialisation sub-key: the reset, the agent's init and the plan before the first action.
@@ -126,6 +137,10 @@ class Carry(struct.PyTreeNode):
     value_cache: jax.Array  # [B, S] its values (V_0 or the gain from every state)
     policy_start: jax.Array  # [B, ...] the next log's warm start of agent.warm_policy, else [B, 0]
     visits: jax.Array  # [B, S] int32 count of the states acted in (record_visits), else [B, 0]
+    # stop_when_converged: [B, CONVERGED_LOGS] the normalised regrets of the last logs (inf before), else [B, 0]
+    recent_regrets: jax.Array
+    # stop_when_converged: [B, 1] int32 the step after which the member stopped learning (0: it learns), else [B, 0]
+    stopped_at: jax.Array
 
 
 class Schedule(struct.PyTreeNode):
@@ -236,7 +251,9 @@ _MAX_CACHED_PROGRAMS = 32
 
 
 @functools.lru_cache(maxsize=_MAX_CACHED_PROGRAMS)
-def _init_program(agent: Agent, record_visits: bool = False, bandwidth: int | None = None) -> Callable:
+def _init_program(
+    agent: Agent, record_visits: bool = False, bandwidth: int | None = None, stop_when_converged: bool = False
+) -> Callable:
     def init(
         mdps: MDP | BlockMDP, mdp_index: jax.Array, hparams: Any, key_data: jax.Array, n_steps: jax.Array,
         orders: jax.Array | None = None,
@@ -282,6 +299,8 @@ def _init_program(agent: Agent, record_visits: bool = False, bandwidth: int | No
             policy_start=jnp.zeros((B, 0), dyn.dtype) if agent.warm_policy is None
             else jax.vmap(agent.policy_start)(state),
             visits=jnp.zeros((B, dyn.n_states if record_visits else 0), jnp.int32),
+            recent_regrets=jnp.full((B, CONVERGED_LOGS if stop_when_converged else 0), jnp.inf, dyn.dtype),
+            stopped_at=jnp.zeros((B, 1 if stop_when_converged else 0), jnp.int32),
         )
 
     return jax.jit(init)
@@ -306,9 +325,13 @@ def _chunk_program(
     record_visits: bool = False,
     plan_slots: int | None = None,
     bandwidth: int | None = None,
+    stop_when_converged: bool = False,
 ) -> Callable:
     """``chunk(carry, mdps, mdp_index, consts, schedule, n) -> (carry, steps[capacity], values[capacity, B, 4],
     n_written)``: ``n`` more steps (traced), recording at most ``capacity`` snapshots.
+
+    ``stop_when_converged`` (static): the reference's convergence stop (:data:`CONVERGED_LOGS`); a member that has
+    stopped neither updates nor plans, and acts with its agent state as it was.
 
     ``bandwidth``: the members' band orders' (``consts.state_order``, :func:`_band`), for the banded exact gains.
 
@@ -335,6 +358,8 @@ def _chunk_program(
             # Before the first action every member plans (the reference's before_start_interacting), later those
             # that ask.
             needs = jax.vmap(agent.needs_plan)(c.agent_state) | (c.t == 0)
+            if stop_when_converged:
+                needs = needs & (c.stopped_at[:, 0] == 0)
             keys = lambda: _plan_keys(c.key_data, c.t)  # noqa: E731
             if slots >= B:
                 do_plan = lambda state: where_due(needs, jax.vmap(agent.plan)(keys(), state), state)  # noqa: E731
@@ -371,6 +396,8 @@ def _chunk_program(
             obs2, env_state, state, reward, terminated = jax.vmap(one)(
                 mdp_index, k_env, k_act, c.env_state, c.observation, c.agent_state
             )
+            if stop_when_converged:  # the members that stopped keep their state
+                state = where_due(c.stopped_at[:, 0] == 0, state, c.agent_state)
             visits = c.visits.at[jnp.arange(B), c.env_state.state].add(1) if record_visits else c.visits
             return c.replace(
                 visits=visits,
@@ -416,10 +443,21 @@ def _chunk_program(
             )
             k = (c.t - c.last_log).astype(dtype)
             x = jnp.stack([inst.regret, inst.expected_reward, inst.normalized_regret], axis=-1) * k
-            return policy, values, c.logged.add(x.astype(dtype)), c.t, start
+            recent, stopped_at = c.recent_regrets, c.stopped_at
+            if stop_when_converged:
+                r = inst.normalized_regret.astype(dtype)
+                recent = jnp.concatenate([recent[:, 1:], r[:, None]], axis=1)
+                converged = (
+                    (c.t * 5 > sched.n_steps)  # past CONVERGED_AFTER of the steps
+                    & jnp.all(jnp.abs(recent) <= CONVERGED_TOLERANCE[dyn.episodic], axis=1)
+                    & (jnp.abs(r) <= CONVERGED_CURRENT_TOLERANCE)
+                )
+                stopped_at = jnp.where((stopped_at == 0) & converged[:, None], c.t, stopped_at)
+            return policy, values, c.logged.add(x.astype(dtype)), c.t, start, recent, stopped_at
 
         def logged_fields(c: Carry) -> tuple:
-            return c.policy_cache, c.value_cache, c.logged, c.last_log, c.policy_start
+            return (c.policy_cache, c.value_cache, c.logged, c.last_log, c.policy_start, c.recent_regrets,
+                    c.stopped_at)
 
         t_end = carry.t + n
 
@@ -432,9 +470,11 @@ def _chunk_program(
             is_log = (c.t % sched.log_period == 0) | (c.t == sched.n_steps)
             # Only what a log writes leaves the cond: with the whole carry as its result, XLA copied the agent
             # tables at every log.
-            policy_cache, value_cache, logged, last_log, start = jax.lax.cond(is_log, log, logged_fields, c)
+            policy_cache, value_cache, logged, last_log, start, recent, stopped_at = jax.lax.cond(
+                is_log, log, logged_fields, c
+            )
             c = c.replace(policy_cache=policy_cache, value_cache=value_cache, logged=logged, last_log=last_log,
-                          policy_start=start)
+                          policy_start=start, recent_regrets=recent, stopped_at=stopped_at)
             is_record = (c.t % sched.record_period == 0) | (c.t == sched.n_steps)
 
             def record(args):
@@ -614,6 +654,7 @@ class _Settings:
     record_visits: bool = False
     plan_slots: int | None = None
     memory_limit: int | None = None
+    stop_when_converged: bool = False
 
 
 @dataclasses.dataclass
@@ -665,6 +706,7 @@ def _validated_settings(
     record_visits: bool = False,
     plan_slots: int | None = None,
     memory_limit: int | None = None,
+    stop_when_converged: bool = False,
 ) -> _Settings:
     """Check every argument on the host, before anything compiles, and derive the chunking (see :func:`run`)."""
     n_steps = check_int("n_steps", n_steps)
@@ -676,8 +718,9 @@ def _validated_settings(
         plan_slots = check_int("plan_slots", plan_slots)
     if memory_limit is not None:
         memory_limit = check_int("memory_limit", memory_limit)
-    if not isinstance(record_visits, bool):
-        raise ValueError(f"record_visits must be True or False; got {record_visits!r}")
+    for name, flag in (("record_visits", record_visits), ("stop_when_converged", stop_when_converged)):
+        if not isinstance(flag, bool):
+            raise ValueError(f"{name} must be True or False; got {flag!r}")
     if n_steps >= 2**31 - 1:
         raise ValueError(f"n_steps must be below 2**31 - 1; got {n_steps}")
     _validate(agent, grid, variant)
@@ -696,6 +739,7 @@ def _validated_settings(
         record_visits=record_visits,
         plan_slots=plan_slots,
         memory_limit=memory_limit,
+        stop_when_converged=stop_when_converged,
     )
 
 
@@ -737,14 +781,14 @@ def _compile(agent: Agent, grid: Grid, settings: _Settings) -> _Program:
     consts = _constants_program(settings.variant)(mdps, mdp_index)
     orders, bandwidth = _band(mdps, grid.mdp_index)
     consts = consts.replace(state_order=orders)
-    init_jit = _init_program(agent, settings.record_visits, bandwidth)
+    init_jit = _init_program(agent, settings.record_visits, bandwidth, settings.stop_when_converged)
     init_fn = init_jit.lower(mdps, mdp_index, hparams, key_data, sched.n_steps, orders).compile()
     carry_shape = jax.eval_shape(init_jit, mdps, mdp_index, hparams, key_data, sched.n_steps, orders)
     leaves, treedef = jax.tree.flatten(carry_shape)
     carry_layout = (treedef, tuple(x.ndim for x in leaves))
     chunk_fn = _chunk_program(
         agent, settings.variant, settings.capacity, settings.n_shards, carry_layout, settings.record_visits,
-        settings.plan_slots, bandwidth,
+        settings.plan_slots, bandwidth, settings.stop_when_converged,
     )
     chunk_exe = chunk_fn.lower(carry_shape, mdps, mdp_index, consts, sched, jnp.int32(0)).compile()
     jax.block_until_ready(consts)
@@ -848,6 +892,7 @@ def run(
     record_visits: bool = False,
     plan_slots: int | None = None,
     memory_limit: int | None = None,
+    stop_when_converged: bool = False,
 ) -> RunResult:
     """Run ``agent`` on every member of ``grid`` for ``n_steps`` steps in lockstep (see the module docstring).
 
@@ -880,6 +925,12 @@ def run(
         members plans the whole shard whenever one member asks (the earlier scheme). The results do not depend on it.
       memory_limit: bytes the compiled programs may need (all shards together on a CPU, per device on an
         accelerator); default what the devices have available (:mod:`jaxmdp.experiment.memory`).
+      stop_when_converged: the reference's convergence stop (docs/measures.md §6.4, [quirk]): a member stops
+        learning (no more updates or plans; it acts with its agent state as it is) at the first log past
+        :data:`CONVERGED_AFTER` of the steps where its last :data:`CONVERGED_LOGS` normalised regrets are within
+        :data:`CONVERGED_TOLERANCE` of 0 and the current one within :data:`CONVERGED_CURRENT_TOLERANCE`. Its later
+        logs evaluate that agent state's policy as before (the reference computes its regret once and reuses it).
+        ``RunResult.stopped_at`` tells when. Off by default: the paper's protocol learns to the end.
 
     Raises:
       ValueError: before anything compiles, for an episodic agent on continuous MDPs (or the reverse), an agent
@@ -891,12 +942,14 @@ def run(
     """
     settings = _validated_settings(
         agent, grid, n_steps, log_period, n_records, variant, chunk_steps, shards, record_visits, plan_slots,
-        memory_limit,
+        memory_limit, stop_when_converged,
     )
     program = _compile(agent, grid, settings)
     run_id = fingerprint(agent.name, grid, settings.n_steps, settings.log_period, settings.record_period, variant)
     if record_visits:  # a checkpoint of a run without counts cannot continue one with them (and vice versa)
         run_id += "+visits"
+    if stop_when_converged:
+        run_id += "+converged-stop"
     ckpt = Path(checkpoint_path) if checkpoint_path is not None else None
     csv_file = Path(csv_path) if csv_path is not None else None
     start = _start_or_resume(program, grid.n_members, run_id, ckpt, csv_file, resume)
@@ -918,5 +971,6 @@ def run(
         variant=variant,
         agent_state=jax.tree.map(np.asarray, done.carry.agent_state),
         visits=np.asarray(done.carry.visits) if record_visits else None,
+        stopped_at=np.asarray(done.carry.stopped_at[:, 0]) if stop_when_converged else None,
         diagnostic_names=program.diagnostic_names,
     )
