@@ -695,6 +695,10 @@ def test_the_reference_s_convergence_stop_freezes_a_member_whose_regret_stayed_a
     normalized = stop.column("normalized_cumulative_regret")
     assert normalized[-1, 0] == 0.0
     np.testing.assert_allclose(normalized[-1, 1], 0.995 * 1000, rtol=1e-5)
+    # It also acts with the state it stopped with: its sampled rewards are those of the agent that never turns.
+    g_right = runner.product([river_swim(False)], [SwitchHParams(10**6), SwitchHParams(0)], seeds=[0])
+    right = runner.run(SWITCH, g_right, 1000, log_period=10, n_records=10)
+    np.testing.assert_array_equal(stop.column("cumulative_reward")[:, 0], right.column("cumulative_reward")[:, 0])
     free = runner.run(SWITCH, g, 1000, log_period=10, n_records=10)
     assert free.stopped_at is None
     np.testing.assert_array_equal(free.agent_state.c, [1000, 1000])

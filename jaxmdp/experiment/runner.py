@@ -141,6 +141,9 @@ class Carry(struct.PyTreeNode):
     recent_regrets: jax.Array
     # stop_when_converged: [B, 1] int32 the step after which the member stopped learning (0: it learns), else [B, 0]
     stopped_at: jax.Array
+    # stop_when_converged: the agent states as they were when the members stopped (what a stopped member acts with
+    # and is evaluated on; agent_state goes on learning unseen), else [B, 0]
+    frozen_state: Any
 
 
 class Schedule(struct.PyTreeNode):
@@ -301,6 +304,7 @@ def _init_program(
             visits=jnp.zeros((B, dyn.n_states if record_visits else 0), jnp.int32),
             recent_regrets=jnp.full((B, CONVERGED_LOGS if stop_when_converged else 0), jnp.inf, dyn.dtype),
             stopped_at=jnp.zeros((B, 1 if stop_when_converged else 0), jnp.int32),
+            frozen_state=state if stop_when_converged else jnp.zeros((B, 0), dyn.dtype),
         )
 
     return jax.jit(init)
@@ -330,8 +334,10 @@ def _chunk_program(
     """``chunk(carry, mdps, mdp_index, consts, schedule, n) -> (carry, steps[capacity], values[capacity, B, 4],
     n_written)``: ``n`` more steps (traced), recording at most ``capacity`` snapshots.
 
-    ``stop_when_converged`` (static): the reference's convergence stop (:data:`CONVERGED_LOGS`); a member that has
-    stopped neither updates nor plans, and acts with its agent state as it was.
+    ``stop_when_converged`` (static): the reference's convergence stop (:data:`CONVERGED_LOGS`). A member that has
+    stopped acts with, and is evaluated on, a copy of its agent state made when it stopped; its live state plans no
+    more and is not seen again. (Keeping the live state instead, merged with its update at every step, read and wrote
+    the whole state per step: episodic Q-learning ran 4.4 times slower.)
 
     ``bandwidth``: the members' band orders' (``consts.state_order``, :func:`_band`), for the banded exact gains.
 
@@ -378,11 +384,16 @@ def _chunk_program(
         def interact(c: Carry) -> Carry:
             k_env, k_act = _keys(c.key_data, 0, c.t), _keys(c.key_data, 1, c.t)
 
-            def one(i, ke, ka, env_state, obs, state):
+            def choose(ka, state, obs, h):
+                return _apart(agent.act, ka, state, obs, h) if agent.act_apart else agent.act(ka, state, obs, h)
+
+            def one(i, ke, ka, env_state, obs, state, frozen, stopped_at):
                 # obs: the state index, or for a BlockMDP the observation sample that step() returned last (so
                 # the transition's next_obs is the very sample the agent acts on next, not a second noise draw).
                 h = env_state.h
-                action = _apart(agent.act, ka, state, obs, h) if agent.act_apart else agent.act(ka, state, obs, h)
+                action = choose(ka, state, obs, h)
+                if stop_when_converged:  # a stopped member acts with its frozen state
+                    action = jnp.where(stopped_at[0] > 0, choose(ka, frozen, obs, h), action)
                 if stacked:  # one gather from the stack per table read (env.step_member)
                     obs2, env_state2, reward, terminated, _, info = env.step_member(ke, env_state, action, mdps, i)
                 else:
@@ -394,10 +405,8 @@ def _chunk_program(
                 return obs2, env_state2, agent.update(state, tr), reward, terminated
 
             obs2, env_state, state, reward, terminated = jax.vmap(one)(
-                mdp_index, k_env, k_act, c.env_state, c.observation, c.agent_state
+                mdp_index, k_env, k_act, c.env_state, c.observation, c.agent_state, c.frozen_state, c.stopped_at
             )
-            if stop_when_converged:  # the members that stopped keep their state
-                state = where_due(c.stopped_at[:, 0] == 0, state, c.agent_state)
             visits = c.visits.at[jnp.arange(B), c.env_state.state].add(1) if record_visits else c.visits
             return c.replace(
                 visits=visits,
@@ -431,6 +440,9 @@ def _chunk_program(
             # The fields a log writes (logged_fields' order). Policy evaluation is the expensive half of an
             # indicator; a member whose policy is unchanged since the previous log reuses its values (exactly: they
             # cover every state), and the evaluation is skipped altogether when no member's policy changed.
+            live = c.agent_state
+            if stop_when_converged:  # a stopped member is evaluated on its frozen state
+                c = c.replace(agent_state=where_due(c.stopped_at[:, 0] == 0, live, c.frozen_state))
             policy, changed, start = changed_policy(c)
 
             def evaluate(cache: jax.Array) -> jax.Array:
@@ -443,7 +455,7 @@ def _chunk_program(
             )
             k = (c.t - c.last_log).astype(dtype)
             x = jnp.stack([inst.regret, inst.expected_reward, inst.normalized_regret], axis=-1) * k
-            recent, stopped_at = c.recent_regrets, c.stopped_at
+            recent, stopped_at, frozen = c.recent_regrets, c.stopped_at, c.frozen_state
             if stop_when_converged:
                 r = inst.normalized_regret.astype(dtype)
                 recent = jnp.concatenate([recent[:, 1:], r[:, None]], axis=1)
@@ -452,12 +464,14 @@ def _chunk_program(
                     & jnp.all(jnp.abs(recent) <= CONVERGED_TOLERANCE[dyn.episodic], axis=1)
                     & (jnp.abs(r) <= CONVERGED_CURRENT_TOLERANCE)
                 )
-                stopped_at = jnp.where((stopped_at == 0) & converged[:, None], c.t, stopped_at)
-            return policy, values, c.logged.add(x.astype(dtype)), c.t, start, recent, stopped_at
+                stopping = (stopped_at[:, 0] == 0) & converged
+                stopped_at = jnp.where(stopping[:, None], c.t, stopped_at)
+                frozen = where_due(stopping, live, frozen)
+            return policy, values, c.logged.add(x.astype(dtype)), c.t, start, recent, stopped_at, frozen
 
         def logged_fields(c: Carry) -> tuple:
             return (c.policy_cache, c.value_cache, c.logged, c.last_log, c.policy_start, c.recent_regrets,
-                    c.stopped_at)
+                    c.stopped_at, c.frozen_state)
 
         t_end = carry.t + n
 
@@ -470,11 +484,11 @@ def _chunk_program(
             is_log = (c.t % sched.log_period == 0) | (c.t == sched.n_steps)
             # Only what a log writes leaves the cond: with the whole carry as its result, XLA copied the agent
             # tables at every log.
-            policy_cache, value_cache, logged, last_log, start, recent, stopped_at = jax.lax.cond(
+            policy_cache, value_cache, logged, last_log, start, recent, stopped_at, frozen = jax.lax.cond(
                 is_log, log, logged_fields, c
             )
             c = c.replace(policy_cache=policy_cache, value_cache=value_cache, logged=logged, last_log=last_log,
-                          policy_start=start, recent_regrets=recent, stopped_at=stopped_at)
+                          policy_start=start, recent_regrets=recent, stopped_at=stopped_at, frozen_state=frozen)
             is_record = (c.t % sched.record_period == 0) | (c.t == sched.n_steps)
 
             def record(args):
@@ -632,6 +646,17 @@ def _check_shapes(agent: Agent, g: Grid, n_steps: int) -> None:
         if (start2.shape, start2.dtype) != (start.shape, start.dtype):
             raise ValueError(f"agent {agent.name!r}: warm_policy returns a start of {start2.shape} {start2.dtype}; "
                              f"expected policy_start's {start.shape} {start.dtype} (the runner carries it)")
+
+
+def _final_states(carry: Carry, stop_when_converged: bool) -> Any:
+    """The members' agent states at the end of a run (numpy): for a member that stopped learning, its frozen state."""
+    if not stop_when_converged:
+        return jax.tree.map(np.asarray, carry.agent_state)
+    learning = np.asarray(carry.stopped_at[:, 0]) == 0
+    return jax.tree.map(
+        lambda live, frozen: np.where(learning.reshape((-1,) + (1,) * (np.ndim(live) - 1)), live, frozen),
+        jax.tree.map(np.asarray, carry.agent_state), jax.tree.map(np.asarray, carry.frozen_state),
+    )
 
 
 def _progress(done: int, total: int, elapsed: float, members: int) -> None:
@@ -926,7 +951,8 @@ def run(
       memory_limit: bytes the compiled programs may need (all shards together on a CPU, per device on an
         accelerator); default what the devices have available (:mod:`jaxmdp.experiment.memory`).
       stop_when_converged: the reference's convergence stop (docs/measures.md §6.4, [quirk]): a member stops
-        learning (no more updates or plans; it acts with its agent state as it is) at the first log past
+        learning (it acts with, and is evaluated on, its agent state as it is; ``RunResult.agent_state`` holds
+        that state) at the first log past
         :data:`CONVERGED_AFTER` of the steps where its last :data:`CONVERGED_LOGS` normalised regrets are within
         :data:`CONVERGED_TOLERANCE` of 0 and the current one within :data:`CONVERGED_CURRENT_TOLERANCE`. Its later
         logs evaluate that agent state's policy as before (the reference computes its regret once and reuses it).
@@ -969,7 +995,7 @@ def run(
         log_period=settings.log_period,
         record_period=settings.record_period,
         variant=variant,
-        agent_state=jax.tree.map(np.asarray, done.carry.agent_state),
+        agent_state=_final_states(done.carry, stop_when_converged),
         visits=np.asarray(done.carry.visits) if record_visits else None,
         stopped_at=np.asarray(done.carry.stopped_at[:, 0]) if stop_when_converged else None,
         diagnostic_names=program.diagnostic_names,
