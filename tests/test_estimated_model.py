@@ -16,6 +16,7 @@ from agents import estimated_model as em
 from agents import psrl_continuous, ucrl2
 from agents.extended_value_iteration import confidence_box
 from agents.posteriors import dirichlet_mean, normal_gamma_mean
+from agents.tabular_common import copy_action_zero
 from jaxmdp import dynamic_programming as dp
 from jaxmdp.experiment import runner
 from jaxmdp.experiment.agent_interface import Transition, spec_of
@@ -198,6 +199,15 @@ def test_padded_actions_mirror_action_zero():
     np.testing.assert_array_equal(pi[:, :2], em.discounted_greedy_policy(two, R[:, :2], 0.9, jnp.ones(2, bool)))
 
 
+def _dense_q(state: ucrl2.UCRL2State) -> jax.Array:
+    """The discounted optimal ``Q`` of UCRL2's estimated model, as the dense route computes it before its greedy step
+    (:func:`agents.ucrl2._dense_policy`)."""
+    P, R = ucrl2.estimated_model(state)
+    mask = state.action_mask
+    return dp.solve_discounted(copy_action_zero(P, mask), state.hparams.policy_discount,
+                               rewards=copy_action_zero(R, mask)).Q
+
+
 @pytest.mark.parametrize("family, params", [
     ("RiverSwim", dict(size=8, p_lazy=0.1, make_reward_stochastic=True)),
     ("MiniGridEmpty", dict(size=5, p_lazy=0.3, n_starting_states=2, make_reward_stochastic=True)),
@@ -205,17 +215,29 @@ def test_padded_actions_mirror_action_zero():
 def test_ucrl2_policy_estimate_equals_the_dense_route(family, params):
     """After a lockstep run, UCRL2's slots hold every transition and its policy estimate is the dense route's
     (:func:`agents.tabular_common.discounted_greedy_policy` of :func:`agents.ucrl2.estimated_model`), at every one
-    of several checkpoints (early: many unvisited pairs; later: most pairs visited)."""
+    of several checkpoints (early: many unvisited pairs; later: most pairs visited).
+
+    The two routes sum in different orders, so where two actions' values tie to the last bits the greedy choice may
+    differ with the CPU's vector width (seen on one machine of two: MiniGrid-Empty after 30 steps, one state of 300
+    with values 93.96376 / 93.96376 / 93.96377). There the test asks only that both choices be greedy for the dense
+    values up to 4 units in the last place, at no more than one state per member."""
     mdp = jaxmdp.make(family, episodic=False, seed=0, **params)
     assert spec_of(mdp, 10).max_successors == mdp.max_successors
     dense_route = jax.jit(jax.vmap(ucrl2._dense_policy))
     sparse_route = jax.jit(jax.vmap(ucrl2.policy))
+    dense_q = jax.jit(jax.vmap(_dense_q))
     for n_steps in (30, 400, 3000):
         grid = runner.product([mdp], [ucrl2.UCRL2.default_hparams], [0, 1, 2])
         states = runner.run(ucrl2.UCRL2, grid, n_steps, log_period=n_steps).agent_state
         # Per pair as many as the epoch schedule's independent visit counter.
         np.testing.assert_array_equal(states.counts.sum(-1), states.schedule.visits)
-        np.testing.assert_array_equal(sparse_route(states), dense_route(states))
+        sparse, dense = np.asarray(sparse_route(states)), np.asarray(dense_route(states))
+        apart = np.argwhere((sparse != dense).any(-1))
+        assert np.all(np.bincount(apart[:, 0], minlength=3) <= 1), apart
+        Q = np.asarray(dense_q(states))
+        for b, s in apart:
+            chosen = Q[b, s, [sparse[b, s].argmax(), dense[b, s].argmax()]]
+            np.testing.assert_allclose(chosen, Q[b, s].max(), rtol=4 * np.finfo(np.float32).eps)
 
 
 def _dense_boxes(states, filled, lo, hi, room_other, state_mask):
