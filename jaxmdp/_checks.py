@@ -13,7 +13,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-__all__ = ["Variant", "VARIANTS", "check_variant", "check_int", "check_range", "did_you_mean"]
+__all__ = ["Variant", "VARIANTS", "check_variant", "check_bool", "check_int", "check_range", "did_you_mean"]
 
 #: Which definition a measure or an indicator follows: ``"paper"`` (the paper's, computed exactly) or
 #: ``"colosseum"`` (the reference package's procedure and numbers, docs/measures.md).
@@ -32,6 +32,13 @@ def check_variant(variant: Any, name: str = "variant") -> None:
     """Raise ``ValueError`` (naming the parameter ``name``) unless ``variant`` is one of :data:`VARIANTS`."""
     if variant not in VARIANTS:
         raise ValueError(f"{name} must be 'paper' or 'colosseum'; got {variant!r}")
+
+
+def check_bool(name: str, value: Any) -> bool:
+    """``value`` after checking that it is ``True`` or ``False`` (a switch given as 1 or "yes" is refused)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True or False; got {value!r}")
+    return bool(value)
 
 
 def check_int(name: str, value: Any, low: int = 1, high: float | None = None, *, context: str = "") -> int:

@@ -59,7 +59,7 @@ import jaxmdp
 from hardness.benchmark import hparams as hp_sources
 from hardness.benchmark import sets
 from jaxmdp import runner
-from jaxmdp._checks import check_variant, did_you_mean
+from jaxmdp._checks import check_bool, check_variant, did_you_mean
 from jaxmdp.experiment import records
 from jaxmdp.experiment.members import dynamics
 from jaxmdp.mdp import MDP
@@ -233,8 +233,7 @@ def _check(config: RunConfig) -> list[str]:
                          "emission")
     check_variant(config.agent_variant, "agent_variant")
     check_variant(config.indicator_variant, "indicator_variant")
-    if not isinstance(config.stop_when_converged, bool):
-        raise ValueError(f"stop_when_converged must be True or False; got {config.stop_when_converged!r}")
+    check_bool("stop_when_converged", config.stop_when_converged)
     for name in config.agents or ():
         agent = agent_registry.get(name, config.agent_variant)
         if not any(sets.is_episodic(s) == agent.episodic for s in names):

@@ -57,7 +57,7 @@ from flax import struct
 from jaxmdp import dynamic_programming as dp
 from jaxmdp import env
 from jaxmdp.gth import band_order
-from jaxmdp._checks import VARIANTS, Variant, check_int, check_variant
+from jaxmdp._checks import VARIANTS, Variant, check_bool, check_int, check_variant
 from jaxmdp.experiment.agent_interface import Agent, Transition, batch_bytes, plans_whole, spec_of, where_due
 from jaxmdp.experiment.checkpoints import fingerprint, load_checkpoint, save_checkpoint
 from jaxmdp.experiment.memory import ProgramTooLarge, check_fits
@@ -84,11 +84,11 @@ __all__ = [
 
 
 #: The reference's convergence stop (``run(..., stop_when_converged=True)``, docs/measures.md §6.4): past
-#: ``CONVERGED_AFTER`` of the steps, when the last ``CONVERGED_LOGS`` logged normalised regrets are all within the
+#: ``1 / CONVERGED_AFTER_DIVISOR`` of the steps (the reference's 0.2, compared in integers), when the last ``CONVERGED_LOGS`` logged normalised regrets are all within the
 #: tolerance of 0 (``1e-4`` episodic, ``1e-5`` continuous) and the current one within ``1e-8``, the member stops
 #: learning.
 CONVERGED_LOGS = 10
-CONVERGED_AFTER = 0.2
+CONVERGED_AFTER_DIVISOR = 5
 CONVERGED_TOLERANCE = {True: 1e-4, False: 1e-5}  # by MDP.episodic
 CONVERGED_CURRENT_TOLERANCE = 1e-8
 
@@ -460,7 +460,7 @@ def _chunk_program(
                 r = inst.normalized_regret.astype(dtype)
                 recent = jnp.concatenate([recent[:, 1:], r[:, None]], axis=1)
                 converged = (
-                    (c.t * 5 > sched.n_steps)  # past CONVERGED_AFTER of the steps
+                    (c.t * CONVERGED_AFTER_DIVISOR > sched.n_steps)
                     & jnp.all(jnp.abs(recent) <= CONVERGED_TOLERANCE[dyn.episodic], axis=1)
                     & (jnp.abs(r) <= CONVERGED_CURRENT_TOLERANCE)
                 )
@@ -650,13 +650,10 @@ def _check_shapes(agent: Agent, g: Grid, n_steps: int) -> None:
 
 def _final_states(carry: Carry, stop_when_converged: bool) -> Any:
     """The members' agent states at the end of a run (numpy): for a member that stopped learning, its frozen state."""
-    if not stop_when_converged:
-        return jax.tree.map(np.asarray, carry.agent_state)
-    learning = np.asarray(carry.stopped_at[:, 0]) == 0
-    return jax.tree.map(
-        lambda live, frozen: np.where(learning.reshape((-1,) + (1,) * (np.ndim(live) - 1)), live, frozen),
-        jax.tree.map(np.asarray, carry.agent_state), jax.tree.map(np.asarray, carry.frozen_state),
-    )
+    states = carry.agent_state
+    if stop_when_converged:
+        states = where_due(carry.stopped_at[:, 0] == 0, states, carry.frozen_state)
+    return jax.tree.map(np.asarray, states)
 
 
 def _progress(done: int, total: int, elapsed: float, members: int) -> None:
@@ -743,9 +740,8 @@ def _validated_settings(
         plan_slots = check_int("plan_slots", plan_slots)
     if memory_limit is not None:
         memory_limit = check_int("memory_limit", memory_limit)
-    for name, flag in (("record_visits", record_visits), ("stop_when_converged", stop_when_converged)):
-        if not isinstance(flag, bool):
-            raise ValueError(f"{name} must be True or False; got {flag!r}")
+    record_visits = check_bool("record_visits", record_visits)
+    stop_when_converged = check_bool("stop_when_converged", stop_when_converged)
     if n_steps >= 2**31 - 1:
         raise ValueError(f"n_steps must be below 2**31 - 1; got {n_steps}")
     _validate(agent, grid, variant)
@@ -953,7 +949,7 @@ def run(
       stop_when_converged: the reference's convergence stop (docs/measures.md §6.4, [quirk]): a member stops
         learning (it acts with, and is evaluated on, its agent state as it is; ``RunResult.agent_state`` holds
         that state) at the first log past
-        :data:`CONVERGED_AFTER` of the steps where its last :data:`CONVERGED_LOGS` normalised regrets are within
+        ``1 /`` :data:`CONVERGED_AFTER_DIVISOR` of the steps where its last :data:`CONVERGED_LOGS` normalised regrets are within
         :data:`CONVERGED_TOLERANCE` of 0 and the current one within :data:`CONVERGED_CURRENT_TOLERANCE`. Its later
         logs evaluate that agent state's policy as before (the reference computes its regret once and reuses it).
         ``RunResult.stopped_at`` tells when. Off by default: the paper's protocol learns to the end.

@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from jaxmdp._checks import check_int
+from jaxmdp._checks import check_bool, check_int
 from jaxmdp.mdp import MDP, MDPInfo, custom_mdp
 from jaxmdp.mdp_families.distributions import Distribution, PointMass
 from jaxmdp.transforms import MAX_NOISE_PROBABILITY
@@ -112,8 +112,7 @@ class CommonParams:
         reward_variance_multiplier: float,
         H: int | None,
     ) -> None:
-        if not isinstance(episodic, (bool, np.bool_)):
-            raise ValueError(f"episodic must be True or False; got {episodic!r}")
+        check_bool("episodic", episodic)
         check_int("seed", seed, 0)
         if not (isinstance(reward_variance_multiplier, (int, float)) and reward_variance_multiplier > 0):
             raise ValueError(f"reward_variance_multiplier must be > 0; got {reward_variance_multiplier!r}")

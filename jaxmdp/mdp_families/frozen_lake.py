@@ -14,6 +14,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from jaxmdp._checks import check_bool
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.mdp_families.construction import Family, family_builder, integer_parameter
 from jaxmdp.mdp_families.distributions import (
@@ -115,8 +116,7 @@ class FrozenLakeFamily(Family):
             raise ValueError(
                 f"suboptimal_return + 0.2 must be below optimal_return; got {suboptimal_return} and {optimal_return}"
             )
-        if not isinstance(is_slippery, (bool, np.bool_)):
-            raise ValueError(f"is_slippery must be True or False; got {is_slippery!r}")
+        check_bool("is_slippery", is_slippery)
         self.p_frozen = float(p_frozen)
         self.optimal_return = float(optimal_return)
         self.suboptimal_return = float(suboptimal_return)
