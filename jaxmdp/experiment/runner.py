@@ -952,7 +952,8 @@ def run(
         ``1 /`` :data:`CONVERGED_AFTER_DIVISOR` of the steps where its last :data:`CONVERGED_LOGS` normalised regrets are within
         :data:`CONVERGED_TOLERANCE` of 0 and the current one within :data:`CONVERGED_CURRENT_TOLERANCE`. Its later
         logs evaluate that agent state's policy as before (the reference computes its regret once and reuses it).
-        ``RunResult.stopped_at`` tells when. Off by default: the paper's protocol learns to the end.
+        ``RunResult.stopped_at`` tells when. The loop then holds each member's agent state twice (live and frozen)
+        and computes each action twice. Off by default: the paper's protocol learns to the end.
 
     Raises:
       ValueError: before anything compiles, for an episodic agent on continuous MDPs (or the reverse), an agent
