@@ -112,11 +112,10 @@ def sample_reward(
     """Draw the reward of ``(state, action, next_state)``: Beta(mean*conc, (1-mean)*conc) if ``conc > 0``, else mean.
 
     Beta draws use :func:`jaxmdp.sampling.beta_shared.sample_beta_shared` (exact; a member of a ``vmap``-ed batch
-    gets bit for bit its single call's value; 2-3x faster steps than
-    :func:`jaxmdp.sampling.beta_sampling.sample_beta`, itself several times faster than ``jax.random.beta`` under
-    ``vmap``). Seeded rewards drawn before branch ``betabits`` came from ``sample_beta``'s stream. MDPs whose static
-    ``stochastic_rewards`` is False (no Beta reward anywhere, recorded at construction) compile no draw at all: the
-    reward is the mean.
+    gets bit for bit its single call's value), because it makes the step markedly cheaper than
+    :func:`jaxmdp.sampling.beta_sampling.sample_beta`, itself much cheaper than ``jax.random.beta`` under ``vmap``
+    (docs/performance.md, Environment step). MDPs whose static ``stochastic_rewards`` is False (no Beta reward
+    anywhere, recorded at construction) compile no draw at all: the reward is the mean.
     """
     mean = mdp.reward_mean[state, action, next_state]
     return _reward_draw(key, mdp, mean, mdp.reward_conc[state, action, next_state])
@@ -196,9 +195,9 @@ def step_member(
     result bit for bit as ``step`` on that member's MDP, with every table read one gather from the stack.
 
     What a lockstep grid of several MDPs should call under ``vmap``: ``step`` on each member's own MDP (a
-    ``tree.map(lambda x: x[member], mdps)``) made XLA copy every member's tables, the ``[S, A, S]`` reward tables
-    included, out of the stack (hoisted out of the step loop, then read per member): 1.8x slower steps on two Taxi
-    MDPs (docs/benchmarks/bench_stacked_grid.md).
+    ``tree.map(lambda x: x[member], mdps)``) makes XLA copy every member's tables, the ``[S, A, S]`` reward tables
+    included, out of the stack (hoisted out of the step loop, then read per member), which slows the step down
+    (docs/performance.md, Environment step).
 
     A concrete ``member`` outside ``[0, M)`` or ``action`` outside ``[0, A)`` raises ``ValueError``; a traced invalid
     action is the flagged no-op of :func:`step`. BlockMDPs are not supported (``TypeError``).

@@ -26,11 +26,12 @@ from jaxmdp.mdp import MDP
 
 __all__ = ["GTH_BLOCK", "BAND_BLOCK", "gth_eliminate", "gth_eliminate_banded", "BandOrder", "band_order", "bandwidth"]
 
-#: States per block of :func:`gth_eliminate`, and the stages whose shrinking leading windows its block loop runs on
-#: (measured in docs/benchmarks/continuous_indicators.md).
+#: States per block of :func:`gth_eliminate`, and the stages whose shrinking leading windows its block loop runs on:
+#: the fastest settings of the exact gains (docs/performance.md, Continuous indicators).
 GTH_BLOCK = 32
 _GTH_STAGES = 4
-#: States per block of :func:`gth_eliminate_banded` (docs/benchmarks/continuous_indicators.md, "Banded GTH").
+#: States per block of :func:`gth_eliminate_banded`: the fastest setting of the banded gains (docs/performance.md,
+#: Continuous indicators).
 BAND_BLOCK = 16
 
 _dot = functools.partial(jnp.matmul, precision=jax.lax.Precision.HIGHEST)

@@ -85,3 +85,17 @@ def test_a_builder_declaring_other_common_defaults_is_refused():
 
     with pytest.raises(TypeError, match="randomize_actions"):
         construction.family_builder(RiverSwimFamily)(declaration)
+
+
+def test_a_builder_not_declaring_a_reward_parameter_is_refused():
+    # The family's RewardParameters names the reward parameters; the builder's declaration must hold every one of them.
+    from jaxmdp.mdp_families import construction
+    from jaxmdp.mdp_families.river_swim import RiverSwimFamily
+
+    def declaration(*, episodic, seed, size, p_rand=None, p_lazy=None, randomize_actions=True,
+                    make_reward_stochastic=False, reward_variance_multiplier=1.0, optimal_mean_reward=0.9,
+                    sub_optimal_mean_reward=0.2, H=None):
+        """A RiverSwim without its distribution parameters."""
+
+    with pytest.raises(TypeError, match="other_distribution"):
+        construction.family_builder(RiverSwimFamily)(declaration)

@@ -25,8 +25,10 @@ def _family(size, **kw):
     """The family object with the builder's defaults (the builder's declaration is where they live)."""
     own = inspect.signature(SimpleGridFamily).parameters
     defaults = {name: p.default for name, p in inspect.signature(simple_grid).parameters.items()
-                if name in own and p.default is not p.empty}
-    return SimpleGridFamily(**{**defaults, "size": size, "make_reward_stochastic": False, **kw})
+                if p.default is not p.empty}
+    rewards = SimpleGridFamily.reward_parameters.arguments(defaults, stochastic=False, variance_multiplier=1.0)
+    given = {name: value for name, value in defaults.items() if name in own}
+    return SimpleGridFamily(**{**given, "size": size, "rewards": rewards, **kw})
 
 
 def test_worked_example_starts_size_4_seed_0():

@@ -16,14 +16,13 @@ asleep. Observed in jaxmdp:
   ``jax::ParallelBatchMap`` -> ``absl::BlockingCounter::Wait``, two of the LSTM's orthogonal recurrent-kernel
   initialisations (``jax.random.orthogonal``, a QR of a normal draw) waiting on each other's chunks.
 
-(The parallel path is reportedly compiled out of later jaxlib releases.) ``ParallelBatchMap`` runs a batch of one
+(The parallel path is reportedly compiled out of later jaxlib versions.) ``ParallelBatchMap`` runs a batch of one
 inline, on the calling thread, so :func:`one_at_a_time` gives a function a ``vmap`` rule that handles the batch one
 set of arguments after another (``lax.map``): :func:`solve` is ``jnp.linalg.solve`` so wrapped, and the recurrent
 actor-critic wraps its orthogonal initialiser (``agents.deep.networks.orthogonal``). Each matrix goes through the
 same LAPACK routines as in the batched call, so the results are bitwise those of the batched call. For :func:`solve`
-it is also faster for the batches jaxmdp uses (on the project's 2-core CPU: 64 x 25 x 25 in 0.6 ms instead of 1.0 ms,
-80 x 55 x 55 1.1 vs 1.3 ms, 4 x 400 x 400 0.29 vs 0.68 s) except for very many tiny systems (1 024 x 5 x 5: 2.3 ms
-instead of 0.55 ms).
+it is also faster for the batches jaxmdp uses (tens of matrices of tens to hundreds of rows), slower only for very
+many tiny systems (thousands of 5 x 5 matrices).
 """
 
 from __future__ import annotations

@@ -32,7 +32,7 @@ YNN_FLAG = "--xla_cpu_experimental_ynn_fusion_type"
 #: Set this environment variable (to anything but ``""`` or ``"0"``) to leave ``XLA_FLAGS`` alone.
 OPT_OUT_VARIABLE = "JAXMDP_NO_XLA_GUARD"
 
-# First jaxlib release with the miscompilation (and the flag).
+# First jaxlib version with the miscompilation (and the flag).
 _FIRST_AFFECTED = (0, 10, 2)
 
 _log = logging.getLogger("jaxmdp")
@@ -58,7 +58,7 @@ def _opted_out() -> bool:
 def _backend_exists() -> bool:
     try:
         from jax._src import xla_bridge
-    except ImportError:  # pragma: no cover - a JAX release that moved it
+    except ImportError:  # pragma: no cover - a JAX version that moved it
         return False
     check = getattr(xla_bridge, "backends_are_initialized", None)
     return bool(check()) if check is not None else False

@@ -17,10 +17,10 @@ from jaxmdp.mdp_families import (
     taxi,
 )
 from jaxmdp.mdp_families.construction import CommonParams, Family, build_mdp
-from jaxmdp.mdp_families.distributions import Beta, PointMass
+from jaxmdp.mdp_families.distributions import Beta, PointMass, RewardParameters
 from jaxmdp.registry import register
 
-__all__ = ["Family", "CommonParams", "build_mdp", "Beta", "PointMass", "BUILTIN_FAMILIES"]
+__all__ = ["Family", "CommonParams", "RewardParameters", "build_mdp", "Beta", "PointMass", "BUILTIN_FAMILIES"]
 
 #: Registry name -> builder of the built-in families (the paper's seven plus MiniGridDoorKey).
 BUILTIN_FAMILIES = {

@@ -37,7 +37,14 @@ import numpy as np
 
 from jaxmdp._checks import check_bool, check_int
 from jaxmdp.mdp import MDP, MDPInfo, custom_mdp
-from jaxmdp.mdp_families.distributions import Distribution, PointMass
+from jaxmdp.mdp_families.distributions import (
+    Distribution,
+    PointMass,
+    RewardArguments,
+    RewardParameters,
+    check_reward_margin,
+    resolve_distributions,
+)
 from jaxmdp.transforms import MAX_NOISE_PROBABILITY
 
 __all__ = [
@@ -144,7 +151,11 @@ class CommonParams:
 class Family(abc.ABC):
     """A family's dynamics on nodes. Subclasses set ``name``, ``n_actions``, ``node_fields`` and implement the
     abstract methods; :func:`build_mdp` does the rest. The constructor takes every parameter without a default: the
-    defaults live in one place, the builder's declaration (:func:`family_builder`), which passes them all."""
+    defaults live in one place, the builder's declaration (:func:`family_builder`), which passes them all.
+
+    A family with ``reward_parameters`` (every built-in one) receives its reward parameters as one
+    :class:`~jaxmdp.mdp_families.distributions.RewardArguments` (``rewards``), validates them with
+    :meth:`set_rewards` and supplies its default distributions with :meth:`default_rewards`."""
 
     name: str = ""
     n_actions: int = 0
@@ -153,6 +164,37 @@ class Family(abc.ABC):
     randomize_actions_allowed: bool = True
     #: False for a family without a lazy mechanic (its builder rejects a positive ``p_lazy``).
     lazy_allowed: bool = True
+    #: The family's reward parameters; None for a family whose constructor takes and resolves them itself.
+    reward_parameters: RewardParameters | None = None
+    #: The reward distributions by parameter name (set by :meth:`set_rewards`).
+    dists: dict[str, Distribution]
+
+    def default_rewards(self, stochastic: bool, v: float) -> tuple[Distribution, ...]:
+        """The default distributions, in the order of ``reward_parameters.distributions``: point masses, or Betas
+        with variance multiplier ``v`` when ``stochastic``. Called only when no distribution is given, so it is where
+        the parameters that only the defaults depend on are validated (with
+        :func:`~jaxmdp.mdp_families.distributions.check_default_reward_parameter`)."""
+        raise NotImplementedError(f"{type(self).__name__} declares reward_parameters but no default_rewards")
+
+    def set_rewards(self, rewards: RewardArguments) -> None:
+        """Validate the reward arguments and set them: the means (``optimal - 0.1 > sub_optimal`` where
+        ``reward_parameters.check_margin``) as float attributes of their names, and ``dists``, the explicit
+        distributions (all or none, matching ``make_reward_stochastic``) or :meth:`default_rewards`."""
+        spec = self.reward_parameters
+        if spec.check_margin and rewards.means:
+            (optimal_name, optimal), (sub_optimal_name, sub_optimal) = rewards.means.items()
+            check_reward_margin(optimal_name, optimal, sub_optimal_name, sub_optimal)
+        for name, value in rewards.means.items():
+            setattr(self, name, float(value))
+
+        def defaults() -> dict[str, Distribution]:
+            return dict(zip(spec.distributions, self.default_rewards(rewards.stochastic, rewards.variance_multiplier)))
+
+        self.dists = resolve_distributions(rewards.distributions, defaults, rewards.stochastic)
+
+    def distribution_params(self) -> tuple[tuple[str, str], ...]:
+        """The distributions' entries of :meth:`params`: ``(name, str(distribution))`` in parameter order."""
+        return tuple((k, str(d)) for k, d in self.dists.items())
 
     @abc.abstractmethod
     def outcomes(self, node: Node, action: int) -> Sequence[tuple[Node, float]]:
@@ -373,9 +415,11 @@ def family_builder(family: type[Family]) -> Callable[[Callable[..., MDP]], Calla
     the arguments to that signature (a missing or unknown argument is a ``TypeError``, as for any function), validates
     the common ones into :class:`CommonParams` (``randomize_actions`` forced off and a positive ``p_lazy`` rejected
     where the family says so), constructs ``family(**own parameters, **the common values its constructor names)``
-    and returns :func:`build_mdp` of it.
+    (the parameters of its ``reward_parameters`` bundled into one ``rewards`` argument) and returns :func:`build_mdp`
+    of it.
     """
     wanted = [p for p in inspect.signature(family).parameters if p in COMMON_PARAMETERS]
+    spec = family.reward_parameters
 
     def decorate(declaration: Callable[..., MDP]) -> Callable[..., MDP]:
         signature = inspect.signature(declaration)
@@ -385,6 +429,9 @@ def family_builder(family: type[Family]) -> Callable[[Callable[..., MDP]], Calla
         wrong = [p for p, d in COMMON_DEFAULTS.items() if signature.parameters[p].default != d]
         if wrong:
             raise TypeError(f"the builder {declaration.__name__} must give {wrong} the defaults of COMMON_DEFAULTS")
+        undeclared = [p for p in (spec.names if spec is not None else ()) if p not in signature.parameters]
+        if undeclared:
+            raise TypeError(f"the builder {declaration.__name__} must declare the reward parameters {undeclared}")
 
         @functools.wraps(declaration)
         def builder(*args: Any, **kwargs: Any) -> MDP:
@@ -402,7 +449,13 @@ def family_builder(family: type[Family]) -> Callable[[Callable[..., MDP]], Calla
             if not family.randomize_actions_allowed:
                 given["randomize_actions"] = False
             common = CommonParams(**given)
-            fam = family(**own, **{p: getattr(common, p) for p in wanted})
+            passed = {p: getattr(common, p) for p in wanted}
+            if spec is not None:
+                values = {p: own.pop(p) for p in spec.names}
+                passed["rewards"] = spec.arguments(
+                    values, common.make_reward_stochastic, common.reward_variance_multiplier
+                )
+            fam = family(**own, **passed)
             return build_mdp(fam, common)
 
         return builder

@@ -20,9 +20,9 @@ from jaxmdp.mdp_families.distributions import (
     Beta,
     Distribution,
     PointMass,
+    RewardArguments,
+    RewardParameters,
     check_default_reward_parameter,
-    check_reward_margin,
-    resolve_distributions,
 )
 from jaxmdp.render import register_renderer
 
@@ -41,49 +41,31 @@ class DeepSeaFamily(Family):
     n_actions = 2
     node_fields = ("X", "Y")
     lazy_allowed = False
+    reward_parameters = RewardParameters(
+        means=("optimal_return", "suboptimal_return"),
+        distributions=("optimal_distribution", "sub_optimal_distribution", "other_distribution"),
+    )
+    optimal_return: float
+    suboptimal_return: float
 
-    def __init__(
-        self,
-        *,
-        size: int,
-        make_reward_stochastic: bool,
-        reward_variance_multiplier: float,
-        optimal_return: float,
-        suboptimal_return: float,
-        optimal_distribution: Any,
-        sub_optimal_distribution: Any,
-        other_distribution: Any,
-    ) -> None:
+    def __init__(self, *, size: int, rewards: RewardArguments) -> None:
         self.size = integer_parameter("size", size, 2, self.name)
-        check_reward_margin("optimal_return", optimal_return, "suboptimal_return", suboptimal_return)
-        self.optimal_return = float(optimal_return)
-        self.suboptimal_return = float(suboptimal_return)
-        given = {
-            "optimal_distribution": optimal_distribution,
-            "sub_optimal_distribution": sub_optimal_distribution,
-            "other_distribution": other_distribution,
-        }
-        v = reward_variance_multiplier
+        self.set_rewards(rewards)
 
-        def defaults() -> dict[str, Distribution]:
-            if not make_reward_stochastic:
-                # The deterministic small reward is 1/size^2 whatever suboptimal_return is (as in the reference).
-                return {
-                    "optimal_distribution": PointMass(1.0),
-                    "sub_optimal_distribution": PointMass(1.0 / self.size**2),
-                    "other_distribution": PointMass(0.0),
-                }
-            # Means r_sub/size (sub-optimal), 1 - r_opt/size (optimal), 1/(1 + 10(size/r_sub - 1)) (other); the Beta
-            # parameters are positive only for returns in (0, size).
-            check_default_reward_parameter("suboptimal_return", self.suboptimal_return, self.size, f"size={self.size}")
-            check_default_reward_parameter("optimal_return", self.optimal_return, self.size, f"size={self.size}")
-            return {
-                "optimal_distribution": Beta(v * (self.size / self.optimal_return - 1), v),
-                "sub_optimal_distribution": Beta(v, v * (self.size / self.suboptimal_return - 1)),
-                "other_distribution": Beta(v, 10 * v * (self.size / self.suboptimal_return - 1)),
-            }
-
-        self.dists = resolve_distributions(given, defaults, make_reward_stochastic)
+    def default_rewards(self, stochastic: bool, v: float) -> tuple[Distribution, ...]:
+        """Optimal, sub-optimal and other: point masses 1, ``1/size^2`` (whatever ``suboptimal_return`` is, as in
+        the reference) and 0, or Betas of means ``1 - r_opt/size``, ``r_sub/size`` and ``1/(1 + 10(size/r_sub -
+        1))``."""
+        if not stochastic:
+            return PointMass(1.0), PointMass(1.0 / self.size**2), PointMass(0.0)
+        # The Beta parameters are positive only for returns in (0, size).
+        check_default_reward_parameter("suboptimal_return", self.suboptimal_return, self.size, f"size={self.size}")
+        check_default_reward_parameter("optimal_return", self.optimal_return, self.size, f"size={self.size}")
+        return (
+            Beta(v * (self.size / self.optimal_return - 1), v),
+            Beta(v, v * (self.size / self.suboptimal_return - 1)),
+            Beta(v, 10 * v * (self.size / self.suboptimal_return - 1)),
+        )
 
     def outcomes(self, node: DeepSeaNode, action: int) -> list[tuple[DeepSeaNode, float]]:
         if node.Y == 0:
@@ -110,7 +92,7 @@ class DeepSeaFamily(Family):
             ("size", self.size),
             ("optimal_return", self.optimal_return),
             ("suboptimal_return", self.suboptimal_return),
-            *((k, str(d)) for k, d in self.dists.items()),
+            *self.distribution_params(),
         )
 
     def layout(self) -> tuple[tuple[str, Any], ...]:

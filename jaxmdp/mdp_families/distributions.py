@@ -19,6 +19,8 @@ __all__ = [
     "resolve_distributions",
     "check_default_reward_parameter",
     "check_reward_margin",
+    "RewardParameters",
+    "RewardArguments",
 ]
 
 
@@ -124,4 +126,53 @@ def check_reward_margin(optimal_name: str, optimal: float, sub_optimal_name: str
         raise ValueError(
             f"{optimal_name} - 0.1 must exceed {sub_optimal_name}; got {optimal_name}={optimal}, "
             f"{sub_optimal_name}={sub_optimal}"
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class RewardArguments:
+    """The reward arguments of one builder call, as given: ``make_reward_stochastic`` and
+    ``reward_variance_multiplier`` (validated by :class:`~jaxmdp.mdp_families.CommonParams`), and the family's own
+    mean parameters and explicit distributions by name (validated by
+    :meth:`~jaxmdp.mdp_families.Family.set_rewards`)."""
+
+    stochastic: bool
+    variance_multiplier: float
+    means: Mapping[str, Any]
+    distributions: Mapping[str, Any]
+
+
+@dataclasses.dataclass(frozen=True)
+class RewardParameters:
+    """The reward parameters of a family, one specification that every family shares (docs/families.md §1.5).
+
+    ``distributions``: the names of the explicit reward distributions, in the family's parameter order (the order of
+    ``MDPInfo.params``); they are given all or none, and the family's
+    :meth:`~jaxmdp.mdp_families.Family.default_rewards` supplies them otherwise. ``means``: the names of the
+    ``(optimal, sub-optimal)`` mean rewards or returns that the stochastic defaults are built from, or none.
+    ``check_margin``: whether the means must satisfy ``optimal - 0.1 > sub_optimal`` (:func:`check_reward_margin`;
+    False for a family that checks a margin of its own). The builder's declaration names every one of these
+    parameters and holds their defaults (:func:`~jaxmdp.mdp_families.construction.family_builder`).
+    """
+
+    distributions: tuple[str, ...]
+    means: tuple[str, ...] = ()
+    check_margin: bool = True
+
+    def __post_init__(self) -> None:
+        if self.means and len(self.means) != 2:
+            raise ValueError(f"means names the optimal and the sub-optimal mean parameter; got {self.means}")
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Every parameter of the specification: the means, then the distributions."""
+        return self.means + self.distributions
+
+    def arguments(self, values: Mapping[str, Any], stochastic: bool, variance_multiplier: float) -> RewardArguments:
+        """The :class:`RewardArguments` of a call whose arguments by name are ``values``."""
+        return RewardArguments(
+            stochastic=stochastic,
+            variance_multiplier=variance_multiplier,
+            means={name: values[name] for name in self.means},
+            distributions={name: values[name] for name in self.distributions},
         )

@@ -21,8 +21,9 @@ from jaxmdp.mdp_families.distributions import (
     Beta,
     Distribution,
     PointMass,
+    RewardArguments,
+    RewardParameters,
     check_default_reward_parameter,
-    resolve_distributions,
 )
 from jaxmdp.render import register_renderer
 
@@ -94,51 +95,38 @@ class FrozenLakeFamily(Family):
     name = "FrozenLake"
     n_actions = 4
     node_fields = ("X", "Y")
+    # FrozenLake checks a margin of its own (suboptimal_return + 0.2 < optimal_return).
+    reward_parameters = RewardParameters(
+        means=("optimal_return", "suboptimal_return"), distributions=("goal_r", "default_r"), check_margin=False
+    )
+    optimal_return: float
+    suboptimal_return: float
 
-    def __init__(
-        self,
-        *,
-        seed: int,
-        size: int,
-        p_frozen: float,
-        make_reward_stochastic: bool,
-        reward_variance_multiplier: float,
-        optimal_return: float,
-        suboptimal_return: float,
-        is_slippery: bool,
-        goal_r: Any,
-        default_r: Any,
-    ) -> None:
+    def __init__(self, *, seed: int, size: int, p_frozen: float, is_slippery: bool, rewards: RewardArguments) -> None:
         self.size = integer_parameter("size", size, 3, self.name)
         if isinstance(p_frozen, bool) or not isinstance(p_frozen, (int, float, np.number)) or not p_frozen >= 0.1:
             raise ValueError(f"p_frozen must be a number >= 0.1 (values above 1 act as 1); got {p_frozen!r}")
+        optimal_return, suboptimal_return = rewards.means["optimal_return"], rewards.means["suboptimal_return"]
         if not suboptimal_return + 0.2 < optimal_return:
             raise ValueError(
                 f"suboptimal_return + 0.2 must be below optimal_return; got {suboptimal_return} and {optimal_return}"
             )
         check_bool("is_slippery", is_slippery)
         self.p_frozen = float(p_frozen)
-        self.optimal_return = float(optimal_return)
-        self.suboptimal_return = float(suboptimal_return)
         self.is_slippery = bool(is_slippery)
-        given = {"goal_r": goal_r, "default_r": default_r}
-        v, n_cells = reward_variance_multiplier, self.size**2
-
-        def defaults() -> dict[str, Distribution]:
-            if not make_reward_stochastic:
-                # [paper≠code] the paper mentions a small step reward; deterministically it is 0.
-                return {"goal_r": PointMass(1.0), "default_r": PointMass(0.0)}
-            # Means 1 - r_opt/size^2 (goal) and r_sub/size^2 (default); positive Beta parameters need both returns in
-            # (0, size^2).
-            check_default_reward_parameter("optimal_return", self.optimal_return, n_cells, f"size^2={n_cells}")
-            check_default_reward_parameter("suboptimal_return", self.suboptimal_return, n_cells, f"size^2={n_cells}")
-            return {
-                "goal_r": Beta(v * (n_cells / self.optimal_return - 1), v),
-                "default_r": Beta(v, v * (n_cells / self.suboptimal_return - 1)),
-            }
-
-        self.dists = resolve_distributions(given, defaults, make_reward_stochastic)
+        self.set_rewards(rewards)
         self.lake = random_lake(self.size, self.p_frozen, seed)
+
+    def default_rewards(self, stochastic: bool, v: float) -> tuple[Distribution, ...]:
+        """Goal and default: point masses 1 and 0, or Betas of means ``1 - r_opt/size^2`` and ``r_sub/size^2``."""
+        if not stochastic:
+            # [paper≠code] the paper mentions a small step reward; deterministically it is 0.
+            return PointMass(1.0), PointMass(0.0)
+        # Positive Beta parameters need both returns in (0, size^2).
+        n_cells = self.size**2
+        check_default_reward_parameter("optimal_return", self.optimal_return, n_cells, f"size^2={n_cells}")
+        check_default_reward_parameter("suboptimal_return", self.suboptimal_return, n_cells, f"size^2={n_cells}")
+        return Beta(v * (n_cells / self.optimal_return - 1), v), Beta(v, v * (n_cells / self.suboptimal_return - 1))
 
     def _move(self, x: int, y: int, a: int) -> FrozenLakeNode:
         """One move of action ``a`` (index arithmetic of the reference; the names do not match the directions)."""
@@ -179,7 +167,7 @@ class FrozenLakeFamily(Family):
             ("optimal_return", self.optimal_return),
             ("suboptimal_return", self.suboptimal_return),
             ("is_slippery", self.is_slippery),
-            *((k, str(d)) for k, d in self.dists.items()),
+            *self.distribution_params(),
         )
 
     def layout(self) -> tuple[tuple[str, Any], ...]:

@@ -11,10 +11,9 @@ that reward and the node labels, :func:`render_minigrid` the text grid they all 
 from __future__ import annotations
 
 from collections.abc import Iterable
-from typing import Any
 
 from jaxmdp.mdp_families.construction import Family
-from jaxmdp.mdp_families.distributions import Beta, Distribution, PointMass, resolve_distributions
+from jaxmdp.mdp_families.distributions import Beta, Distribution, PointMass, RewardParameters
 
 __all__ = [
     "UP",
@@ -29,7 +28,6 @@ __all__ = [
     "forward_cell",
     "turned",
     "MiniGridFamily",
-    "minigrid_distributions",
     "render_minigrid",
 ]
 
@@ -55,11 +53,23 @@ def turned(d: int, action: int) -> int:
 
 
 class MiniGridFamily(Family):
-    """Base of the MiniGrid families: nodes start with ``(X, Y, Dir)``; subclasses set ``self.dists`` (from
-    :func:`minigrid_distributions`) in ``__init__`` and ``self.goal`` when drawing their starting nodes."""
+    """Base of the MiniGrid families: nodes start with ``(X, Y, Dir)``; subclasses call :meth:`set_rewards` in
+    ``__init__`` and set ``self.goal`` when drawing their starting nodes."""
 
     goal: tuple[int, int] | None = None
-    dists: dict[str, Distribution]
+    reward_parameters = RewardParameters(distributions=("optimal_distribution", "other_distribution"))
+
+    def default_reward_side(self) -> int:
+        """The grid side ``n`` that sizes the stochastic default rewards (:meth:`default_rewards`): ``self.size``."""
+        return self.size
+
+    def default_rewards(self, stochastic: bool, v: float) -> tuple[Distribution, ...]:
+        """Optimal and other (docs/families.md §2.5): point masses 1 and 0, or ``Beta(v (n^2 - 1), v)`` (mean ``1 -
+        1/n^2``) and ``Beta(v, v (n^2 - 1))`` (mean ``1/n^2``) with ``n`` the :meth:`default_reward_side`."""
+        if not stochastic:
+            return PointMass(1.0), PointMass(0.0)
+        n = self.default_reward_side()
+        return Beta(v * (n**2 - 1), v), Beta(v, v * (n**2 - 1))
 
     def reward(self, node: tuple[int, ...], action: int, next_node: tuple[int, ...]) -> Distribution:
         """The optimal distribution when ``next_node`` stands on the goal cell, the other one otherwise."""
@@ -69,33 +79,6 @@ class MiniGridFamily(Family):
     def node_label(self, node: tuple[int, ...]) -> str:
         """Colosseum's ``str(node)``: the ``Dir`` field by name (``"X=0,Y=2,Dir=LEFT"``)."""
         return ",".join(f"{f}={DIRECTION_NAMES[v] if f == 'Dir' else v}" for f, v in zip(self.node_fields, node))
-
-
-def minigrid_distributions(
-    size: int,
-    make_reward_stochastic: bool,
-    reward_variance_multiplier: float,
-    optimal_distribution: Any,
-    other_distribution: Any,
-) -> dict[str, Distribution]:
-    """The optimal / other reward distributions (docs/families.md §2.5).
-
-    Defaults: point masses 1 and 0; stochastic ``Beta(v (size^2 - 1), v)`` (mean ``1 - 1/size^2``) and
-    ``Beta(v, v (size^2 - 1))`` (mean ``1/size^2``) with ``v = reward_variance_multiplier``. Explicit distributions
-    are taken all or none and must match ``make_reward_stochastic``.
-    """
-    v = reward_variance_multiplier
-
-    def defaults() -> dict[str, Distribution]:
-        if not make_reward_stochastic:
-            return {"optimal_distribution": PointMass(1.0), "other_distribution": PointMass(0.0)}
-        return {
-            "optimal_distribution": Beta(v * (size**2 - 1), v),
-            "other_distribution": Beta(v, v * (size**2 - 1)),
-        }
-
-    given = {"optimal_distribution": optimal_distribution, "other_distribution": other_distribution}
-    return resolve_distributions(given, defaults, make_reward_stochastic)
 
 
 def render_minigrid(

@@ -53,13 +53,13 @@ import numpy as np
 
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.mdp_families.construction import family_builder, integer_parameter
+from jaxmdp.mdp_families.distributions import RewardArguments
 from jaxmdp.mdp_families.minigrid import (
     MOVE_FORWARD,
     TURN_LEFT,
     TURN_RIGHT,
     MiniGridFamily,
     forward_cell,
-    minigrid_distributions,
     render_minigrid,
     turned,
 )
@@ -88,19 +88,14 @@ class MiniGridDoorKeyFamily(MiniGridFamily):
         *,
         size: int,
         n_starting_states: int,
-        make_reward_stochastic: bool,
-        reward_variance_multiplier: float,
-        optimal_distribution: Any,
-        other_distribution: Any,
+        rewards: RewardArguments,
     ) -> None:
         self.size = integer_parameter("size", size, 3, self.name)
         # The smallest agent room is one line of `size` cells, one of which holds the key.
         self.n_starting_states = integer_parameter(
             "n_starting_states", n_starting_states, 1, self.name, 4 * (self.size - 1)
         )
-        self.dists = minigrid_distributions(
-            self.size, make_reward_stochastic, reward_variance_multiplier, optimal_distribution, other_distribution
-        )
+        self.set_rewards(rewards)
         self.walls: frozenset[tuple[int, int]] = frozenset()
         self.door: tuple[int, int] = (-1, -1)
         self.key: tuple[int, int] = (-1, -1)
@@ -156,7 +151,7 @@ class MiniGridDoorKeyFamily(MiniGridFamily):
         return (
             ("size", self.size),
             ("n_starting_states", self.n_starting_states),
-            *((k, str(d)) for k, d in self.dists.items()),
+            *self.distribution_params(),
         )
 
     def layout(self) -> tuple[tuple[str, Any], ...]:

@@ -25,11 +25,11 @@ import numpy as np
 
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.mdp_families.construction import family_builder, integer_parameter
+from jaxmdp.mdp_families.distributions import RewardArguments
 from jaxmdp.mdp_families.minigrid import (
     MOVE_FORWARD,
     MiniGridFamily,
     forward_cell,
-    minigrid_distributions,
     render_minigrid,
     turned,
 )
@@ -66,17 +66,12 @@ class MiniGridEmptyFamily(MiniGridFamily):
         *,
         size: int,
         n_starting_states: int,
-        make_reward_stochastic: bool,
-        reward_variance_multiplier: float,
-        optimal_distribution: Any,
-        other_distribution: Any,
+        rewards: RewardArguments,
     ) -> None:
         self.size = integer_parameter("size", size, 3, self.name)
         # Only the `size` cells of the start side can be starting cells.
         self.n_starting_states = integer_parameter("n_starting_states", n_starting_states, 1, self.name, self.size)
-        self.dists = minigrid_distributions(
-            self.size, make_reward_stochastic, reward_variance_multiplier, optimal_distribution, other_distribution
-        )
+        self.set_rewards(rewards)
 
     def outcomes(self, node: MiniGridEmptyNode, action: int) -> list[tuple[MiniGridEmptyNode, float]]:
         x, y, d = node
@@ -100,7 +95,7 @@ class MiniGridEmptyFamily(MiniGridFamily):
         return (
             ("size", self.size),
             ("n_starting_states", self.n_starting_states),
-            *((k, str(d)) for k, d in self.dists.items()),
+            *self.distribution_params(),
         )
 
     def layout(self) -> tuple[tuple[str, Any], ...]:
@@ -140,6 +135,6 @@ def minigrid_empty(
       size: grid side, an integer ``>= 3``.
       n_starting_states: number of starting cells on the start side, in ``[1, size]``.
       optimal_distribution, other_distribution: reward distributions (all or none; defaults in
-        :func:`~jaxmdp.mdp_families.minigrid.minigrid_distributions`).
+        :meth:`~jaxmdp.mdp_families.minigrid.MiniGridFamily.default_rewards`).
       The other arguments are the common ones (:class:`~jaxmdp.mdp_families.construction.CommonParams`).
     """

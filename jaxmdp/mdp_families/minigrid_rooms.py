@@ -29,11 +29,11 @@ import numpy as np
 
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.mdp_families.construction import family_builder, integer_parameter
+from jaxmdp.mdp_families.distributions import RewardArguments
 from jaxmdp.mdp_families.minigrid import (
     MOVE_FORWARD,
     MiniGridFamily,
     forward_cell,
-    minigrid_distributions,
     render_minigrid,
     turned,
 )
@@ -76,10 +76,7 @@ class MiniGridRoomsFamily(MiniGridFamily):
         room_size: int,
         n_rooms: int,
         n_starting_states: int,
-        make_reward_stochastic: bool,
-        reward_variance_multiplier: float,
-        optimal_distribution: Any,
-        other_distribution: Any,
+        rewards: RewardArguments,
     ) -> None:
         self.room_size = integer_parameter("room_size", room_size, 2, self.name)
         is_int = isinstance(n_rooms, (int, np.integer)) and not isinstance(n_rooms, (bool, np.bool_))
@@ -94,14 +91,11 @@ class MiniGridRoomsFamily(MiniGridFamily):
         )
         self.side = k * self.room_size + k - 1
         self.cells = admissible_cells(self.room_size, k)
-        # The reference sizes the default distributions with the room cells per side, walls excluded.
-        self.dists = minigrid_distributions(
-            int(self.room_size * math.sqrt(self.n_rooms)),
-            make_reward_stochastic,
-            reward_variance_multiplier,
-            optimal_distribution,
-            other_distribution,
-        )
+        self.set_rewards(rewards)
+
+    def default_reward_side(self) -> int:
+        """The room cells per side, walls excluded: the side that the reference sizes the default rewards with."""
+        return int(self.room_size * math.sqrt(self.n_rooms))
 
     def outcomes(self, node: MiniGridRoomsNode, action: int) -> list[tuple[MiniGridRoomsNode, float]]:
         x, y, d = node
@@ -129,7 +123,7 @@ class MiniGridRoomsFamily(MiniGridFamily):
             ("room_size", self.room_size),
             ("n_rooms", self.n_rooms),
             ("n_starting_states", self.n_starting_states),
-            *((k, str(d)) for k, d in self.dists.items()),
+            *self.distribution_params(),
         )
 
     def layout(self) -> tuple[tuple[str, Any], ...]:

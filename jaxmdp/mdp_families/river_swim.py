@@ -18,9 +18,9 @@ from jaxmdp.mdp_families.distributions import (
     Beta,
     Distribution,
     PointMass,
+    RewardArguments,
+    RewardParameters,
     check_default_reward_parameter,
-    check_reward_margin,
-    resolve_distributions,
 )
 from jaxmdp.render import register_renderer
 
@@ -37,54 +37,30 @@ class RiverSwimFamily(Family):
     name = "RiverSwim"
     n_actions = 2
     node_fields = ("X",)
+    reward_parameters = RewardParameters(
+        means=("optimal_mean_reward", "sub_optimal_mean_reward"),
+        distributions=("optimal_distribution", "sub_optimal_distribution", "other_distribution"),
+    )
+    optimal_mean_reward: float
+    sub_optimal_mean_reward: float
 
-    def __init__(
-        self,
-        *,
-        size: int,
-        episodic: bool,
-        make_reward_stochastic: bool,
-        reward_variance_multiplier: float,
-        optimal_mean_reward: float,
-        sub_optimal_mean_reward: float,
-        optimal_distribution: Any,
-        sub_optimal_distribution: Any,
-        other_distribution: Any,
-    ) -> None:
+    def __init__(self, *, size: int, episodic: bool, rewards: RewardArguments) -> None:
         self.size = integer_parameter("size", size, 2, self.name)
-        check_reward_margin(
-            "optimal_mean_reward", optimal_mean_reward, "sub_optimal_mean_reward", sub_optimal_mean_reward
-        )
-        self.optimal_mean_reward = float(optimal_mean_reward)
-        self.sub_optimal_mean_reward = float(sub_optimal_mean_reward)
-        given = {
-            "optimal_distribution": optimal_distribution,
-            "sub_optimal_distribution": sub_optimal_distribution,
-            "other_distribution": other_distribution,
-        }
-        v = reward_variance_multiplier
+        self.episodic = episodic
+        self.set_rewards(rewards)
 
-        def defaults() -> dict[str, Distribution]:
-            if not make_reward_stochastic:
-                return {
-                    "optimal_distribution": PointMass(1.0),
-                    "sub_optimal_distribution": PointMass(0.005),
-                    "other_distribution": PointMass(0.0),
-                }
-            # Means mu_o (optimal), mu_s (sub-optimal) and mu_s / 10 (other), mu_s = sub_optimal_mean_reward / size
-            # when episodic; with sub_optimal_mean_reward < optimal_mean_reward - 0.1 the Betas are proper exactly
-            # when both means lie in (0, 1).
-            check_default_reward_parameter("optimal_mean_reward", self.optimal_mean_reward, 1)
-            check_default_reward_parameter("sub_optimal_mean_reward", self.sub_optimal_mean_reward, 1)
-            mu_s = self.sub_optimal_mean_reward / (self.size if episodic else 1)
-            mu_o = self.optimal_mean_reward
-            return {
-                "optimal_distribution": Beta(v, v * (1 / mu_o - 1)),
-                "sub_optimal_distribution": Beta(v, v * (1 / mu_s - 1)),
-                "other_distribution": Beta(v, v * (10 / mu_s - 1)),
-            }
-
-        self.dists = resolve_distributions(given, defaults, make_reward_stochastic)
+    def default_rewards(self, stochastic: bool, v: float) -> tuple[Distribution, ...]:
+        """Optimal, sub-optimal and other: point masses 1, 0.005 and 0, or Betas of means ``mu_o``, ``mu_s`` and ``mu_s
+        / 10`` (``mu_s = sub_optimal_mean_reward / size`` when episodic)."""
+        if not stochastic:
+            return PointMass(1.0), PointMass(0.005), PointMass(0.0)
+        # With sub_optimal_mean_reward < optimal_mean_reward - 0.1 the Betas are proper exactly when both means lie in
+        # (0, 1).
+        check_default_reward_parameter("optimal_mean_reward", self.optimal_mean_reward, 1)
+        check_default_reward_parameter("sub_optimal_mean_reward", self.sub_optimal_mean_reward, 1)
+        mu_s = self.sub_optimal_mean_reward / (self.size if self.episodic else 1)
+        mu_o = self.optimal_mean_reward
+        return Beta(v, v * (1 / mu_o - 1)), Beta(v, v * (1 / mu_s - 1)), Beta(v, v * (10 / mu_s - 1))
 
     def outcomes(self, node: RiverSwimNode, action: int) -> list[tuple[RiverSwimNode, float]]:
         x = node.X
@@ -106,7 +82,7 @@ class RiverSwimFamily(Family):
             ("size", self.size),
             ("optimal_mean_reward", self.optimal_mean_reward),
             ("sub_optimal_mean_reward", self.sub_optimal_mean_reward),
-            *((k, str(d)) for k, d in self.dists.items()),
+            *self.distribution_params(),
         )
 
     def layout(self) -> tuple[tuple[str, Any], ...]:

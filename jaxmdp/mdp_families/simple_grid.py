@@ -20,9 +20,9 @@ from jaxmdp.mdp_families.distributions import (
     Beta,
     Distribution,
     PointMass,
+    RewardArguments,
+    RewardParameters,
     check_default_reward_parameter,
-    check_reward_margin,
-    resolve_distributions,
 )
 from jaxmdp.render import register_renderer
 
@@ -67,58 +67,33 @@ class SimpleGridFamily(Family):
     name = "SimpleGrid"
     n_actions = 5
     node_fields = ("X", "Y")
+    reward_parameters = RewardParameters(
+        means=("optimal_mean_reward", "sub_optimal_mean_reward"),
+        distributions=("optimal_distribution", "sub_optimal_distribution", "other_distribution"),
+    )
+    optimal_mean_reward: float
+    sub_optimal_mean_reward: float
 
-    def __init__(
-        self,
-        *,
-        size: int,
-        make_reward_stochastic: bool,
-        reward_variance_multiplier: float,
-        reward_type: Any,
-        n_starting_states: int,
-        optimal_mean_reward: float,
-        sub_optimal_mean_reward: float,
-        optimal_distribution: Any,
-        sub_optimal_distribution: Any,
-        other_distribution: Any,
-    ) -> None:
+    def __init__(self, *, size: int, reward_type: Any, n_starting_states: int, rewards: RewardArguments) -> None:
         self.size = integer_parameter("size", size, 2, self.name)
         self.reward_type = _reward_type(reward_type)
         # The starting cells are drawn among the (size-1)^2 cells closest to the centre.
         self.n_starting_states = integer_parameter(
             "n_starting_states", n_starting_states, 1, self.name, (self.size - 1) ** 2
         )
-        check_reward_margin(
-            "optimal_mean_reward", optimal_mean_reward, "sub_optimal_mean_reward", sub_optimal_mean_reward
-        )
-        self.optimal_mean_reward = float(optimal_mean_reward)
-        self.sub_optimal_mean_reward = float(sub_optimal_mean_reward)
-        given = {
-            "optimal_distribution": optimal_distribution,
-            "sub_optimal_distribution": sub_optimal_distribution,
-            "other_distribution": other_distribution,
-        }
-        v = reward_variance_multiplier
+        self.set_rewards(rewards)
 
-        def defaults() -> dict[str, Distribution]:
-            if not make_reward_stochastic:
-                # [paper≠code] the paper calls the per-step reward small; the reference pays 0.5 deterministically.
-                return {
-                    "optimal_distribution": PointMass(1.0),
-                    "sub_optimal_distribution": PointMass(0.0),
-                    "other_distribution": PointMass(0.5),
-                }
-            # Means: optimal mu_o, other mu_s, sub-optimal mu_s / 10; the Betas need both means in (0, 1).
-            mu_o, mu_s = self.optimal_mean_reward, self.sub_optimal_mean_reward
-            check_default_reward_parameter("optimal_mean_reward", mu_o, 1)
-            check_default_reward_parameter("sub_optimal_mean_reward", mu_s, 1)
-            return {
-                "optimal_distribution": Beta(v, v * (1 / mu_o - 1)),
-                "sub_optimal_distribution": Beta(v, v * (10 / mu_s - 1)),
-                "other_distribution": Beta(v, v * (1 / mu_s - 1)),
-            }
-
-        self.dists = resolve_distributions(given, defaults, make_reward_stochastic)
+    def default_rewards(self, stochastic: bool, v: float) -> tuple[Distribution, ...]:
+        """Optimal, sub-optimal and other: point masses 1, 0 and 0.5, or Betas of means ``mu_o``, ``mu_s / 10`` and
+        ``mu_s`` (``mu_o = optimal_mean_reward``, ``mu_s = sub_optimal_mean_reward``)."""
+        if not stochastic:
+            # [paper≠code] the paper calls the per-step reward small; the reference pays 0.5 deterministically.
+            return PointMass(1.0), PointMass(0.0), PointMass(0.5)
+        # The Betas need both means in (0, 1).
+        mu_o, mu_s = self.optimal_mean_reward, self.sub_optimal_mean_reward
+        check_default_reward_parameter("optimal_mean_reward", mu_o, 1)
+        check_default_reward_parameter("sub_optimal_mean_reward", mu_s, 1)
+        return Beta(v, v * (1 / mu_o - 1)), Beta(v, v * (10 / mu_s - 1)), Beta(v, v * (1 / mu_s - 1))
 
     def outcomes(self, node: SimpleGridNode, action: int) -> list[tuple[SimpleGridNode, float]]:
         x, y, top = node.X, node.Y, self.size - 1
@@ -171,7 +146,7 @@ class SimpleGridFamily(Family):
             ("n_starting_states", self.n_starting_states),
             ("optimal_mean_reward", self.optimal_mean_reward),
             ("sub_optimal_mean_reward", self.sub_optimal_mean_reward),
-            *((k, str(d)) for k, d in self.dists.items()),
+            *self.distribution_params(),
         )
 
     def layout(self) -> tuple[tuple[str, Any], ...]:

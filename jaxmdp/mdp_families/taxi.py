@@ -48,9 +48,9 @@ from jaxmdp.mdp_families.distributions import (
     Beta,
     Distribution,
     PointMass,
+    RewardArguments,
+    RewardParameters,
     check_default_reward_parameter,
-    check_reward_margin,
-    resolve_distributions,
 )
 from jaxmdp.render import register_renderer
 
@@ -98,6 +98,12 @@ class TaxiFamily(Family):
     n_actions = 6
     node_fields = ("X", "Y", "XPass", "YPass", "XDest", "YDest")
     randomize_actions_allowed = False
+    reward_parameters = RewardParameters(
+        means=("optimal_mean_reward", "sub_optimal_mean_reward"),
+        distributions=("default_r", "successfully_delivery_r", "failure_delivery_r"),
+    )
+    optimal_mean_reward: float
+    sub_optimal_mean_reward: float
 
     def __init__(
         self,
@@ -108,13 +114,7 @@ class TaxiFamily(Family):
         width: int,
         space: int,
         n_locations: int,
-        optimal_mean_reward: float,
-        sub_optimal_mean_reward: float,
-        make_reward_stochastic: bool,
-        reward_variance_multiplier: float,
-        default_r: Any,
-        successfully_delivery_r: Any,
-        failure_delivery_r: Any,
+        rewards: RewardArguments,
     ) -> None:
         self.size = integer_parameter("size", size, 4, self.name)
         self.length = integer_parameter("length", length, 0, self.name, self.size - 1)
@@ -131,37 +131,7 @@ class TaxiFamily(Family):
         root = math.isqrt(self.n_locations)
         self.rows_of_quadrants = root if root * root == self.n_locations else root + 1
         self.n_quadrants = self.rows_of_quadrants**2
-        self.optimal_mean_reward = float(optimal_mean_reward)
-        self.sub_optimal_mean_reward = float(sub_optimal_mean_reward)
-        check_reward_margin(
-            "optimal_mean_reward", self.optimal_mean_reward, "sub_optimal_mean_reward", self.sub_optimal_mean_reward
-        )
-        given = {
-            "default_r": default_r,
-            "successfully_delivery_r": successfully_delivery_r,
-            "failure_delivery_r": failure_delivery_r,
-        }
-        v = reward_variance_multiplier
-
-        def defaults() -> dict[str, Distribution]:
-            if not make_reward_stochastic:
-                return {
-                    "default_r": PointMass(0.1),
-                    "successfully_delivery_r": PointMass(1.0),
-                    "failure_delivery_r": PointMass(0.0),
-                }
-            # Means mu_s (default), mu_o (success), mu_s / 10 (failure); with the means' order checked above the
-            # Betas are proper exactly when both lie in (0, 1).
-            mu_s, mu_o = self.sub_optimal_mean_reward, self.optimal_mean_reward
-            check_default_reward_parameter("sub_optimal_mean_reward", mu_s, 1)
-            check_default_reward_parameter("optimal_mean_reward", mu_o, 1)
-            return {
-                "default_r": Beta(v, v * (1 / mu_s - 1)),
-                "successfully_delivery_r": Beta(v, v * (1 / mu_o - 1)),
-                "failure_delivery_r": Beta(v, v * (10 / mu_s - 1)),
-            }
-
-        self.dists = resolve_distributions(given, defaults, make_reward_stochastic)
+        self.set_rewards(rewards)
         fail, default, success = (
             self.dists[k].mean for k in ("failure_delivery_r", "default_r", "successfully_delivery_r")
         )
@@ -185,6 +155,17 @@ class TaxiFamily(Family):
                     f"width, space or n_locations (got {self.length}, {self.width}, {self.space}, {self.n_locations})"
                 )
         self.locations: list[tuple[int, int]] = []
+
+    def default_rewards(self, stochastic: bool, v: float) -> tuple[Distribution, ...]:
+        """Default, successful and failed delivery: point masses 0.1, 1 and 0, or Betas of means ``mu_s``, ``mu_o``
+        and ``mu_s / 10`` (``mu_o = optimal_mean_reward``, ``mu_s = sub_optimal_mean_reward``)."""
+        if not stochastic:
+            return PointMass(0.1), PointMass(1.0), PointMass(0.0)
+        # With the means' order checked the Betas are proper exactly when both lie in (0, 1).
+        mu_s, mu_o = self.sub_optimal_mean_reward, self.optimal_mean_reward
+        check_default_reward_parameter("sub_optimal_mean_reward", mu_s, 1)
+        check_default_reward_parameter("optimal_mean_reward", mu_o, 1)
+        return Beta(v, v * (1 / mu_s - 1)), Beta(v, v * (1 / mu_o - 1)), Beta(v, v * (10 / mu_s - 1))
 
     def _draw_locations(self, G: np.random.RandomState) -> list[tuple[int, int]]:
         min_distance = max(self.size / self.rows_of_quadrants / 2, 2)
@@ -245,7 +226,7 @@ class TaxiFamily(Family):
             ("n_locations", self.n_quadrants),
             ("optimal_mean_reward", self.optimal_mean_reward),
             ("sub_optimal_mean_reward", self.sub_optimal_mean_reward),
-            *((k, str(d)) for k, d in self.dists.items()),
+            *self.distribution_params(),
         )
 
     def layout(self) -> tuple[tuple[str, Any], ...]:

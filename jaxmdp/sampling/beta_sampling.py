@@ -2,7 +2,8 @@
 
 The Gamma sampler of the agents' Dirichlet and Normal-Gamma posterior draws (:mod:`agents.posteriors`). Its trial
 (:func:`trial_log_gamma`, :func:`shape_terms`) is also that of the environment's reward sampler
-:mod:`jaxmdp.sampling.beta_shared`, which replaced :func:`sample_beta` in the step (branch betabits: 2-3x faster steps).
+:mod:`jaxmdp.sampling.beta_shared`, which the step uses instead of :func:`sample_beta` because it makes the step several
+times faster (docs/performance.md, Environment step).
 
 **Method.** Marsaglia & Tsang (2000) for the shape ``a' >= 1``: ``d = a' - 1/3``, ``c = 1 / sqrt(9 d)``; a trial
 draws ``x ~ N(0, 1)`` and ``w ~ U(0, 1]``, sets ``v = (1 + c x)^3`` and accepts ``d v`` when ``v > 0`` and
@@ -14,22 +15,21 @@ ln(U) / a``. The boost's uniform is the accepted trial's own: given ``x`` and ac
 independent of the accepted value: ``ln U = ln w - ln t(x)``. This is exact, not an approximation; it saves a
 third random word per entry. Its rounding is that of ``ln t(x)`` in float32: ~1e-7 absolute on average over the
 accepted trials (the size of the rounding of ``ln U`` from a separate uniform), up to ~1e-5 in trials with
-``t(x) > 1e-3``; divided by ``a`` as any error of ``ln U``. (A separate uniform cost 28% more time; the algebraically
-equal ``ln t = 3 d (log1p(c x) - c x + (c x)^2 / 2 - (c x)^3 / 3)`` halves the rounding but cost 5-15% more.)
+``t(x) > 1e-3``; divided by ``a`` as any error of ``ln U``. (A separate uniform costs noticeably more time; the
+algebraically equal ``ln t = 3 d (log1p(c x) - c x + (c x)^2 / 2 - (c x)^3 / 3)`` halves the rounding but costs more
+too; docs/performance.md, Sampling.)
 
-**Random numbers.** Keys folded from ``fold_in(key, 2^31 - 1)`` (nothing else drawn from ``key`` overlaps it). A
-round's trials are drawn at once from the round's key: two key words from ``jax.random.bits``, then one Threefry-2x32
-hash per entry of the counter ``(entry, 0)`` (a second, ``(entry, 1)``, in float64), whose two words make the
-trial's ``x`` and ``w`` (:func:`trial_deviates`). The hash is :func:`jaxmdp.sampling.threefry.threefry2x32` written
-out, which XLA fuses with the trial's arithmetic; ``jax.random`` evaluates each 32-bit word's hash in a rolled loop
-over memory, which cost most of a Dirichlet draw on CPU (30.6 against 12.6 ns per entry, ``[8, 400, 3, 400]``,
-docs/benchmarks/bench_fused_draws.md; 1.5x on the earlier sessions' machine). The whole-array round uses tag 0
-of the sampler's key; pass ``p`` over the rejected entries uses the key ``fold_in(., p + 1)``, its first buffer that
-key's tag 0 and its second buffer's rounds tags 1, 2, ...; small arrays run rounds on tags 0, 1, 2, ... . A buffer
-slot draws its own deviates: which entry sits in a slot was decided by earlier trials only, so the slot's fresh draws
-are independent of it. ``x = sqrt(2) erf_inv(v)`` with ``v`` uniform on the float grid of ``(-1, 1)``: the deviates
-stop at about 5.2-5.4, which truncates the normal's tails at ``P(|x| > 5.2) ~ 2e-7``, as ``jax.random.normal`` (and
-``jax.random.gamma``) do.
+**Random numbers.** Keys folded from ``fold_in(key, 2^31 - 1)`` (nothing else drawn from ``key`` overlaps it). A round's
+trials are drawn at once from the round's key: two key words from ``jax.random.bits``, then one Threefry-2x32 hash per
+entry of the counter ``(entry, 0)`` (a second, ``(entry, 1)``, in float64), whose two words make the trial's ``x`` and
+``w`` (:func:`trial_deviates`). The hash is :func:`jaxmdp.sampling.threefry.threefry2x32` written out, which XLA fuses
+with the trial's arithmetic; ``jax.random`` evaluates each 32-bit word's hash in a rolled loop over memory, which costs
+most of a Dirichlet draw on CPU (docs/performance.md, Sampling). The whole-array round uses tag 0 of the sampler's key;
+pass ``p`` over the rejected entries uses the key ``fold_in(., p + 1)``, its first buffer that key's tag 0 and its
+second buffer's rounds tags 1, 2, ...; small arrays run rounds on tags 0, 1, 2, ... . A buffer slot draws its own
+deviates: which entry sits in a slot was decided by earlier trials only, so the slot's fresh draws are independent of
+it. ``x = sqrt(2) erf_inv(v)`` with ``v`` uniform on the float grid of ``(-1, 1)``: the deviates stop at about 5.2-5.4,
+which truncates the normal's tails at ``P(|x| > 5.2) ~ 2e-7``, as ``jax.random.normal`` (and ``jax.random.gamma``) do.
 
 **Rounds.** A large array (``n`` entries) runs one round over every entry, which accepts > 95% of them. The rejected
 entries are compacted (:func:`jaxmdp.sampling.compaction.compact`) into a buffer of ``m1 = n // 16 + 64`` slots that
@@ -37,11 +37,10 @@ runs one more trial each; the entries it rejects go to a buffer of ``m2 = m1 // 
 trials until every one is accepted; the results are scattered back. At most 4.83% of the entries are rejected per trial,
 so a buffer overflows with probability below ``1e-16`` whatever ``n`` (binomial tails, worst shape); if one does (the
 compactions' counts say so), the whole pass (compaction, both buffers) repeats on the entries still rejected, with a
-fresh key, until no buffer overflows. Until 2026-11-29 the passes looped on "some entry is still rejected", which
-under ``vmap`` read every member's whole array twice: 10.6-11.6 -> 8.1-9.1 ns per entry of a Dirichlet draw without
-it, the same values (docs/benchmarks/bench_fused_draws.md). The
-earlier sampler ran whole-array rounds until every entry was accepted: for ``n ~ 10^6`` about five rounds of three
-random words per entry, where this one runs one round (two words per entry) and then trials for the ~5% it rejected.
+fresh key, until no buffer overflows. The passes loop on the overflow, not on "some entry is still rejected", because
+the latter reads every member's whole array twice under ``vmap`` for the same values (docs/performance.md, Sampling).
+Whole-array rounds until every entry is accepted would cost, for ``n ~ 10^6``, about five rounds of three random words
+per entry, where this sampler runs one round (two words per entry) and then trials for the ~5% it rejected.
 ``jax.random.gamma`` runs a ``while_loop`` per entry that splits its key at every trial. Small arrays (below 1024
 entries, e.g. the two Gammas of one Beta) run rounds of ``candidates`` trials over the whole array.
 
@@ -130,10 +129,10 @@ def trial_deviates(key: jax.Array, n: int, dtype: jax.typing.DTypeLike) -> tuple
     """A trial's deviates for ``n`` entries: ``e = erf_inv(v)`` with ``v`` uniform on ``(-1, 1)`` (so that ``sqrt(2)
     e ~ N(0, 1)``) and ``w`` uniform on ``(0, 1]``, from one Threefry-2x32 hash per entry (two in float64) of the
     counter ``(i, 0)`` (and ``(i, 1)``) under two key words drawn from ``key``, written out by
-    :func:`~jaxmdp.sampling.threefry.threefry2x32` so that XLA fuses the hash with the trial's arithmetic: 2.7 ns per
-    entry, ``erf_inv`` included, against 13.6 ns for the random words alone as two ``jax.random.uniform`` arrays,
-    whose rolled hash loop goes through memory (``[8, 400, 3, 400]`` on 2 CPU cores,
-    docs/benchmarks/bench_fused_draws.md). The words become deviates in :func:`deviates_from_words`."""
+    :func:`~jaxmdp.sampling.threefry.threefry2x32` so that XLA fuses the hash with the trial's arithmetic. This is
+    done because the random words alone as two ``jax.random.uniform`` arrays, whose rolled hash loop goes through
+    memory, cost several times the whole fused trial, ``erf_inv`` included (docs/performance.md, Sampling). The words
+    become deviates in :func:`deviates_from_words`."""
     words = jax.random.bits(key, (2,), jnp.uint32)
     i = jax.lax.iota(jnp.uint32, n)
     b0, b1 = threefry2x32(words[0], words[1], i, np.uint32(0))

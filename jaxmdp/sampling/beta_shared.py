@@ -3,16 +3,14 @@
 
 **Why.** The environment draws one Beta per step and environment: two shapes per member under ``vmap``. Drawn with
 :func:`jaxmdp.sampling.beta_sampling.sample_beta` (rounds of four trials per Gamma inside a ``while_loop``: a
-``fold_in``, and per round a ``fold_in``, a ``split`` and two ``uniform`` arrays of eight: 20 Threefry hashes), the
-draw costs twice as much as the rest of a step and holds most families near 3 M steps/s
-(docs/benchmarks/bench_env.md). Three things make it slow on CPU, and this sampler avoids each: every ``jax.random``
-call is a rolled loop over memory (:mod:`jaxmdp.sampling.threefry`), arrays of a few entries per member vectorise
-badly under ``vmap`` (the member axis is not the innermost one; XLA also splits their fusions), and the round loop runs
-at every step. Here a round is ``trials`` (default 4) trials in scalar code, each from one unrolled Threefry hash, round
-0 sits outside the loop, and a second round is needed at under 0.05% of the draws: the step runs about 2-3x faster
-on the families with Beta rewards than with :func:`~jaxmdp.sampling.beta_sampling.sample_beta`
-(docs/benchmarks/bench_env.md). Seeded results made before this sampler became the step's (branch betabits) drew their
-rewards from the old stream: the same distribution, other draws.
+``fold_in``, and per round a ``fold_in``, a ``split`` and two ``uniform`` arrays of eight: 20 Threefry hashes), the draw
+costs more than the rest of a step (docs/performance.md, Environment step). Three things make it slow on CPU, and this
+sampler avoids each: every ``jax.random`` call is a rolled loop over memory (:mod:`jaxmdp.sampling.threefry`), arrays of
+a few entries per member vectorise badly under ``vmap`` (the member axis is not the innermost one; XLA also splits their
+fusions), and the round loop runs at every step. Here a round is ``trials`` (default 4) trials in scalar code, each from
+one unrolled Threefry hash, round 0 sits outside the loop, and a second round is needed at under 0.05% of the draws, so
+the step runs several times faster on the families with Beta rewards than with
+:func:`~jaxmdp.sampling.beta_sampling.sample_beta` (docs/performance.md, Environment step).
 
 **Batches.** A member of a ``vmap``-ed batch gets bit for bit its value alone (the project's guarantee that batched
 trajectories equal single runs, tests/test_env.py), which scalar code alone does not give on XLA CPU: a single call (and
@@ -30,7 +28,7 @@ accepted in round 0, tested), and keeps its own value; under ``vmap`` a batch ru
 dummy member appended when it has one member or when an argument is shared by the members (a ``vmap`` with
 ``in_axes=None``: XLA would compute the broadcast shape's terms once, in scalar code). Nested ``vmap``, ``lax.map``,
 ``jit`` and eager calls keep the property (tests/test_beta_rewards.py); the speed is that of the plain scalar sampler
-(docs/benchmarks/bench_env.md). Broadcasting one member to a batch of eight does not work instead: XLA moves the
+(docs/performance.md, Sampling). Broadcasting one member to a batch of eight does not work instead: XLA moves the
 arithmetic before the broadcast. Shapes that are compile-time constants (closed over, not arguments) are folded by XLA
 on the host and may differ in the last bits from the same shapes passed as arguments, as for
 :mod:`~jaxmdp.sampling.beta_sampling`. No gradient rule: the sampler is not differentiable (nor needs to be).
@@ -48,8 +46,8 @@ rounds are independent. Every trial is accepted with probability ``p > 0.95`` (w
 round fails with probability at most ``q^n + n p q^(n-1)`` (``q = 1 - p``): 4.4e-4 for ``n = 4`` (2.6e-5 for ``n =
 5``, 1.5e-6 for ``n = 6``), much less for shapes away from 1 (0 seen in 2 M draws of Beta(0.8, 20) at ``n = 5``).
 Under ``vmap`` the loop over further rounds runs at a step as soon as one member needs it (for all members): with
-1024 members at the worst shapes, at about a third of the steps with ``n = 4`` and 3% with ``n = 5``; measured, four
-trials were the fastest at 1024 environments on the families (docs/benchmarks/bench_env.md). Trial 0 can only be
+1024 members at the worst shapes, at about a third of the steps with ``n = 4`` and 3% with ``n = 5``; four trials are
+the fastest at 1024 environments on the families (docs/performance.md, Sampling). Trial 0 can only be
 ``G_a``'s and the last trial is only useful to ``G_b``, so a round evaluates ``2 n - 2`` trial tests.
 
 **Rounds before the loop.** Round 0 runs for every member before the ``while_loop``; ``unrolled_rounds = k`` runs
@@ -58,10 +56,8 @@ the same, the first successful round's, whatever ``k`` (tested bit for bit): onl
 is cheap and an extra round costs the whole batch another round of arithmetic, so the step uses ``k = 1``. On a GPU
 each trip of a ``while_loop`` is its own kernel launches with its predicate read back, and with 1 024 members some
 member needs round 1 at about a third of the steps (above): ``k = 2`` would leave the loop a single predicate check
-at nearly every step. ``scripts/bench_beta_rounds.py`` measures both on the device at hand. The first GPU lease found
-Beta rewards costing 3-4x a step there (docs/benchmarks/gpu_h100.md). On an H200 at 1 024 members ``k = 2`` drew
-1.29x faster with the worst shapes but 0.90x with the benchmark's mixed ones (docs/benchmarks/gpu_h200.md), so the step
-keeps ``k = 1`` on every platform.
+at nearly every step. On a GPU ``k = 2`` pays with the worst shapes but costs with the benchmark's mixed ones, so the
+step keeps ``k = 1`` on every platform (docs/performance.md, GPU).
 
 **Random numbers.** Threefry-2x32 of the key (the function ``jax.random`` uses;
 :func:`jaxmdp.sampling.threefry.threefry2x32`) on the counters ``(T, j)``, ``T = 0x62657461`` ("beta"): trial ``j``

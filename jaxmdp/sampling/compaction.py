@@ -6,10 +6,10 @@ over the ``size`` output slots: about ten times cheaper when ``size`` is a small
 entries of a rejection sampler). Pure ``jnp``; ``vmap`` compacts every member on its own.
 
 Each output slot finds its word by counting the words whose first rank is at most the slot (a scatter-add over the
-words, then a prefix sum over the slots). A running maximum over the slots (``lax.cummax``) gives the same words, but
-XLA lowers it on a CPU as a scan of ``log size`` levels that cost about 12 ns a slot, against 2-3 ns for the
-cumulative sum; together with packing by shifts instead of a select per flag, a compaction of 640 000 flags into
-40 064 slots (3 members under ``vmap``, ``scripts/bench_compaction.py``) takes 1.1-1.3 instead of 3.2-3.8 ms.
+words, then a prefix sum over the slots). The count is used instead of a running maximum over the slots
+(``lax.cummax``), which gives the same words, because XLA lowers the running maximum on a CPU as a scan of ``log size``
+levels that costs several times the cumulative sum; the flags are packed by shifts instead of a select per flag for the
+same reason (docs/performance.md, Sampling).
 """
 
 from __future__ import annotations

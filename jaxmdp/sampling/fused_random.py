@@ -24,12 +24,11 @@ Raw ``uint32`` keys, keys of another implementation (``rbg``, ``unsafe_rbg``), t
 and other float types go to ``jax.random`` itself, so every key gets ``jax.random``'s values.
 
 Where the words of a hash feed many fusions, XLA may copy the hash into each one. Written out in episodic
-Q-learning's action draw, which chains it to the runner's ``fold_in``, it made the agent 7x dearer, and
-``jax.lax.optimization_barrier`` did not stop the copies. So the agents' draws keep ``jax.random``. These functions are
-used where they were measured to pay: the runner's per-step keys, the environment's step, the random agent's action
-(1.16-1.44x faster episodic runs of the random agent, 1.5-2.3x faster environment steps on CPU;
-docs/benchmarks/bench_agents_tabular.md, docs/benchmarks/bench_env.md), and PSRL continuous's ``psi x S x A``
-candidate states of a plan (a ``(60, 948, 3)`` draw 5.3 -> 1.7 ms on CPU; docs/benchmarks/bench_plan_rounds.md).
+Q-learning's action draw, which chains it to the runner's ``fold_in``, it makes the agent several times dearer, and
+``jax.lax.optimization_barrier`` does not stop the copies. So the agents' draws keep ``jax.random``. These functions are
+used where they pay: the runner's per-step keys, the environment's step, the random agent's action (faster episodic
+runs of the random agent and faster environment steps on CPU; docs/performance.md, Environment step), and PSRL
+continuous's ``psi x S x A`` candidate states of a plan (docs/performance.md, Planning rounds).
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 ``jax.random`` hashes with the same function (``jax.extend.random.threefry2x32_p``), but on CPU its lowering is a
 rolled loop of five iterations (four rounds each): every ``jax.random`` call in a ``vmap``-ed step is a loop of its
 own whose state goes through memory, which costs the same whether it hashes one counter per member or several
-(docs/benchmarks/bench_env.md). Unrolled, a hash is about a hundred integer operations inside the fusion of its
+(docs/performance.md, Sampling). Unrolled, a hash is about a hundred integer operations inside the fusion of its
 consumers. The values are those of ``threefry2x32_p`` bit for bit (tests/test_beta_rewards.py). Used by the
 step's reward sampler :mod:`jaxmdp.sampling.beta_shared`, the Gamma sampler's trials
 (:mod:`jaxmdp.sampling.beta_sampling`) and :mod:`jaxmdp.sampling.fused_random`, which also share the words' conversion
