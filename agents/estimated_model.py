@@ -9,9 +9,9 @@ the Dirichlet posterior mean, whose ``1/S`` prior is such a uniform part):
 
 No pair has more observed next states than the MDP has successors, ``K`` (``MDPSpec.max_successors``), so the counts
 live in ``K`` slots per pair (:class:`SuccessorCounts`, filled in order of first observation) and a Bellman backup
-costs ``O(S A K)`` instead of the dense ``O(S A S)``. At the benchmark's largest MDP (MiniGridRooms, 948 states,
-``K = 4``) the dense policy estimate took 124 ms a log per member on the 2-core CPU, the value iteration's ~600 dense
-sweeps most of it (docs/benchmarks/continuous_indicators.md, "Sparse policy estimate").
+costs ``O(S A K)`` instead of the dense ``O(S A S)``: at the benchmark's largest MDPs (``K = 4`` successors of
+hundreds of states) the value iteration's hundreds of dense sweeps would dominate every log (docs/performance.md,
+Continuous indicators).
 
 The observed next states are among the MDP's successors, so in a state order where every transition of the MDP joins
 positions at most ``w`` apart (``MDPSpec.state_order``, :func:`jaxmdp.gth.band_order`) the observed part of a policy's
@@ -220,7 +220,8 @@ def policy_values(kernel: SparseKernel, pi: jax.Array, R: jax.Array, discount: A
     x, y, z = dp.discounted_chain_values_banded(
         B, u, jnp.stack([r[order], u, jnp.ones_like(u)], axis=1), discount, kernel.bandwidth
     ).T
-    # Element-wise sums, not dot products: a GPU may multiply float32 dot operands in reduced precision.
+    # Element-wise sums, not dot products: an accelerator may multiply float32 dot operands in reduced
+    # precision.
     V = x + discount * y * (jnp.sum(m * x) / ((1.0 - discount) * jnp.sum(m * z)))
     return V[pos]
 
@@ -244,9 +245,8 @@ def warm_greedy_policy(
     Both phases stop on the same rules from any start (value iteration when ``max_s |T u - u| < 1e-3``, policy
     iteration when no state gains more than ``1e-5 (1 + max|V|)``), so the policy is the same estimate up to those
     tolerances: it can differ from the cold start's only where two policies both pass them. From the exact values
-    of the previous log's policy (100 steps earlier) value iteration needs 8-214 sweeps instead of 400-690 and the
-    estimate costs 1.7-3.1x less at 400-948 states (UCRL2, PSRL; the same policies in all 12 cases measured;
-    ``scripts/bench_policy_estimate.py --phases``, docs/benchmarks/continuous_indicators.md)."""
+    of the previous log's policy value iteration needs far fewer sweeps than from zeros, with the same policies
+    (docs/performance.md, Continuous indicators)."""
     if kernel.order is None:
         return _greedy_policy(kernel, R, discount, action_mask, u0)
     banded = _greedy_policy(kernel, R, discount, action_mask, u0)
@@ -269,8 +269,8 @@ def greedy_policy_phases(
     """The two phases of the policy estimate (:func:`discounted_greedy_policy`, banded if ``kernel.order`` is given,
     which must then hold): value iteration ``u <- max_a R + discount E[u(s')]`` from ``u0`` (default zeros) until
     ``max_s |T u - u| < 1e-3``, then Howard's policy iteration with exact evaluations from the policy greedy on it.
-    Returns the greedy one-hot ``[S, A]`` policy and both phases' results (sweeps, evaluations), which
-    ``scripts/bench_policy_estimate.py --phases`` reads: a start near the optimal values needs fewer sweeps."""
+    Returns the greedy one-hot ``[S, A]`` policy and both phases' results (sweeps, evaluations): a start near the
+    optimal values needs fewer sweeps."""
     kernel = kernel.copy_action_zero(action_mask)
     R = copy_action_zero(R, action_mask)
     all_states = jnp.ones(R.shape[:1], bool)

@@ -43,8 +43,8 @@ def confidence_box(p_hat: jax.Array, width: jax.Array, state_mask: jax.Array) ->
 
 _BLOCK = 32  # block length of the running sums in _exclusive_running_sum
 #: From this many states on, EVI sorts (``O(S)`` per row and sweep) instead of the dense ``room @ precedes`` product
-#: (``O(S^2)``), which is faster for small ``S`` on the CPU (measured under load: S = 108 dense 2.7 ms a plan against
-#: 5.4 sorted; S = 400: 137 against 63 ms).
+#: (``O(S^2)``), which is faster for small ``S`` on the CPU; the crossover lies between the benchmark's 108 and 400
+#: states (docs/performance.md, Continuous planning).
 SORTED_FROM = 200
 
 
@@ -87,8 +87,8 @@ def _extra_mass(lo: jax.Array, hi: jax.Array, u: jax.Array) -> jax.Array:
     The mass ahead of each state is an exclusive running sum of ``room = hi - lo`` in that order: one sort of ``u``
     (shared by every row), a gather of whole next-state rows of the transposed ``room`` and the running sum
     (:func:`_exclusive_running_sum`). (The dense ``room @ precedes`` product with ``precedes[t, s] = [t comes before
-    s]``, ``O(S^2)`` per row, was about 10x slower per sweep at the benchmark's largest ``S``,
-    docs/benchmarks/continuous_planning.md; the two differ by rounding in the last bits.)
+    s]``, ``O(S^2)`` per row, is kept below :data:`SORTED_FROM` states, where it is faster (docs/performance.md,
+    Continuous planning); the two differ by rounding in the last bits.)
     """
     S = u.shape[-1]
     if S < SORTED_FROM:

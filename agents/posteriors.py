@@ -87,7 +87,8 @@ def dirichlet_sample(
     Draws ``log g_i`` with ``g_i ~ Gamma(alpha_i, 1)`` and returns ``softmax(log g)``: normalising in log space keeps
     small concentrations (the default prior is ``1/S``) exact where ``g_i`` itself would underflow to zero, and every
     row sums to one exactly (the reference divides by ``sum + 1e-5``). ``log_gamma`` draws the ``log g_i``
-    (default :func:`log_gamma_sample`; ``scripts/bench_sampling.py`` passes ``jax.random.loggamma`` to compare).
+    (default :func:`log_gamma_sample`; ``jax.random.loggamma`` may be passed to compare, docs/performance.md,
+    Sampling).
     ``offset > 0`` (static) returns ``g / (sum g + offset)`` instead, still in log space: the reference's rows, which
     sum to less than one (reference mode uses :data:`COLOSSEUM_DIRICHLET_OFFSET`).
     """

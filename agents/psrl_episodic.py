@@ -18,8 +18,8 @@ Differences from the reference (Colosseum), each deliberate:
 * The last step of an episode also updates the transition posterior (``final_transition="learn"``): here its next
   state is a real draw from the same stationary kernel, whereas the reference observes ``-1`` there. The reference
   docs/agents.md describes skips that update (``"skip"``); another version of its code, whose behaviour the paper's
-  published numbers show (docs/benchmark.md §22), passed the ``-1`` on to its count vector, where numpy's index ``-1``
-  counted a visit to the MDP's *last* state (``"last_state"``).
+  published numbers show (docs/results.md, Episodic PSRL's terminal observation), passed the ``-1`` on to its count
+  vector, where numpy's index ``-1`` counted a visit to the MDP's *last* state (``"last_state"``).
 * Dirichlet draws are normalised exactly (the reference divides by ``sum + 1e-5``) and computed in log space, and a
   reward draw's standard deviation is capped at ``e^30`` so it is always finite.
 * Exact ties in ``Q~`` are broken with the agent's key; the policy estimate breaks ties towards the lowest action
@@ -55,7 +55,7 @@ from agents.posteriors import (
 from agents.tabular_common import copy_action_zero, greedy_action
 from jaxmdp import dynamic_programming as dp
 from jaxmdp._checks import Variant, check_range, did_you_mean
-from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
+from jaxmdp.experiment.agent_interface import Agent, MDPSpec, RunnerHints, Transition, where_due
 
 __all__ = [
     "FINAL_TRANSITIONS",
@@ -210,17 +210,17 @@ PSRL_EPISODIC = Agent(
     needs_plan=needs_plan,
     plan=plan,
     check_hparams=check_hparams,
-    # A whole batch of plans pays only when its members' episodes end together (one horizon) and it is small: on
-    # MiniGridEmpty (100 states) 1.2x faster than rounds at 32 seeds, rounds 1.2x faster at 64 and 1.5x at 96; at
-    # 400 states rounds were 1.2-1.3x faster from 32 seeds on (docs/benchmarks/bench_whole_batch_plans.md, 2026-11-29).
-    # 64 seeds of 100 states are 9 MB of agent state; a whole batch's draws then leave the caches.
-    whole_batch_plans=64,
-    whole_batch_bytes=8 * 2**20,
-    # One plan a round once a member's state passes 256 KiB (108 states and more in the benchmark): on the 20-seed
-    # benchmark batches of 108-400 states one slot a round ran 1.03-1.16x faster than ceil(members / 16) (3-4), and
-    # at 40-64 states the slots made no difference (docs/benchmarks/bench_plan_slots.md). A plan's draws over
-    # ``[S, A, S]`` are long enough to vectorise alone, so more slots save only rounds and cost cache.
-    plan_slot_bytes=2**18,
+    hints=RunnerHints(
+        # A whole batch of plans pays only when its members' episodes end together (one horizon) and it is small:
+        # once a batch's agent states leave the caches (about 8 MB, 64 seeds of 100 states), rounds are faster
+        # (docs/performance.md, Planning rounds).
+        whole_batch_plans=64,
+        whole_batch_bytes=8 * 2**20,
+        # One plan a round once a member's state passes 256 KiB (108 states and more in the benchmark): a plan's
+        # draws over ``[S, A, S]`` are long enough to vectorise alone, so more slots save only rounds and cost cache
+        # (docs/performance.md, Planning rounds).
+        plan_slot_bytes=2**18,
+    ),
 )
 
 

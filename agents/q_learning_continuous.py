@@ -51,7 +51,7 @@ from flax import struct
 from agents.tabular_common import greedy_action_single_draw, row_max, valid_counts
 from jaxmdp import dynamic_programming as dp
 from jaxmdp._checks import Variant, check_range
-from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
+from jaxmdp.experiment.agent_interface import Agent, MDPSpec, RunnerHints, Transition
 
 __all__ = [
     "QLearningContinuousHParams",
@@ -202,9 +202,10 @@ Q_LEARNING_CONTINUOUS = Agent(
     act=act,
     update=update,
     policy=policy,
-    greedy_actions=greedy_actions,
     check_hparams=check_hparams,
-    act_apart=True,  # its act reads a row of the member's table: jaxmdp.experiment.runner._apart
+    # Its act reads a row of the member's table, which XLA would repeat in each fusion that uses the action
+    # (RunnerHints.act_apart).
+    hints=RunnerHints(greedy_actions=greedy_actions, act_apart=True),
 )
 
 

@@ -16,7 +16,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
+from jaxmdp.experiment.agent_interface import Agent, MDPSpec, RunnerHints, Transition
 from jaxmdp.sampling import fused_random
 
 __all__ = ["RandomHParams", "RandomState", "RANDOM_EPISODIC", "RANDOM_CONTINUOUS"]
@@ -69,7 +69,7 @@ def _make(episodic: bool) -> Agent:
         update=update,
         policy=policy,
         observation="any",
-        fixed_policy=True,
+        hints=RunnerHints(fixed_policy=True),
     )
 
 

@@ -66,9 +66,8 @@ def read_at(table: jax.Array, *index: jax.Array) -> jax.Array:
     """``table[index]`` for in-bounds indices of the leading axes, through one flat index.
 
     The same numbers as ``table[index]``. Under ``vmap`` over members, XLA's CPU gather with one index dimension is
-    cheaper than with two or three: the episodic Q-learning update (three reads, two writes) took 94 instead of 115 ns
-    per member at 1 024 members on the quiet 2-core CPU (``scripts/bench_table_access.py``,
-    docs/benchmarks/bench_table_access.md)."""
+    cheaper than with two or three, and the agents' updates read and write their tables at every step of every
+    member (docs/performance.md, Tabular agents)."""
     k = len(index)
     return table.reshape((-1,) + table.shape[k:])[_flat_index(table.shape, index)]
 

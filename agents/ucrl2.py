@@ -65,7 +65,7 @@ from agents.extended_value_iteration import (
 from agents.tabular_common import discounted_greedy_policy, greedy_action, valid_counts
 from jaxmdp._checks import check_int, check_range
 from jaxmdp.dynamic_programming import PlanResult
-from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, where_due
+from jaxmdp.experiment.agent_interface import Agent, MDPSpec, RunnerHints, Transition, where_due
 
 __all__ = [
     "UCRL2HParams",
@@ -333,13 +333,13 @@ def policy(state: UCRL2State) -> jax.Array:
 def warm_policy(state: UCRL2State, start: jax.Array | None) -> tuple[jax.Array, jax.Array]:
     """:func:`policy` with its value iteration started from ``start`` (``[S]``, the values the previous call returned;
     ``None``: zeros) and the exact values of the returned policy, the next call's start
-    (:func:`agents.estimated_model.warm_greedy_policy`; ``Agent.warm_policy``)."""
+    (:func:`agents.estimated_model.warm_greedy_policy`; ``RunnerHints.warm_policy``)."""
     kernel, R = sparse_estimated_model(state)
     return em.warm_greedy_policy(kernel, R, state.hparams.policy_discount, state.action_mask, start)
 
 
 def policy_start(state: UCRL2State) -> jax.Array:
-    """The start of the first policy estimate: zeros ``[S]`` (``Agent.policy_start``)."""
+    """The start of the first policy estimate: zeros ``[S]`` (``RunnerHints.policy_start``)."""
     return jnp.zeros(state.Q.shape[:1], state.Q.dtype)
 
 
@@ -351,8 +351,6 @@ UCRL2 = Agent(
     act=act,
     update=update,
     policy=policy,
-    warm_policy=warm_policy,
-    policy_start=policy_start,
     needs_plan=needs_plan,
     plan=plan,
     check_hparams=check_hparams,
@@ -360,9 +358,13 @@ UCRL2 = Agent(
         "plans_unconverged": state.plans_unconverged,
         "slots_overflowed": state.successors.overflowed.astype(jnp.int32),  # a spec below the MDP's successors
     },
-    # Epochs end member by member: planning in rounds only is as fast, and the runner compiles the plan once, not
-    # twice (RiverSwim-10, 24-192 seeds: 3-5 s less compile; docs/benchmarks/bench_whole_batch_plans.md).
-    whole_batch_plans=0,
+    hints=RunnerHints(
+        warm_policy=warm_policy,
+        policy_start=policy_start,
+        # Epochs end member by member: planning in rounds only is as fast, and the runner compiles the plan once,
+        # not twice (docs/performance.md, Planning rounds).
+        whole_batch_plans=0,
+    ),
 )
 
 
@@ -465,7 +467,7 @@ UCRL2_COLOSSEUM = dataclasses.replace(
     init=init_colosseum,
     update=update_colosseum,
     policy=policy_colosseum,
-    warm_policy=None,  # the reference's estimate: the dense route on its lagged model, started cold
-    policy_start=None,
+    # The reference's estimate: the dense route on its lagged model, started cold (no warm_policy).
+    hints=dataclasses.replace(UCRL2.hints, warm_policy=None, policy_start=None),
     plan=plan_colosseum,
 )

@@ -20,7 +20,7 @@ from agents.tabular_common import copy_action_zero
 from jaxmdp import dynamic_programming as dp
 from jaxmdp.experiment import runner
 from jaxmdp.experiment.agent_interface import Transition, spec_of
-from script_loader import load_script
+from random_play import played
 
 
 def _stream(rng, n, S, A, K):
@@ -78,7 +78,7 @@ def test_with_dense_counts_holds_the_same_counts_in_index_order():
 
 def test_epoch_agent_states_hold_no_dense_table_and_rebuild_the_counts_from_the_slots():
     """What a planning round moves is the agent state (jaxmdp.experiment.planning): UCRL2's and PSRL continuous's
-    hold no leaf of ``S A S`` entries (docs/benchmarks/bench_plan_rounds.md), and their ``counts`` (batched: any
+    hold no leaf of ``S A S`` entries (docs/performance.md, Planning rounds), and their ``counts`` (batched: any
     leading axes) is numpy's scatter of the slots."""
     mdp = jaxmdp.make("MiniGridEmpty", episodic=False, seed=0, size=5, p_lazy=0.3, n_starting_states=2)
     spec = spec_of(mdp, 500)
@@ -486,7 +486,6 @@ def test_agents_warm_policy_from_the_previous_log_is_their_policy(agent, monkeyp
     mdp = jaxmdp.make("MiniGridEmpty", episodic=False, seed=0, size=5, p_lazy=0.3, n_starting_states=2,
                       make_reward_stochastic=True)
     hp = agent.default_hparams
-    played = load_script("profile_continuous_plans").played
     play = jax.jit(lambda k, st: played(agent, mdp, hp, 50, k, st))
     handed = []
     solve = em.warm_greedy_policy
@@ -496,13 +495,13 @@ def test_agents_warm_policy_from_the_previous_log_is_their_policy(agent, monkeyp
         return solve(kernel, R, discount, action_mask, u0)
 
     monkeypatch.setattr(em, "warm_greedy_policy", spy)
-    warm, cold = jax.jit(agent.warm_policy), jax.jit(agent.policy)
+    warm, cold = jax.jit(agent.hints.warm_policy), jax.jit(agent.policy)
     state = agent.init(jax.random.key(0), spec_of(mdp, 10_000), hp)
-    start = agent.policy_start(state)
+    start = agent.hints.policy_start(state)
     np.testing.assert_array_equal(start, np.zeros(mdp.n_states))
     for i in range(6):
         state = play(jax.random.key(i), state)
         pi, start = warm(state, start)
         np.testing.assert_array_equal(pi, cold(state))
-    np.testing.assert_array_equal(jax.jit(lambda st: agent.warm_policy(st, None)[1])(state), start)
+    np.testing.assert_array_equal(jax.jit(lambda st: agent.hints.warm_policy(st, None)[1])(state), start)
     assert handed == [(mdp.n_states,), None, None]  # traced once each: warm, cold policy, cold warm_policy

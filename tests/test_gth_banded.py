@@ -267,9 +267,9 @@ def test_irreducible_matches_the_closure():
 def test_runner_evaluates_changed_members_on_their_band_orders(monkeypatch):
     # Stacked MDPs of different sizes (padding), the certified bounds switched off so that every changed member takes
     # the exact elimination: banded gains equal float64 ones, unchanged members keep their cache.
-    from jaxmdp.experiment import runner
+    from jaxmdp.experiment import indicators, runner
 
-    monkeypatch.setattr(runner, "ITERATIVE_GAIN_SWEEPS", 0)
+    monkeypatch.setattr(indicators, "ITERATIVE_GAIN_SWEEPS", 0)
     mdps = [jaxmdp.make("MiniGridEmpty", episodic=False, seed=0, size=8, p_rand=0.1),
             jaxmdp.make("SimpleGrid", episodic=False, seed=0, size=7, p_rand=0.0)]
     stacked = jaxmdp.stack(mdps).strip()

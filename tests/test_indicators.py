@@ -337,6 +337,6 @@ def test_the_runner_hands_its_give_up_to_the_bounds(monkeypatch):
             jnp.zeros((1, 2), jnp.float32))
     evaluate = lambda: jax.jit(lambda *a: runner._evaluate_changed(*a))(*args)  # noqa: E731 (traced anew)
     np.testing.assert_allclose(evaluate(), [[0.5, 0.5]], rtol=1e-6)
-    monkeypatch.setattr(runner, "ITERATIVE_GAIN_GIVE_UP", 0.0)
+    monkeypatch.setattr(indicators, "ITERATIVE_GAIN_GIVE_UP", 0.0)
     with pytest.raises(ValueError, match="give_up must be positive"):
         evaluate()

@@ -455,7 +455,7 @@ def test_candidates_skipping_unused_draws_are_the_same_bits(monkeypatch, caplog,
     """Members with no pair at ``eta`` (no posterior row), some, and all pairs (no optimistic row), alone and
     batched: the kernels equal those of drawing both kinds for every candidate slot (skipping alone == skipping
     batched == drawing everything batched)."""
-    import agents.psrl_continuous as pc
+    import agents.extended_policy_iteration as pc
 
     rng = np.random.default_rng(11)
     hp = PSRLContinuousHParams(max_psi=4)

@@ -15,6 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+import agents.extended_policy_iteration as epi
 import agents.psrl_continuous as pc
 import jaxmdp
 import numpy_reference
@@ -168,9 +169,9 @@ def test_chosen_rows_and_expectations_agree_at_any_states(keep_limit):
     @jax.jit
     def check(k, V, s):
         R_ext, d = pc.extended_draws(k, state, keep_limit=keep_limit)
-        _, pi = pc._greedy(d, R_ext, V, gamma, state.action_mask)
-        whole = pc._chosen_rows(d, pi, jnp.arange(S))
-        return d.overflow, jnp.any(d.posterior), whole, pc._chosen_rows(d, pi, s), pc._chosen_expectations(d, pi, V)
+        _, pi = epi._greedy(d, R_ext, V, gamma, state.action_mask)
+        whole = epi._chosen_rows(d, pi, jnp.arange(S))
+        return d.overflow, jnp.any(d.posterior), whole, epi._chosen_rows(d, pi, s), epi._chosen_expectations(d, pi, V)
 
     V = jax.random.uniform(key(26), (S,), jnp.float32, 0.0, 10.0)
     s = jnp.array([6, 1, 4, 1], jnp.int32)

@@ -166,8 +166,8 @@ def test_a_shard_above_the_agents_whole_batch_limits_compiles_one_copy_of_plan_w
             traced.append((limit, nbytes))
             return SCRIPTED[False].plan(key, state)
 
-        return dataclasses.replace(SCRIPTED[False], name=f"scripted_{limit}_{nbytes}", plan=plan,
-                                   whole_batch_plans=limit, whole_batch_bytes=nbytes)
+        return dataclasses.replace(SCRIPTED[False], name=f"scripted_{limit}_{nbytes}", plan=plan).with_hints(
+            whole_batch_plans=limit, whole_batch_bytes=nbytes)
 
     g = runner.product([river_swim(False)], [ScriptedHParams(3), ScriptedHParams(4), ScriptedHParams(6)], seeds=[0, 1])
     # Whole: at most 6 members and no byte bound. Rounds: 5 members, or 6 members above a byte bound of 1 byte.
@@ -189,7 +189,7 @@ def test_the_whole_batch_bytes_bound_the_agent_states_of_a_shard():
     states = jax.vmap(lambda k: SCRIPTED[False].init(k, spec_of(river_swim(False), 10), ScriptedHParams()))(
         jax.random.split(jax.random.key(0), 2))
     size = sum(np.asarray(x).nbytes for x in jax.tree.leaves(states))  # numpy's count, on the host
-    agent = lambda **kw: dataclasses.replace(SCRIPTED[False], **kw)  # noqa: E731
+    agent = lambda **kw: SCRIPTED[False].with_hints(**kw)  # noqa: E731
     assert plans_whole(agent(), states) and plans_whole(agent(whole_batch_bytes=size), states)
     assert not plans_whole(agent(whole_batch_bytes=size - 1), states)
     assert not plans_whole(agent(whole_batch_bytes=size, whole_batch_plans=1), states)
@@ -200,8 +200,8 @@ def test_the_whole_batch_bytes_bound_the_agent_states_of_a_shard():
 def test_a_bad_planning_limit_is_refused_before_compiling(field):
     g = runner.product([river_swim(False)], [ScriptedHParams()], seeds=[0])
     for bad in (-1, 2.5, "64", True):
-        agent = dataclasses.replace(SCRIPTED[False], **{field: bad})
-        with pytest.raises(ValueError, match=rf"Agent.{field} must be an integer >= 0 or None \(agent "):
+        agent = SCRIPTED[False].with_hints(**{field: bad})
+        with pytest.raises(ValueError, match=rf"RunnerHints.{field} must be an integer >= 0 or None \(agent "):
             runner.run(agent, g, 10)
 
 
@@ -551,13 +551,13 @@ def test_greedy_action_indices_give_the_same_records_as_the_one_hot_policy(name)
     # policy, as every agent before) every record is bit-identical, on a stacked grid of two MDPs of different sizes
     # and horizons (padded states and actions, a traced horizon below H).
     agent = agents.get(name)
-    assert agent.greedy_actions is not None
+    assert agent.hints.greedy_actions is not None
     episodic = agent.episodic
     rng = np.random.default_rng(11)
     mdps = [random_mdp(rng, S=5, A=3, H=4 if episodic else None), random_mdp(rng, S=3, A=2, H=6 if episodic else None)]
     g = runner.product(mdps, [agent.default_hparams], seeds=[0, 1, 2])
     indices = runner.run(agent, g, 500, log_period=7, n_records=5)
-    one_hot = dataclasses.replace(agent, greedy_actions=None)
+    one_hot = agent.with_hints(greedy_actions=None)
     probabilities = runner.run(one_hot, g, 500, log_period=7, n_records=5)
     np.testing.assert_array_equal(indices.values, probabilities.values)
     assert np.all(indices.values[-1, :, 0] > 0)  # some regret: the policies were evaluated, not all optimal
@@ -569,12 +569,12 @@ def test_a_fixed_policy_gives_the_same_records_evaluated_once(name, tmp_path):
     # compares it again. Every record is bit-identical to the comparing runner's, on a stacked grid of two MDPs of
     # different sizes, also when the run stops after two chunks and resumes from its checkpoint.
     agent = agents.get(name)
-    assert agent.fixed_policy
+    assert agent.hints.fixed_policy
     rng = np.random.default_rng(12)
     H = (4, 6) if agent.episodic else (None, None)
     mdps = [random_mdp(rng, S=5, A=3, H=H[0]), random_mdp(rng, S=3, A=2, H=H[1])]
     g = runner.product(mdps, [agent.default_hparams], seeds=[0, 1])
-    comparing = runner.run(dataclasses.replace(agent, fixed_policy=False), g, 300, log_period=7, n_records=6)
+    comparing = runner.run(agent.with_hints(fixed_policy=False), g, 300, log_period=7, n_records=6)
     ckpt = tmp_path / "run.npz"
     part = runner.run(agent, g, 300, log_period=7, n_records=6, chunk_steps=50, checkpoint_path=ckpt,
                       stop_after_chunks=2)
@@ -590,7 +590,7 @@ def test_a_policy_declared_fixed_is_evaluated_at_the_first_log_only():
     # per step, so the cumulative regret grows linearly from the first log on (the comparing runner's does not).
     base = agents.get("q_learning_continuous")
     g = runner.product([river_swim(False, p_rand=0.1)], [base.default_hparams], seeds=[0])
-    fixed = runner.run(dataclasses.replace(base, fixed_policy=True), g, 1000, log_period=10, n_records=10)
+    fixed = runner.run(base.with_hints(fixed_policy=True), g, 1000, log_period=10, n_records=10)
     changing = runner.run(base, g, 1000, log_period=10, n_records=10)
     for res, linear in ((fixed, True), (changing, False)):
         rate = res.values[:, 0, 0] / res.steps
@@ -599,7 +599,7 @@ def test_a_policy_declared_fixed_is_evaluated_at_the_first_log_only():
 
 def test_greedy_actions_of_the_wrong_shape_are_refused():
     base = agents.get("q_learning_continuous")
-    wrong = dataclasses.replace(base, greedy_actions=lambda state: jnp.zeros((2,), jnp.int32))
+    wrong = base.with_hints(greedy_actions=lambda state: jnp.zeros((2,), jnp.int32))
     with pytest.raises(ValueError, match="greedy_actions"):
         runner.run(wrong, runner.product([river_swim(False)], [base.default_hparams], seeds=[0]), 100)
 
@@ -617,8 +617,8 @@ def test_each_log_gets_the_warm_start_the_previous_log_returned():
         return jax.nn.one_hot(jnp.full((state.n_states,), (state.c // period - 1) % state.n_actions), state.n_actions)
 
     base = SCRIPTED[False]
-    warm = dataclasses.replace(base, name="scripted_warm", warm_policy=warm_policy,
-                               policy_start=lambda state: jnp.zeros((1,), jnp.int32))
+    warm = dataclasses.replace(base, name="scripted_warm").with_hints(
+        warm_policy=warm_policy, policy_start=lambda state: jnp.zeros((1,), jnp.int32))
     plain = dataclasses.replace(base, name="scripted_by_count", policy=by_count)
     g = runner.product([river_swim(False)], [ScriptedHParams(plan_every=1000)], seeds=[0, 1])
     got, want = (runner.run(a, g, n_steps, log_period=period, n_records=10) for a in (warm, plain))
@@ -630,10 +630,10 @@ def test_each_log_gets_the_warm_start_the_previous_log_returned():
 @pytest.mark.parametrize("fields", [dict(warm_policy=lambda s, u: (None, u)), dict(policy_start=lambda s: None)])
 def test_warm_policy_and_policy_start_go_together(fields):
     with pytest.raises(ValueError, match="warm_policy and policy_start go together"):
-        dataclasses.replace(SCRIPTED[False], **fields)
+        SCRIPTED[False].with_hints(**fields)
     both = dict(warm_policy=lambda s, u: (None, u), policy_start=lambda s: None)
     with pytest.raises(ValueError, match="warm_policy is for agents without greedy_actions"):
-        dataclasses.replace(agents.get("q_learning_continuous"), **both)
+        agents.get("q_learning_continuous").with_hints(**both)
 
 
 @pytest.mark.parametrize("returned, match", [
@@ -642,8 +642,8 @@ def test_warm_policy_and_policy_start_go_together(fields):
      "warm_policy returns a start of"),
 ])
 def test_a_warm_policy_that_does_not_fit_is_refused_before_compiling(returned, match):
-    agent = dataclasses.replace(SCRIPTED[False], name="scripted_bad_warm", warm_policy=returned,
-                                policy_start=lambda state: jnp.zeros((2,), jnp.int32))
+    agent = dataclasses.replace(SCRIPTED[False], name="scripted_bad_warm").with_hints(
+        warm_policy=returned, policy_start=lambda state: jnp.zeros((2,), jnp.int32))
     g = runner.product([river_swim(False)], [ScriptedHParams()], seeds=[0])
     with pytest.raises(ValueError, match=match):
         runner.run(agent, g, 10, log_period=5)

@@ -4,7 +4,6 @@ device and on two (shard_map)."""
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import hashlib
 import textwrap
@@ -16,7 +15,7 @@ import pytest
 
 import agents
 import jaxmdp
-from jaxmdp.experiment import runner
+from jaxmdp.experiment import lockstep, runner
 from jaxmdp.experiment.agent_interface import spec_of, where_due
 from jaxmdp.experiment.members import member_mdp
 from jaxmdp.experiment.planning import default_plan_slots, plan_due
@@ -100,7 +99,7 @@ def test_plan_slots_for_caps_by_one_member_s_state_on_a_cpu():
     member = 10 * 100 * 4 + 250 * 4  # 5 000 bytes
     on_cpu = jax.default_backend() == "cpu"
     for cap, want in ((None, 3), (2 * member, 2 if on_cpu else 3), (member - 1, 1 if on_cpu else 3)):
-        assert runner.plan_slots_for(dataclasses.replace(agent, plan_slot_bytes=cap), states) == want, cap
+        assert runner.plan_slots_for(agent.with_hints(plan_slot_bytes=cap), states) == want, cap
     assert runner.plan_slots_for(agent, jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), states)) == 3
     # Continuous PSRL plans one member a round on a CPU whatever its state (a cap of 0 bytes); UCRL2 is not capped.
     assert runner.plan_slots_for(agents.get("psrl_continuous"), states) == (1 if on_cpu else 3)
@@ -111,9 +110,9 @@ def test_the_runner_picks_the_slots_by_the_agent_s_state_bytes(monkeypatch):
     # The runner's default slots come from the shard's agent states (their shapes) and the agent's plan_slot_bytes,
     # and give the results of planning the whole batch.
     calls = []
-    real = runner.default_plan_slots
-    monkeypatch.setattr(runner, "default_plan_slots", lambda *args: calls.append(args) or real(*args))
-    agent = dataclasses.replace(agents.get("psrl_episodic"), plan_slot_bytes=12345)  # a new program, traced here
+    real = lockstep.default_plan_slots
+    monkeypatch.setattr(lockstep, "default_plan_slots", lambda *args: calls.append(args) or real(*args))
+    agent = agents.get("psrl_episodic").with_hints(plan_slot_bytes=12345)  # a new program, traced here
     g = _episodic_grid(agent)
     got = runner.run(agent, g, 150, log_period=10, n_records=5)
     hp = jax.tree.map(lambda x: jnp.asarray(x[0]), g.hparams)  # float32, as the runner holds them
@@ -160,7 +159,7 @@ def test_results_do_not_depend_on_the_slots(name, make_grid, n_steps):
     g = make_grid(agent)
     # Two slots: one member waiting leaves a slot empty, two to four (episodic; continuous: two or three) need rounds,
     # more than half the batch is planned whole (episodic PSRL; UCRL2 and continuous PSRL plan in rounds only,
-    # Agent.whole_batch_plans).
+    # RunnerHints.whole_batch_plans).
     whole = _whole_batch_run(name, make_grid, n_steps)
     _assert_same_run(runner.run(agent, g, n_steps, log_period=10, n_records=5, plan_slots=2), whole)
 

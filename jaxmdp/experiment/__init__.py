@@ -2,7 +2,11 @@
 
 * :mod:`~jaxmdp.experiment.agent_interface`: what an agent is (pure functions on pytrees) and what it may know;
 * :mod:`~jaxmdp.experiment.members`: the members of a run, (MDP, hyperparameters, key) triples (``product``, ``grid``);
-* :mod:`~jaxmdp.experiment.runner`: the compiled lockstep loop and its host driver (``run``);
+* :mod:`~jaxmdp.experiment.runner`: the host driver of a run (``run``: validation, compilation, chunks, CSV,
+  checkpoints);
+* :mod:`~jaxmdp.experiment.lockstep`: the lockstep loop's step, plan, log and record as pure functions, and
+  :mod:`~jaxmdp.experiment.programs`: the compiled programs made of them;
+* :mod:`~jaxmdp.experiment.planning`: planning only the members that asked, in rounds;
 * :mod:`~jaxmdp.experiment.indicators`: the exact expected regret of a policy and the reference's CSV columns;
 * :mod:`~jaxmdp.experiment.records` and :mod:`~jaxmdp.experiment.checkpoints`: what a run writes;
 * :mod:`~jaxmdp.experiment.compilation`: the scripts' persistent compilation cache and compile-time counters

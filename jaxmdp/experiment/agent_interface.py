@@ -14,29 +14,30 @@ hyperparameter sets and drives them in lockstep:
   first action the runner plans every member, whatever ``needs_plan`` says (the reference's
   ``before_start_interacting``);
 * ``policy(state) -> pi``: the agent's current best policy estimate, ``[S, A]`` (continuous) or ``[H, S, A]``
-  (episodic), used only to compute expected regret.
-* ``greedy_actions(state) -> actions`` (optional): for an agent whose ``policy`` is always deterministic, the same
-  policy as action indices, ``int32`` ``[S]`` or ``[H, S]`` (``policy`` is its one-hot form). The runner then
-  compares and evaluates the indices instead of the ``[.., S, A]`` probabilities: ``A`` times less memory per log,
-  and an episodic evaluation that reads only the chosen actions' successor lists (the same numbers).
-* ``fixed_policy`` (a flag, default False): ``policy`` is the same at every step of a run (it depends on no learnt
-  quantity, as the random agent's). The runner then evaluates it at the first log and never builds or compares it
-  again (the same records; an episodic random run on Taxi takes 0.43x the time, docs/benchmarks/bench_fixed_policy.md).
-* ``act_apart`` (a flag, default False): the runner computes each step's action apart from the rest of the step, in
-  a conditional that XLA does not fuse into the action's users (CPU only). For an ``act`` that reads rows of large
-  per-member tables (the Q-learning agents: 1.04-1.16x faster runs, the same results;
-  docs/benchmarks/bench_agents_tabular.md).
-* ``whole_batch_plans`` (an int, default ``None``: no limit): the largest batch the runner plans whole when most of
-  its members ask at once; larger ones plan in rounds (:mod:`jaxmdp.experiment.planning`). An agent whose members
-  seldom ask together (epochs that end member by member) sets 0, and its runner compiles the plan once, not twice.
-  ``whole_batch_bytes`` (default ``None``: no limit) bounds the same by the batch's agent states' bytes, for an
-  agent whose plan's working set grows with its state (a whole batch that leaves the caches plans slower).
-  ``plan_slot_bytes`` (default ``None``: no cap) caps, on a CPU, the planning slots the runner picks by the bytes of
-  agent state they hold together (:func:`jaxmdp.experiment.planning.default_plan_slots`), for the same reason; 0
-  plans one member a round (a plan that iterates until its slowest slot converges).
+  (episodic), used only to compute expected regret;
 * ``diagnostics(state) -> {name: int scalar}`` (optional): counters of silent degradation kept in the state, e.g.
   plans that stopped at their iteration cap; the runner writes each as a column of its per-record CSV and warns at
   the end of a run where one is non-zero.
+
+``check_hparams`` validates hyperparameters on the host and ``observation`` says what ``obs`` is (below). Everything
+else is in ``Agent.hints``, a :class:`RunnerHints`: how the runner may compute the same records faster. An agent
+author can leave it at its defaults (the runner then makes no assumption), and set a field when the agent has the
+property it names:
+
+* ``greedy_actions(state) -> actions``: for an agent whose ``policy`` is always deterministic, the same policy as
+  action indices, ``int32`` ``[S]`` or ``[H, S]`` (``policy`` is its one-hot form). The runner then compares and
+  evaluates the indices instead of the ``[.., S, A]`` probabilities: ``A`` times less memory per log, and an
+  episodic evaluation that reads only the chosen actions' successor lists (the same numbers).
+* ``warm_policy(state, start) -> (policy, start')`` with ``policy_start(state) -> start``: ``policy`` computed from
+  a warm start that the runner carries from one log to the next.
+* ``fixed_policy``: ``policy`` is the same at every step of a run (it depends on no learnt quantity, as the random
+  agent's). The runner then evaluates it at the first log and never builds or compares it again (the same records,
+  with no per-log policy extraction; docs/performance.md, Tabular agents).
+* ``act_apart``: the runner computes each step's action apart from the rest of the step, in a conditional that XLA
+  does not fuse into the action's users (CPU only): for an ``act`` that reads rows of large per-member tables (the
+  Q-learning agents), whose reads XLA would otherwise repeat in every fusion that uses the action.
+* ``whole_batch_plans``, ``whole_batch_bytes`` and ``plan_slot_bytes``: how the runner groups the members that plan
+  at the same step (:mod:`jaxmdp.experiment.planning`; docs/performance.md, Planning rounds).
 
 What an agent observes is declared by ``Agent.observation``:
 
@@ -66,7 +67,7 @@ from flax import struct
 
 from jaxmdp.mdp import MDP
 
-__all__ = ["MDPSpec", "Transition", "Agent", "spec_of", "plans_whole", "where_due"]
+__all__ = ["MDPSpec", "Transition", "Agent", "RunnerHints", "spec_of", "plans_whole", "where_due"]
 
 
 class MDPSpec(struct.PyTreeNode):
@@ -153,12 +154,60 @@ def _no_plan(key: jax.Array, state: Any) -> Any:
     return state
 
 
+@dataclasses.dataclass(frozen=True)
+class RunnerHints:
+    """How the runner may compute an agent's records faster (see the module docstring); the defaults assume nothing.
+
+    Every field is a property of the agent that the runner exploits without changing a record: an alternative form of
+    ``policy`` (``greedy_actions``, ``warm_policy``/``policy_start``), a promise (``fixed_policy``) or a choice of how
+    to compile and group the agent's work (``act_apart``, the planning limits)."""
+
+    #: Optional ``state -> int32 [S] or [H, S]``: ``policy`` as action indices, when it is always deterministic.
+    greedy_actions: Callable[[Any], jax.Array] | None = None
+    #: Optional ``(state, start) -> (policy, start')``: ``policy(state)`` computed from a warm ``start`` (an array of
+    #: the agent's choosing, e.g. the values of its previous estimate), and the start for the next call. The runner
+    #: hands each log the ``start'`` of the previous one (``policy_start(state)`` before the first) and evaluates the
+    #: policy it returns, which must be ``policy``'s estimate up to that estimate's own tolerances. Given with
+    #: ``policy_start`` or not at all, and not with ``greedy_actions``; an agent made by ``dataclasses.replace`` with
+    #: another ``policy`` must replace or clear both.
+    warm_policy: Callable[[Any, jax.Array], tuple[jax.Array, jax.Array]] | None = None
+    #: Optional ``state -> start``: the first ``start`` of ``warm_policy`` (from the state after ``init``).
+    policy_start: Callable[[Any], jax.Array] | None = None
+    #: True when ``policy`` is the same at every step of a run (it depends on no learnt quantity, as the random
+    #: agent's): the runner then evaluates it at the first log only and never extracts or compares it again.
+    fixed_policy: bool = False
+    #: Whether the runner computes each step's action apart from the rest of the step (on CPU, in a conditional
+    #: that XLA does not fuse into the action's users; :func:`jaxmdp.experiment.lockstep.apart`). For an ``act`` that
+    #: reads rows of large per-member tables, whose reads XLA otherwise repeats in each fusion that uses the action
+    #: (the Q-learning agents). For other agents the boundary costs a little or nothing, so it is off by default
+    #: (docs/performance.md, Tabular agents).
+    act_apart: bool = False
+    #: The largest lockstep batch (a shard's members) that the runner plans whole, in one ``vmap``, when more than
+    #: half its members ask at once (``None``: any); larger batches always plan in rounds of planning slots
+    #: (:func:`jaxmdp.experiment.planning.plan_due`) and compile no whole-batch copy of ``plan``. 0 for an agent
+    #: whose members seldom ask together (docs/performance.md, Planning rounds).
+    whole_batch_plans: int | None = None
+    #: The largest total size in bytes of a lockstep batch's agent states that the runner plans whole (``None``: any);
+    #: a batch above it plans in rounds like one above ``whole_batch_plans``.
+    whole_batch_bytes: int | None = None
+    #: On a CPU, the most bytes of agent state that a planning round's slots hold together when the runner picks the
+    #: slots itself (``plan_slots=None``): at most ``plan_slot_bytes // (one member's state bytes)`` slots, at least
+    #: one (``None``: no cap; :func:`jaxmdp.experiment.planning.default_plan_slots`).
+    plan_slot_bytes: int | None = None
+
+    def __post_init__(self) -> None:
+        if (self.warm_policy is None) != (self.policy_start is None):
+            raise ValueError("RunnerHints: warm_policy and policy_start go together (one of them is None)")
+        if self.warm_policy is not None and self.greedy_actions is not None:
+            raise ValueError("RunnerHints: warm_policy is for agents without greedy_actions")
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class Agent:
     """A named bundle of the interface functions (see the module docstring) and default hyperparameters.
 
     Agents compare and hash by identity (the runner caches compiled programs per agent): ``dataclasses.replace``
-    makes a new agent."""
+    (or :meth:`with_hints`) makes a new agent."""
 
     name: str
     episodic: bool
@@ -173,51 +222,23 @@ class Agent:
     check_hparams: Callable[[Any], None] = lambda hparams: None
     #: What ``obs`` is: ``"state"`` (a state index), ``"emission"`` (a BlockMDP observation) or ``"any"``.
     observation: Literal["state", "emission", "any"] = "state"
-    #: Optional ``state -> int32 [S] or [H, S]``: ``policy`` as action indices, when it is always deterministic.
-    greedy_actions: Callable[[Any], jax.Array] | None = None
-    #: Optional ``(state, start) -> (policy, start')``: ``policy(state)`` computed from a warm ``start`` (an array of
-    #: the agent's choosing, e.g. the values of its previous estimate), and the start for the next call. The runner
-    #: hands each log the ``start'`` of the previous one (``policy_start(state)`` before the first) and evaluates the
-    #: policy it returns, which must be ``policy``'s estimate up to that estimate's own tolerances. Given with
-    #: ``policy_start`` or not at all; an agent made by ``dataclasses.replace`` with another ``policy`` must replace
-    #: or clear both.
-    warm_policy: Callable[[Any, jax.Array], tuple[jax.Array, jax.Array]] | None = None
-    #: Optional ``state -> start``: the first ``start`` of ``warm_policy`` (from the state after ``init``).
-    policy_start: Callable[[Any], jax.Array] | None = None
     #: Optional ``state -> {name: int scalar}``: counters the runner records and warns about (module docstring).
     diagnostics: Callable[[Any], dict[str, jax.Array]] | None = None
-    #: True when ``policy`` is the same at every step of a run (it depends on no learnt quantity, as the random
-    #: agent's): the runner then evaluates it at the first log only and never extracts or compares it again.
-    fixed_policy: bool = False
-    #: Whether the runner computes each step's action apart from the rest of the step (on CPU, in a conditional
-    #: that XLA does not fuse into the action's users; ``jaxmdp.experiment.runner._apart``). For an ``act`` that
-    #: reads rows of large per-member tables, whose reads XLA otherwise repeats in each fusion that uses the action
-    #: (the Q-learning agents: 1.04-1.16x faster runs). Elsewhere the boundary cost up to 8% (the random agent, the
-    #: actor-critic) or nothing measurable (PSRL, UCRL2, DQN), so it is off by default.
-    act_apart: bool = False
-    #: The largest lockstep batch (a shard's members) that the runner plans whole, in one ``vmap``, when more than
-    #: half its members ask at once (``None``: any); larger batches always plan in rounds of planning slots
-    #: (:func:`jaxmdp.experiment.planning.plan_due`) and compile no whole-batch copy of ``plan``. 0 for an agent
-    #: whose members seldom ask together (docs/benchmarks/bench_whole_batch_plans.md).
-    whole_batch_plans: int | None = None
-    #: The largest total size in bytes of a lockstep batch's agent states that the runner plans whole (``None``: any);
-    #: a batch above it plans in rounds like one above ``whole_batch_plans``.
-    whole_batch_bytes: int | None = None
-    #: On a CPU, the most bytes of agent state that a planning round's slots hold together when the runner picks the
-    #: slots itself (``plan_slots=None``): at most ``plan_slot_bytes // (one member's state bytes)`` slots, at least
-    #: one (``None``: no cap; :func:`jaxmdp.experiment.planning.default_plan_slots`).
-    plan_slot_bytes: int | None = None
+    #: How the runner may compute the same records faster (:class:`RunnerHints`; the defaults assume nothing).
+    hints: RunnerHints = RunnerHints()
 
     def __post_init__(self) -> None:
-        if (self.warm_policy is None) != (self.policy_start is None):
-            raise ValueError(f"agent {self.name!r}: warm_policy and policy_start go together (one of them is None)")
-        if self.warm_policy is not None and self.greedy_actions is not None:
-            raise ValueError(f"agent {self.name!r}: warm_policy is for agents without greedy_actions")
+        if not isinstance(self.hints, RunnerHints):
+            raise ValueError(f"agent {self.name!r}: hints must be a RunnerHints; got {type(self.hints).__name__}")
 
     @property
     def plans(self) -> bool:
         """Whether the agent has a planning step (``plan`` given); the runner compiles none for one without."""
         return self.plan is not _no_plan
+
+    def with_hints(self, **changes: Any) -> "Agent":
+        """A new agent with these fields of :attr:`hints` changed (``dataclasses.replace`` on both records)."""
+        return dataclasses.replace(self, hints=dataclasses.replace(self.hints, **changes))
 
 
 def batch_bytes(states: Any) -> tuple[int, int]:
@@ -230,10 +251,12 @@ def batch_bytes(states: Any) -> tuple[int, int]:
 
 def plans_whole(agent: Agent, states: Any) -> bool:
     """Whether the runner may plan a lockstep batch of ``states`` (member axis first) whole: at most
-    ``agent.whole_batch_plans`` members and at most ``agent.whole_batch_bytes`` bytes of state (static shapes)."""
+    ``agent.hints.whole_batch_plans`` members and at most ``agent.hints.whole_batch_bytes`` bytes of state (static
+    shapes)."""
     members, nbytes = batch_bytes(states)
-    return ((agent.whole_batch_plans is None or members <= agent.whole_batch_plans)
-            and (agent.whole_batch_bytes is None or nbytes <= agent.whole_batch_bytes))
+    hints = agent.hints
+    return ((hints.whole_batch_plans is None or members <= hints.whole_batch_plans)
+            and (hints.whole_batch_bytes is None or nbytes <= hints.whole_batch_bytes))
 
 
 def where_due(due: jax.Array, new: Any, old: Any) -> Any:

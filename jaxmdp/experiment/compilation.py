@@ -1,7 +1,7 @@
 """Compile once: a persistent JAX compilation cache for the scripts, and the time spent compiling.
 
 Both change process-wide JAX state (its configuration, its monitoring listeners), so the library never calls them:
-the scripts' entry points do, before anything compiles (``scripts/*.py``, the command lines of
+the entry points do, before anything compiles (the console commands and the command lines of
 :mod:`hardness.analysis`).
 
 * :func:`enable_compilation_cache` points JAX's persistent cache at a user cache folder (default

@@ -145,17 +145,14 @@ def _safe_ratio(num: jax.Array, den: jax.Array, scale: jax.Array) -> jax.Array:
 
 
 #: Sweeps over the successor lists that :func:`policy_values` spends trying to certify a gain before it falls back
-#: to the dense solve (on the benchmark's quick-test MDPs, near-optimal policies certify within 32 to 128 sweeps,
-#: and 128 sweeps cost about a tenth of the dense solve at S = 144). Counted over the policies that the runner
-#: evaluated in 20 000-step runs (log period 100, 2 MDPs x 2 seeds) of Q-learning, UCRL2 and PSRL on continuous
-#: RiverSwim, DeepSea, FrozenLake, SimpleGrid and MiniGridEmpty: 2694 of 2916 certified (92%; every failure on
-#: FrozenLake: 210 of Q-learning's 799 evaluations there, 7 of UCRL2's 120, 5 of PSRL's 155).
+#: to the dense solve: near-optimal policies of the benchmark's MDPs certify within 32 to 128 sweeps, which cost a
+#: fraction of the dense solve, and most policies that the runner evaluates certify (the exceptions are slowly
+#: mixing chains, as on FrozenLake; docs/performance.md, Continuous indicators).
 ITERATIVE_GAIN_SWEEPS = 128
 #: The runner's ``give_up`` for :func:`~jaxmdp.dynamic_programming.successor_gain_bounds`: the bounds stop once, at
-#: their rate of contraction, certifying would take more than 16 times the sweeps left. On the benchmark's 40
-#: continuous MDPs (seed 0; the optimal policy, three partly random ones and a random one each) they stop early on
-#: 96 of the 115 chains that do not certify within 128 sweeps (50 of them after 32), and 85 of the 87 that certify
-#: within 128 still do, with the same bounds (docs/benchmarks/continuous_indicators.md, "Giving up early").
+#: their rate of contraction, certifying would take more than 16 times the sweeps left. On the benchmark's
+#: continuous MDPs most chains that would not certify within :data:`ITERATIVE_GAIN_SWEEPS` stop early, and nearly all
+#: that certify still do, with the same bounds (docs/performance.md, Continuous indicators).
 ITERATIVE_GAIN_GIVE_UP = 16.0
 
 

@@ -34,7 +34,7 @@ def default_plan_slots(n_members: int, member_bytes: int = 0, slot_bytes: int | 
 
     The cap is for a plan whose working set grows with the state it reads (episodic PSRL's Dirichlet draws over its
     dense counts): on a CPU, slots whose states no longer fit the caches together plan slower than fewer slots in more
-    rounds (108-400 states: one slot a round 1.02-1.16x faster than 2-4; docs/benchmarks/bench_plan_slots.md).
+    rounds (docs/performance.md, Planning rounds).
     ``slot_bytes = 0`` plans one member a round."""
     slots = max(1, -(-n_members // 16))
     if slot_bytes is not None and member_bytes > 0:
@@ -54,19 +54,18 @@ def plan_due(
     """``plan(keys[i], states[i])`` for every member ``i`` with ``due[i]``, ``states[i]`` for the others.
 
     ``due`` is ``bool[B]``, ``keys`` ``[B]`` keys and ``states`` a pytree with the member axis first. Rounds of
-    ``slots`` members (static): each round plans the first ``slots`` members still waiting (an empty slot repeats
-    the round's first member, whose copy is dropped) and scatters their plans back; the rounds go on until none
-    waits, so the result does not depend on ``slots``. ``lone_rounds`` (static): a round with one member waiting
-    plans it alone (a second, one-slot copy of ``plan``): late in a continuous run, where epochs end member by
-    member, most rounds are such, and on a CPU a round of 5 slots costs 4.5-11 times a round of one (PSRL
-    continuous, 108-948 states, 2-core CPU; docs/benchmarks/continuous_planning.md). The runner leaves it off for
-    episodic agents, whose members of one MDP end their episodes together: there it seldom runs and costs 3-5 s more
-    compiling. When more than half the members wait, all ``B`` are planned in one batch instead (the result kept
-    where due): a round has a fixed cost (the plan's loops and their dispatch: about 0.5 ms a round for PSRL on a
-    CPU core, measured), so when every member's episode ends at the same step (one MDP, many seeds) many rounds of
-    small plans cost more than one batch. ``whole_batch=False`` (static) always plans in rounds and compiles no
-    whole-batch copy of ``plan``: for large batches, whose rounds of ``slots`` plans are at least as fast (a whole
-    batch's working set leaves the caches), and for agents whose members seldom ask together.
+    ``slots`` members (static): each round plans the first ``slots`` members still waiting (an empty slot repeats the
+    round's first member, whose copy is dropped) and scatters their plans back; the rounds go on until none waits, so
+    the result does not depend on ``slots``. ``lone_rounds`` (static): a round with one member waiting plans it alone
+    (a second, one-slot copy of ``plan``): late in a continuous run, where epochs end member by member, most rounds
+    are such, and on a CPU a round of several slots costs several times a round of one (a vmapped plan waits for its
+    slowest slot; docs/performance.md, Continuous planning). The runner leaves it off for episodic agents, whose members
+    of one MDP end their episodes together: there it seldom runs and costs compile time. When more than half the
+    members wait, all ``B`` are planned in one batch instead (the result kept where due): a round has a fixed cost
+    (the plan's loops and their dispatch), so when every member's episode ends at the same step (one MDP, many seeds)
+    many rounds of small plans cost more than one batch. ``whole_batch=False`` (static) always plans in rounds and
+    compiles no whole-batch copy of ``plan``: for large batches, whose rounds of ``slots`` plans are at least as fast
+    (a whole batch's working set leaves the caches), and for agents whose members seldom ask together.
     """
 
     def plan_slots(k, st, valid):
@@ -91,9 +90,9 @@ def plan_due(
         def put(x, t, y):
             # A leaf the plan passes through (``y is t``, e.g. episodic PSRL's dense counts) is not written back:
             # the write changes nothing, and with one slot XLA made it a dynamic-update-slice of the batch's leaf
-            # from itself and copied the whole leaf twice per round (episodic PSRL, 16 members of 400 states: a
-            # round 18.6-19.0 -> 6.7-8.0 ms; docs/benchmarks/bench_plan_rounds.md). Through the lone-round ``cond``
-            # every leaf is a new value and is written back: the continuous agents' states it serves are small.
+            # from itself and copied the whole leaf twice per round (docs/performance.md, Planning rounds). Through
+            # the lone-round ``cond`` every leaf is a new value and is written back: the continuous agents' states it
+            # serves are small.
             return x if y is t else x.at[index].set(y, mode="drop", unique_indices=True)
 
         return (jax.tree.map(put, states, taken, planned),

@@ -1,0 +1,97 @@
+"""The runner's compiled programs: initialisation, a chunk of the lockstep loop, and the indicator constants.
+
+Each builder returns a ``jax.jit``-ed function of :mod:`jaxmdp.experiment.lockstep`'s pure functions, with the run's
+static settings bound. The builders are cached with a bound (least recently used first out), keyed by the agent (by
+identity: ``Agent`` compares and hashes as an object) and the static settings; ``jax.jit`` caches per input shape below
+that. A cached entry holds its agent, so an agent's identity cannot be reused while its programs are cached.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from typing import Any
+
+import jax
+import numpy as np
+
+from jaxmdp._checks import VARIANTS, Variant
+from jaxmdp.experiment import lockstep
+from jaxmdp.experiment.agent_interface import Agent
+from jaxmdp.experiment.indicators import indicator_constants
+from jaxmdp.experiment.members import dynamics
+
+__all__ = ["init_program", "chunk_program", "constants_program", "MAX_CACHED_PROGRAMS"]
+
+#: Programs of each kind kept compiled (see the module docstring).
+MAX_CACHED_PROGRAMS = 32
+
+
+@functools.lru_cache(maxsize=MAX_CACHED_PROGRAMS)
+def init_program(
+    agent: Agent, record_visits: bool = False, bandwidth: int | None = None, stop_when_converged: bool = False
+) -> Callable:
+    """``init(mdps, mdp_index, hparams, key_data, n_steps, orders=None) -> Carry``
+    (:func:`~jaxmdp.experiment.lockstep.init_carry`), jitted."""
+    loop = lockstep.Loop(agent, record_visits=record_visits, bandwidth=bandwidth,
+                         stop_when_converged=stop_when_converged)
+    return jax.jit(functools.partial(lockstep.init_carry, loop))
+
+
+@functools.lru_cache(maxsize=MAX_CACHED_PROGRAMS)
+def chunk_program(
+    agent: Agent,
+    variant: Variant,
+    capacity: int,
+    n_shards: int,
+    carry_treedef: Any,
+    record_visits: bool = False,
+    plan_slots: int | None = None,
+    bandwidth: int | None = None,
+    stop_when_converged: bool = False,
+) -> Callable:
+    """``chunk(carry, mdps, mdp_index, consts, schedule, n) -> (carry, steps[capacity], values[capacity, B, 4],
+    n_written)`` (:func:`~jaxmdp.experiment.lockstep.chunk`): ``n`` more steps (traced), recording at most
+    ``capacity`` snapshots; the carry is donated.
+
+    ``stop_when_converged`` (static): the reference's convergence stop (:data:`~jaxmdp.experiment.lockstep.
+    CONVERGED_LOGS`). A member that has stopped acts with, and is evaluated on, a copy of its agent state made when it
+    stopped; its live state plans no more and is not seen again. (Keeping the live state instead, merged with its
+    update at every step, would read and write the whole state per step.)
+
+    ``bandwidth``: the members' band orders' (``consts.state_order``), for the banded exact gains.
+
+    With ``n_shards > 1`` the members are split over that many local devices with ``shard_map``; each shard runs its
+    own loop (its own "some member needs to plan" predicate), so shards never communicate. A grid whose stacked MDPs
+    have no Beta reward anywhere (static ``MDP.stochastic_rewards``) compiles no reward draw. ``plan_slots``: members
+    planned at once (:func:`jaxmdp.experiment.planning.plan_due`; default
+    :func:`~jaxmdp.experiment.lockstep.plan_slots_for` a shard); at least a shard's members, the whole shard is
+    planned whenever one member asks and the result kept for those that did. A shard of more than
+    ``agent.hints.whole_batch_plans`` members, or of more than ``agent.hints.whole_batch_bytes`` bytes of agent state,
+    plans in rounds only.
+    """
+    loop = lockstep.Loop(agent, variant, record_visits, plan_slots, bandwidth, stop_when_converged)
+    chunk = functools.partial(lockstep.chunk, loop, capacity)
+    if n_shards == 1:
+        return jax.jit(chunk, donate_argnums=0)
+    P = jax.sharding.PartitionSpec
+    mesh = jax.sharding.Mesh(np.asarray(jax.local_devices()[:n_shards]), ("members",))
+    # Per-member leaves carry the member axis first; the scalars (step counters) are the same on every shard.
+    carry_specs = jax.tree.unflatten(carry_treedef[0], [P() if nd == 0 else P("members") for nd in carry_treedef[1]])
+    in_specs = (carry_specs, P(), P("members"), P("members"), P(), P())
+    out_specs = (carry_specs, P(), P(None, "members"), P())
+    sharded = jax.shard_map(chunk, mesh=mesh, in_specs=in_specs, out_specs=out_specs, check_vma=False)
+    return jax.jit(sharded, donate_argnums=0)
+
+
+@functools.lru_cache(maxsize=len(VARIANTS))
+def constants_program(variant: Variant) -> Callable:
+    """``constants(mdps, mdp_index) -> IndicatorConstants`` of every member (one per stacked MDP, gathered)."""
+
+    # lax.map, not vmap: the constants come from planning loops run to convergence, and a vmapped while_loop runs
+    # until its slowest member converges. The per-member gather is in the same program.
+    def constants(mdps, mdp_index):
+        unique = jax.lax.map(lambda m: indicator_constants(dynamics(m), variant), mdps)
+        return jax.tree.map(lambda x: x[mdp_index], unique)
+
+    return jax.jit(constants)
