@@ -4,10 +4,9 @@ and two that the paper's Table 1 marks as not known to be computable: the mixing
 
 Every measure takes one :class:`jaxmdp.MDP` and returns a :class:`MeasureResult` (``value``, ``converged``,
 ``finite``); ``jax.vmap`` runs it over a stacked batch (:func:`jaxmdp.stack`), and padding changes nothing;
-:func:`measures_many` computes all three for a collection of MDPs of different sizes (size buckets, mapped: on a
-CPU, ``vmap`` over one padded stack of three Taxi MDPs took 5x as long as ``lax.map`` over the same stack for the
-colosseum diameter, 30 against 6 s: in lockstep every member runs until the slowest has converged, and batched
-gathers are slow there).
+:func:`measures_many` computes all three for a collection of MDPs of different sizes (size buckets, each mapped with
+``lax.map`` rather than vmapped, because in lockstep every member runs until the slowest has converged and batched
+gathers are slow on a CPU; docs/performance.md, Hardness measures).
 ``variant="paper"`` (default) computes the paper's definitions exactly; ``variant="colosseum"`` reproduces the
 reference package's procedures and numbers (docs/measures.md). :func:`normalize` is the min-max scaling of App. E.
 """

@@ -15,7 +15,6 @@ import pytest
 import jaxmdp
 from hardness.benchmark import published, report, run, sets
 from jaxmdp import runner
-from script_loader import load_script
 
 TINY = dict(sets=("episodic quick test",), agents=("q_learning_episodic", "random_episodic"), seeds=(0, 1),
             n_steps=200, log_period=50, n_buckets=2, hparams="reference", only=("RiverSwim", "DeepSea"))
@@ -326,12 +325,12 @@ def test_planning_agents_get_their_own_size_buckets():
 
 
 def test_run_benchmark_buckets_option_applies_to_every_agent():
-    cli = load_script("run_benchmark")
-    default = cli.config_from_args(cli.build_parser().parse_args(["--out", "x"]))
+    from hardness.cli import benchmark as cli
+    default = cli.config_from_args(cli.build_parser().parse_args(["run", "--out", "x"]))
     assert default.buckets("psrl_episodic") == 8 and default.buckets("psrl_continuous") == 4
-    given = cli.config_from_args(cli.build_parser().parse_args(["--out", "x", "--buckets", "3"]))
+    given = cli.config_from_args(cli.build_parser().parse_args(["run", "--out", "x", "--buckets", "3"]))
     assert given.buckets("psrl_episodic") == given.buckets("q_learning_episodic") == 3
-    quick = cli.config_from_args(cli.build_parser().parse_args(["--out", "x", "--quick"]))
+    quick = cli.config_from_args(cli.build_parser().parse_args(["run", "--out", "x", "--quick"]))
     assert quick.buckets("psrl_episodic") == quick.buckets("ucrl2") == 1
 
 
@@ -458,8 +457,8 @@ def test_the_reference_indicators_are_an_option_of_the_run(tmp_path):
     assert all(abs(p - c) > 1e-3 for p, c in zip(scores["paper"], scores["colosseum"])), scores
     with pytest.raises(ValueError, match="indicator_variant must be 'paper' or 'colosseum'; got 'reference'"):
         run.plan(run.RunConfig(**cfg, indicator_variant="reference"))
-    cli = load_script("run_benchmark")
-    parse = cli.build_parser().parse_args
+    from hardness.cli import benchmark as cli
+    parse = lambda argv: cli.build_parser().parse_args(["run", *argv])  # noqa: E731
     assert cli.config_from_args(parse(["--out", "x"])).indicator_variant == "paper"
     assert cli.config_from_args(parse(["--out", "x", "--indicators", "colosseum"])).indicator_variant == "colosseum"
 
@@ -482,7 +481,24 @@ def test_the_reference_s_convergence_stop_is_an_option_of_the_run(tmp_path, monk
     assert seen == [True]
     with pytest.raises(ValueError, match="stop_when_converged must be True or False; got 'yes'"):
         run.plan(run.RunConfig(**cfg, stop_when_converged="yes"))
-    cli = load_script("run_benchmark")
-    parse = cli.build_parser().parse_args
+    from hardness.cli import benchmark as cli
+    parse = lambda argv: cli.build_parser().parse_args(["run", *argv])  # noqa: E731
     assert cli.config_from_args(parse(["--out", "x", "--stop-when-converged"])).stop_when_converged
     assert not cli.config_from_args(parse(["--out", "x"])).stop_when_converged
+
+
+def test_the_benchmark_command_reports_a_finished_run(full_run, capsys):
+    # jaxmdp-benchmark report DIR (or --out DIR): the report of the run folder, the files on stdout, the compile-time
+    # line on stderr; a folder without a run is refused.
+    from hardness.cli import benchmark as cli
+
+    out, _ = full_run
+    (out / "report.md").unlink(missing_ok=True)
+    assert cli.main(["report", str(out), "--no-compile-cache"]) == 0
+    captured = capsys.readouterr()
+    assert (out / "report.md").exists() and str(out / "report.md") in captured.out
+    assert "of which compiling" in captured.err
+    assert cli.main(["report", "--out", str(out), "--quiet", "--no-compile-cache"]) == 0
+    assert capsys.readouterr().out == ""
+    with pytest.raises(SystemExit, match="holds no benchmark run"):
+        cli.main(["report", "--out", str(out / "runs"), "--no-compile-cache"])

@@ -12,7 +12,6 @@ from flax import struct
 import jaxmdp
 from hardness.benchmark import hparams, search
 from jaxmdp.agent_interface import Agent
-from script_loader import load_script
 
 
 def test_reference_candidates_use_seeds_sigma_plus_i_and_four_decimals():
@@ -128,7 +127,11 @@ def test_search_pipeline_with_a_fake_runner_and_the_tuned_file(tmp_path):
 def test_tune_agents_records_wall_time_skips_agents_done_with_the_same_budget_and_reruns_others(
     tmp_path, monkeypatch
 ):
-    tune = load_script("tune_agents")
+    from hardness.cli import benchmark as cli
+
+    def tune(argv):
+        return cli.tune_command(cli.build_parser().parse_args(["tune", *argv]))
+
     calls = []
 
     def fake_search(name, budget, *, n_buckets, progress, work_dir, run=None):
@@ -137,16 +140,16 @@ def test_tune_agents_records_wall_time_skips_agents_done_with_the_same_budget_an
         return search.SearchResult(name, ["sample_0", "reference"], values, np.array([[2.0, 4.0], [1.0, 1.0]]),
                                    [("RiverSwim/sample_0", 0), ("RiverSwim/sample_0", 1)], [], 1.0, 0.5)
 
-    monkeypatch.setattr(tune.search, "search", fake_search)
+    monkeypatch.setattr(search, "search", fake_search)
     out = tmp_path / "tuned.json"
     argv = ["--agents", "q_learning_episodic", "--steps", "100", "--candidates", "1", "--seeds", "2",
             "--out", str(out), "--work-dir", str(tmp_path / "work")]
-    entries = tune.main(argv)
+    entries = tune(argv)
     entry = entries["q_learning_episodic"]
     assert entry["winner"] == "reference" and entry["objective"] == 1.0 and entry["wall_s"] >= 0
     assert calls[0][2].parent == tmp_path / "work" / "q_learning_episodic"  # one folder per agent and budget
-    assert tune.main(argv) == {} and len(calls) == 1  # same budget: skipped
-    assert tune.main([*argv, "--redo"]) and len(calls) == 2
-    tune.main([*argv[:3], "200", *argv[4:]])  # another budget: searched again, in its own folder
+    assert tune(argv) == {} and len(calls) == 1  # same budget: skipped
+    assert tune([*argv, "--redo"]) and len(calls) == 2
+    tune([*argv[:3], "200", *argv[4:]])  # another budget: searched again, in its own folder
     assert calls[2][1] == 200 and calls[2][2] != calls[0][2]
     assert json.loads(out.read_text())["agents"]["q_learning_episodic"]["budget"]["n_steps"] == 200

@@ -1,4 +1,4 @@
-"""The shipped tuned file (scripts/tune_agents.py, paper App. F): one entry per tunable agent with its provenance,
+"""The shipped tuned file (``jaxmdp-benchmark tune``, paper App. F): one entry per tunable agent with its provenance,
 and the reference's cached values still available as ``hparams="reference"`` and as the search's ``reference``
 candidate."""
 

@@ -1,4 +1,4 @@
-"""hardness.analysis.deep_regret (run by scripts/deep_agents_regret.py) on a tiny configuration: DQN and the random
+"""hardness.analysis.deep_regret (run by ``jaxmdp-regret-table --deep``) on a tiny configuration: DQN and the random
 agent on one small RiverSwim BlockMDP, 2 seeds, 300 steps. The table's rows and columns are the runner's numbers,
 rows are appended as pairs finish, and an invocation skips the finished pairs."""
 
@@ -64,7 +64,7 @@ def test_markdown_table(table):
     dqn, rnd = (r for r in res["rows"])
     assert cells[0][2] == f"{float(dqn['regret_per_step_mean']):.3f} ± {float(dqn['regret_per_step_std']):.3f}"
     assert cells[0][4] == deep_regret.verdict(dqn, rnd) != "" and cells[1][4] == ""
-    assert "Made by `python scripts/deep_agents_regret.py --steps 300" in md
+    assert "Made by `jaxmdp-regret-table --deep --steps 300" in md
     # The agents of the instance's setting that were not run are listed as missing.
     assert ("Not run yet: RiverSwim-3-continuous / boot_dqn_continuous, RiverSwim-3-continuous / "
             "actor_critic_continuous, RiverSwim-3-continuous / actor_critic_rnn_continuous.") in md
@@ -102,3 +102,17 @@ def test_verdicts_and_bad_input():
         deep_regret.main(["--agents", "dqn"])
     block = deep_regret.parse_instance("DeepSea-4-episodic").build()
     assert isinstance(block, jaxmdp.BlockMDP) and block.emission_kind == "state_info" and block.episodic
+
+
+def test_the_regret_table_command_with_deep_runs_this_table(table, monkeypatch, capsys):
+    # Every pair is finished: the command reruns nothing, rewrites the table naming itself, and reports compile time.
+    from hardness.cli import regret_table as cli
+
+    out, _ = table
+    monkeypatch.setenv("XLA_FLAGS", "")  # the command asks for one host device per core; restored afterwards
+    monkeypatch.setattr(deep_regret, "run_pair", lambda *a, **kw: pytest.fail("a finished pair ran again"))
+    assert cli.main(["--deep", *ARGS, "--out", str(out), "--no-compile-cache"]) == 0
+    assert "Made by `jaxmdp-regret-table --deep --steps 300" in (out / "deep_agents_regret.md").read_text()
+    assert "of which compiling" in capsys.readouterr().err
+    assert "--instances" in cli.build_parser(deep=True).format_help()
+    assert "--families" in cli.build_parser().format_help()

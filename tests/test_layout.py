@@ -58,9 +58,15 @@ def test_agents_import_jaxmdp_only():
 
 
 def test_hardness_measures_import_jaxmdp_only():
-    analyses = ("analysis", "benchmark")
-    measures = [p for p in _modules("hardness") if not set(analyses) & set(p.relative_to(REPO / "hardness").parts)]
-    assert _offending(measures, ("agents", "hardness.analysis", "hardness.benchmark")) == {}
+    above = ("analysis", "benchmark", "cli")  # the layers above the measures: analyses, the benchmark, commands
+    measures = [p for p in _modules("hardness") if not set(above) & set(p.relative_to(REPO / "hardness").parts)]
+    assert _offending(measures, ("agents", "hardness.analysis", "hardness.benchmark", "hardness.cli")) == {}
+
+
+def test_analyses_and_the_benchmark_do_not_import_the_commands():
+    # The command-line layer (hardness/cli) sits on top: argument parsing and printing, then one library call.
+    below = [p for p in _modules("hardness") if "cli" not in p.relative_to(REPO / "hardness").parts]
+    assert _offending(below, ("hardness.cli",)) == {}
 
 
 @pytest.mark.parametrize("package", PACKAGES)

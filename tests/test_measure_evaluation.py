@@ -1,5 +1,6 @@
-"""hardness.analysis.measure_evaluation and scripts/measure_evaluation.py: rank correlations against hand-worked
-examples, the bootstrap over seeds, the extra measures rebuilt from a sweep's settings, and the script's outputs."""
+"""hardness.analysis.measure_evaluation and its command line (hardness.cli.measure_evaluation): rank correlations
+against hand-worked examples, the bootstrap over seeds, the extra measures rebuilt from a sweep's settings, and the
+command's outputs."""
 
 from __future__ import annotations
 
@@ -14,7 +15,6 @@ import jaxmdp
 from hardness.analysis import measure_evaluation as me
 from hardness.analysis import scenarios, sweep_cli
 
-from script_loader import load_script
 
 
 def test_rankdata_mid_ranks():
@@ -109,8 +109,9 @@ def test_script_writes_table_csv_and_figure(tmp_path):
     table = tmp_path / "scenario1.csv"
     sweep_cli.write_table(table, sweep_cli.rows_from_raw(spec, [0, 1, 2], raw))
     table.with_suffix(".json").write_text(json.dumps(sweep_cli.config_of(spec)))
-    script = load_script("measure_evaluation")
-    assert script.main([str(table), "--out", str(tmp_path / "out"), "--n-boot", "50"]) == 0
+    from hardness.cli import measure_evaluation as script
+
+    assert script.main([str(table), "--out", str(tmp_path / "out"), "--n-boot", "50", "--no-compile-cache"]) == 0
     md = (tmp_path / "out" / "measure_evaluation.md").read_text()
     for m in (*scenarios.MEASURES, *me.EXTRA_MEASURES):
         assert f"| {m} |" in md

@@ -1,4 +1,4 @@
-"""hardness.analysis.regret_table (run by scripts/regret_table.py): the table's numbers are the runner's columns (mean
+"""hardness.analysis.regret_table (run by ``jaxmdp-regret-table``): the table's numbers are the runner's columns (mean
 and Student-t CI over seeds), the CSVs agree with them, and a second invocation reuses the finished agents."""
 
 from __future__ import annotations

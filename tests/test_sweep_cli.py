@@ -1,4 +1,4 @@
-"""hardness.analysis.sweep_cli, the command line of scripts/sweep_prand.py, sweep_plazy.py and sweep_size.py.
+"""hardness.analysis.sweep_cli, the command line of ``jaxmdp-sweep`` and ``jaxmdp-sweep-prand`` (hardness.cli.sweep).
 
 End to end on a tiny grid (scenario 1, FrozenLake 3x3 episodic, p_rand 0 and 0.2, seeds 0, 1, 3 of 8, 9 and 7
 states; the grid of tests/test_scenarios.py, so the two files share compiled programs): the table's raw measures
@@ -32,7 +32,7 @@ from progress_run import run_with_progress
 REPO = Path(__file__).resolve().parents[1]
 SEEDS = (0, 1, 3)
 VALUES = (0.0, 0.2)
-ARGV = ["--family", "FrozenLake", "--param", "size=3", "--values", "0", "0.2", "--seeds", "0", "1", "3",
+ARGV = ["--family", "FrozenLake", "--param", "size=3", "--values", "0", "0.2", "--seed-list", "0", "1", "3",
         "--agent-steps", "0"]
 STEM = "scenario1_FrozenLake_episodic"
 # The CLI computes a seed at a time (a 1-seed slice of the padded grid); the reference is the whole grid in one
@@ -259,7 +259,7 @@ def fake_backend(monkeypatch):
 
 def fake_argv(out: Path, seeds=(0, 1, 3), *extra: str, plot: bool = False) -> list[str]:
     argv = ["--family", "RiverSwim", "--setting", "continuous", "--param", "size=5", "--values", "0", "0.1", "0.3",
-            "--out", str(out), "--seeds", *map(str, seeds), "--agent-steps", "0", *extra]
+            "--out", str(out), "--seed-list", *map(str, seeds), "--agent-steps", "0", *extra]
     return argv + ([] if plot else ["--no-plot"])
 
 
@@ -326,7 +326,7 @@ def test_seeds_per_call_larger_than_the_seeds(fake_backend, tmp_path):
 
 
 def test_size_script_scenario_4_and_figure_axes(fake_backend, tmp_path, monkeypatch):
-    """sweep_size.py's --scenario 4: p_rand 0.1 in the settings, integer sizes; the figure's x axis is the mean
+    """--scenario 4: p_rand 0.1 in the settings, integer sizes; the figure's x axis is the mean
     number of states over seeds and its curves are the table's normalised measures."""
     seen = {}
 
@@ -337,7 +337,7 @@ def test_size_script_scenario_4_and_figure_axes(fake_backend, tmp_path, monkeypa
 
     monkeypatch.setattr(sweep_cli, "plot_scenario", fake_plot)
     argv = ["--scenario", "4", "--family", "DeepSea", "--setting", "continuous", "--values", "3", "4",
-            "--seeds", "0", "3", "--out", str(tmp_path), "--agent-steps", "0"]
+            "--seed-list", "0", "3", "--out", str(tmp_path), "--agent-steps", "0"]
     run_main(3, argv, scenario_choices=(3, 4))
     stem = tmp_path / "scenario4_DeepSea_continuous"
     config = json.loads(stem.with_suffix(".json").read_text())
@@ -353,7 +353,7 @@ def test_size_script_scenario_4_and_figure_axes(fake_backend, tmp_path, monkeypa
     for k, name in enumerate(MEASURES):
         raw = np.asarray([[fake_value(k, s, j) for j in range(2)] for s in (0, 3)])
         np.testing.assert_allclose(seen["curves"][name], normalize_by_hand(raw), atol=1e-6)
-    # scenario 3 (the default of sweep_size.py) writes its own table
+    # scenario 3 writes its own table
     run_main(3, argv[2:] + ["--no-plot"], scenario_choices=(3, 4))
     config3 = json.loads((tmp_path / "scenario3_DeepSea_continuous.json").read_text())
     assert config3["scenario"] == 3 and "p_rand" not in config3["params"]
@@ -394,7 +394,8 @@ def test_colosseum_variant_gets_its_own_stem(fake_backend, tmp_path):
         (1, ["--family", "Nope"], "--family"),
         (1, ["--setting", "both"], "--setting"),
         (1, ["--variant", "reference"], "--variant"),
-        (1, ["--seeds", "0", "0"], "seeds"),
+        (1, ["--seed-list", "0", "0"], "seeds"),
+        (1, ["--seeds", "0"], "--seeds"),
         (1, ["--seeds", "-1"], "seeds"),
         (1, ["--seeds", "a"], "--seeds"),
         (1, ["--scenario", "4"], "--scenario"),
@@ -405,7 +406,7 @@ def test_colosseum_variant_gets_its_own_stem(fake_backend, tmp_path):
     ],
 )
 def test_bad_arguments_exit_naming_the_option(scenario, argv, name, tmp_path, capsys):
-    base = ["--family", "RiverSwim", "--seeds", "0", "--out", str(tmp_path / "o"), "--no-plot", "--agent-steps", "0"]
+    base = ["--family", "RiverSwim", "--seed-list", "0", "--out", str(tmp_path / "o"), "--no-plot", "--agent-steps", "0"]
     if scenario in (1, 2):
         base += ["--param", "size=5", "--values", "0", "0.1"]
     else:
@@ -452,16 +453,17 @@ def test_progress_bar_lines():
 # ---------------------------------------------------------------------------------------------------------------
 
 
-def test_sweep_size_script_smoke(tmp_path):
-    """scripts/sweep_size.py in a fresh process: DeepSea continuous sizes 3 and 4. By hand, the diameter of a
+def test_sweep_command_smoke(tmp_path):
+    """``jaxmdp-sweep --scenario 3`` (``python -m hardness.cli.sweep``) in a fresh process: DeepSea continuous sizes 3 and 4. By hand, the diameter of a
     deterministic DeepSea of size n is 2n - 2 (from (0, 1) down, back to the start, down the diagonal)."""
     # The script's compilation cache goes to tmp_path, not the user's cache folder.
     env = dict(os.environ, PYTHONPATH=str(REPO), JAXMDP_COMPILATION_CACHE=str(tmp_path / "jax_cache"))
-    cmd = [sys.executable, str(REPO / "scripts" / "sweep_size.py"), "--family", "DeepSea", "--setting", "continuous",
-           "--values", "3", "4", "--seeds", "0", "--no-plot", "--out", str(tmp_path), "--agent-steps", "0"]
+    cmd = [sys.executable, "-m", "hardness.cli.sweep", "--scenario", "3", "--family", "DeepSea", "--setting",
+           "continuous", "--values", "3", "4", "--seeds", "1", "--no-plot", "--out", str(tmp_path),
+           "--agent-steps", "0"]
     # A hang shows as a minute without CPU time or output (tests/progress_run.py); 600 s only bounds a spinning run.
     proc = run_with_progress(cmd, env=env, cwd=tmp_path, stall_s=60, limit_s=600)
-    assert not proc.hung and not proc.over_limit, f"sweep_size.py hung or ran over 600 s:\n{proc.stderr[-2000:]}"
+    assert not proc.hung and not proc.over_limit, f"jaxmdp-sweep hung or ran over 600 s:\n{proc.stderr[-2000:]}"
     assert proc.returncode == 0, proc.stderr
     csv_path = tmp_path / "scenario3_DeepSea_continuous.csv"
     assert proc.stdout.split() == [str(csv_path), str(tmp_path / "scenario3_DeepSea_continuous.json")]
@@ -541,3 +543,38 @@ def test_bad_agent_arguments(extra, name, tmp_path, capsys):
     with pytest.raises(SystemExit):
         sweep_cli.main(1, fake_argv(tmp_path) + extra)
     assert name in capsys.readouterr().err
+
+
+def test_seeds_n_means_seeds_0_to_n_minus_1_and_the_default_is_three(fake_backend, tmp_path):
+    argv = ["--family", "RiverSwim", "--setting", "continuous", "--param", "size=5", "--values", "0", "0.1", "0.3",
+            "--out", str(tmp_path), "--agent-steps", "0", "--no-plot"]
+    run_main(1, argv + ["--seeds", "2"])
+    assert fake_backend == [(0,), (1,)]
+    run_main(1, argv)
+    assert fake_backend[2:] == [(0,), (1,), (2,)]
+    assert [r["seed"] for r in read_table(tmp_path / "scenario1_RiverSwim_continuous.csv")][::3] == ["0", "1", "2"]
+
+
+@pytest.mark.parametrize("scenario, folder", [(None, "sweep_prand"), ("2", "sweep_plazy"), ("4", "sweep_size")])
+def test_the_sweep_command_takes_the_scenario_and_its_default_folder(scenario, folder, fake_backend, tmp_path,
+                                                                     monkeypatch, capsys):
+    from hardness.cli import sweep
+
+    monkeypatch.chdir(tmp_path)
+    values = ["--values", "3", "4"] if scenario == "4" else ["--values", "0", "0.1"]
+    argv = ["--family", "RiverSwim", "--setting", "continuous", "--seeds", "1", "--agent-steps", "0", "--no-plot",
+            "--no-compile-cache", "--quiet", *values] + ([] if scenario else ["--param", "size=5"])
+    if scenario == "4":
+        argv += ["--param", "p_lazy=0.1"]
+    elif scenario == "2":
+        argv += ["--param", "size=5"]
+    assert sweep.main((["--scenario", scenario] if scenario else []) + argv) == 0
+    k = scenario or "1"
+    assert (tmp_path / "results" / folder / f"scenario{k}_RiverSwim_continuous.csv").exists()
+    err = capsys.readouterr().err
+    assert "of which compiling" in err and "no cache" in err
+    assert "seeds" not in err  # --quiet: no progress bar
+    if scenario is None:
+        assert sweep.main_prand(argv) == 0
+        with pytest.raises(SystemExit):
+            sweep.main_prand(["--scenario", "2", *argv])  # the alias has no --scenario

@@ -3,7 +3,7 @@
 * :mod:`~hardness.analysis.scenarios`: the four hardness scenarios, measures over a sweep of MDPs;
 * :mod:`~hardness.analysis.near_optimal`: the regret of a tuned near-optimal agent (random search over PSRL/UCRL2);
 * :mod:`~hardness.analysis.plotting`: the scenario figures (mean over seeds with a bootstrap band);
-* :mod:`~hardness.analysis.sweep_cli`: the command line of the sweep scripts (CSV/JSON/PNG, resumable);
+* :mod:`~hardness.analysis.sweep_cli`: the sweep command line, ``jaxmdp-sweep`` (CSV/JSON/PNG, resumable);
 * :mod:`~hardness.analysis.regret_table`: every tabular agent against the random agent on small instances;
 * :mod:`~hardness.analysis.measure_evaluation`: rank correlations of the measures with the near-optimal agent's
   regret (paper §2.3's completeness).

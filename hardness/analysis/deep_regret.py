@@ -31,8 +31,8 @@ Output in ``--out`` (default ``results/deep_agents_regret``), written as it goes
 
 The cheap agents run first and BootDQN (a 20-head ensemble trained on a batch of 128 at every step) last.
 
-    PYTHONPATH=$PWD python scripts/deep_agents_regret.py                        # 50 000 steps, 4 seeds
-    PYTHONPATH=$PWD python scripts/deep_agents_regret.py --instances DeepSea-6-episodic --agents dqn_episodic
+    jaxmdp-regret-table --deep                        # 50 000 steps, 4 seeds
+    jaxmdp-regret-table --deep --instances DeepSea-6-episodic --agents dqn_episodic
 """
 
 from __future__ import annotations
@@ -196,7 +196,7 @@ def markdown(rows: Sequence[dict[str, str]], instances: Sequence[Instance], comm
         "(ddof 1); 0 = optimal, 1 = worst policy. *Below random*: mean below the random agent's (*every seed*: the "
         "agent's worst seed below the random agent's best). *Uniform policy*: its exact per-step regret (the random "
         "agent's expectation). Steps/s: agent-steps (all seeds) per second of the lockstep loop, compilation "
-        "excluded, on a 2-core CPU shared with other jobs (noisy).",
+        "excluded (wall-clock rates: they depend on the machine and its load).",
         "",
         "| instance | agent | regret / step | per seed | below random | agent-steps/s | compile s |",
         "|---|---|---|---|---|---|---|",
@@ -237,7 +237,11 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     """Run every missing (instance, agent) pair (module docstring) and write the table; returns ``{"rows": the
     table's rows, "ran": the pairs run by this call}``."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    args = build_parser().parse_args(argv)
+    return run_table(build_parser().parse_args(argv), ["jaxmdp-regret-table", "--deep", *argv])
+
+
+def run_table(args: argparse.Namespace, command: Sequence[str]) -> dict[str, Any]:
+    """:func:`main` on parsed arguments; ``command``: the command line the table names as its maker."""
     for name in ("steps", "seeds", "log_period"):
         if getattr(args, name) < 1:
             raise SystemExit(f"deep_agents_regret: --{name.replace('_', '-')} must be a positive integer")
@@ -254,7 +258,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     pairs = sorted(pairs, key=lambda p: p[1].startswith("boot_dqn"))  # stable: BootDQN last
     machine = (f"{platform.machine()}, {os.cpu_count()} cores, {jax.local_device_count()} JAX "
                f"{jax.default_backend()} device(s)")
-    command = "python scripts/deep_agents_regret.py" + "".join(f" {shlex.quote(a)}" for a in argv)
+    command = " ".join(shlex.quote(a) for a in command)
     ran = []
 
     def table() -> list[dict[str, str]]:

@@ -1,8 +1,8 @@
 """How well does a hardness measure order MDPs as a near-optimal agent's regret does? (paper §2.3's completeness)
 
 The paper calls a measure *complete* when it orders MDPs as the regret of a near-optimal agent does (§2.3), and reads
-completeness off its figures by eye. Here it is a number: for the rows of a scenario sweep (``scripts/sweep_prand.py``,
-``sweep_plazy.py``, ``sweep_size.py``: one row per ``(seed, value)`` MDP with its measures and the tuned near-optimal
+completeness off its figures by eye. Here it is a number: for the rows of a scenario sweep (``jaxmdp-sweep``,
+scenarios 1-4: one row per ``(seed, value)`` MDP with its measures and the tuned near-optimal
 agent's regret), the rank correlation between each measure and the regret, pooled over all rows:
 
 * Spearman's ``rho``: Pearson's correlation of the mid-ranks (ties get the mean of the ranks they span);

@@ -21,16 +21,16 @@ How the grid is computed (one jitted program per grid):
 * scenarios 3-4, and scenarios 1-2 with ``variant="colosseum"``: every MDP of the grid is built from scratch (as the
   reference does), all are padded to common shapes with :func:`jaxmdp.stack` (padding changes no measure) and
   ``lax.map(hardness.measures)`` runs once over the stack: members of different sizes converge in different numbers
-  of sweeps, and mapped (not vmapped) each stops at its own (2.4x faster on the default MiniGridEmpty size grid). The colosseum variant needs the reference's own state order (its
-  Gauss-Seidel sweeps and the reset-column quirk of its episodic continuous form depend on it), hence no transform.
-  Episodic MDPs also need the reference's continuous forms, built on the host.
+  of sweeps, and mapped (not vmapped) each stops at its own (docs/performance.md, Hardness measures). The colosseum
+  variant needs the reference's own state order (its Gauss-Seidel sweeps and the reset-column quirk of its episodic
+  continuous form depend on it), hence no transform. Episodic MDPs also need the reference's continuous forms, built on the host.
 
 The raw measures are ``+inf`` where a diameter is infinite or a solver did not certify its value within its budget
 (``converged`` tells which); :func:`normalize_measures` leaves such entries out of the minimum and maximum and maps
 them to NaN.
 
 Defaults (:data:`FAMILY_DEFAULTS`, :data:`NOISE_VALUES`): the paper gives no grids, so these are ours, chosen so that
-every default grid runs in seconds to a minute on two CPU cores. The base parameters follow the reference's
+every default grid runs in seconds to a minute on a CPU. The base parameters follow the reference's
 hardness-analysis scripts in making the rewards stochastic (``make_reward_stochastic=True``); action randomisation
 keeps the family default (it changes no measure). ``p_rand`` and ``p_lazy`` sweep ``0, 0.05, ..., 0.5``. The size
 grids are listed per family below.
@@ -333,9 +333,8 @@ def _transformed(bases: MDP, values: jax.Array, kind: str) -> MDP:
 @functools.partial(jax.jit, static_argnames=("kind", "variant", "gamma"))
 def _transform_grid(bases: MDP, values: jax.Array, kind: str, variant: str, gamma: float) -> HardnessMeasures:
     """The measures of :func:`_transformed`'s grid, ``[n_seeds * n_values]``, mapped over its members (``lax.map``:
-    each member's solvers stop at its own convergence). Vmapped in lockstep, the same numbers took 3.6x as long on a
-    CPU (FrozenLake continuous, 3 seeds x 11 values: 1.00 against 0.28 s a call, and 4.4 against 2.4 s with the
-    compilation; MiniGridEmpty continuous 0.095 against 0.079 s, episodic the same)."""
+    each member's solvers stop at its own convergence): vmapped in lockstep, every member would run until the slowest
+    converged, which costs more on a CPU for the same numbers (docs/performance.md, Hardness measures)."""
     return jax.lax.map(lambda m: measures(m, gamma, variant=variant), _transformed(bases, values, kind))
 
 

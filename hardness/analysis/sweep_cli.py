@@ -1,4 +1,5 @@
-"""The command line shared by ``scripts/sweep_prand.py``, ``sweep_plazy.py`` and ``sweep_size.py`` (paper §3.2, App. D).
+"""The sweep command line (paper §3.2, App. D): ``jaxmdp-sweep --scenario {1,2,3,4}`` and its scenario-1 alias
+``jaxmdp-sweep-prand`` (:mod:`hardness.cli.sweep`).
 
 A run computes one scenario of :mod:`hardness.analysis.scenarios` for one family and setting, seed by seed
 (``--seeds-per-call`` seeds per batched call), and after every call rewrites, atomically, ``<out>/<stem>.csv``: one row
@@ -7,6 +8,9 @@ rows written so far (so the final file holds the normalisation over all seeds an
 settings; ``--resume`` reuses the finished seeds of an earlier run with the same settings and computes only the others.
 At the end ``<stem>.png`` shows the normalised measures against the swept parameter (mean over seeds, 95% bootstrap
 band). Progress goes to stderr, the paths written to stdout.
+
+``--seeds N`` runs seeds ``0..N-1`` (default 3: seeds 0, 1, 2), as in every command of the package;
+``--seed-list S [S ...]`` names the seeds one by one instead.
 """
 
 from __future__ import annotations
@@ -47,8 +51,10 @@ AGENT_CURVE = "agent_regret"
 DEFAULT_FAMILY = "MiniGridEmpty"
 DEFAULT_SETTING = "episodic"
 DEFAULT_SEEDS = (0, 1, 2)
-# Tuned near-optimal agent: small defaults so that the main job runs in minutes on 2 cores (the paper: 200 000 steps,
-# 120 candidates, 3 seeds; hardness.analysis.near_optimal).
+#: Output folder of each scenario when ``--out`` is not given.
+DEFAULT_OUTS = {1: "results/sweep_prand", 2: "results/sweep_plazy", 3: "results/sweep_size", 4: "results/sweep_size"}
+# Tuned near-optimal agent: small defaults so that the main job runs in minutes on a laptop's CPU (the paper: 200 000
+# steps, 120 candidates, 3 seeds; hardness.analysis.near_optimal).
 DEFAULT_AGENT_STEPS = 10_000
 DEFAULT_AGENT_CANDIDATES = 4
 DEFAULT_AGENT_TUNING_SEEDS = 1
@@ -82,12 +88,24 @@ def number(text: str) -> int | float:
             raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
 
 
-def build_parser(description: str, default_out: str, scenario_choices: Sequence[int]) -> argparse.ArgumentParser:
+def positive(text: str) -> int:
+    """A positive integer (``--seeds N``)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer; got {text}")
+    return value
+
+
+def build_parser(description: str, default_out: str | None, scenario_choices: Sequence[int]) -> argparse.ArgumentParser:
+    """The sweep's options; ``default_out=None``: the scenario's folder of :data:`DEFAULT_OUTS`."""
     parser = argparse.ArgumentParser(description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
     if len(scenario_choices) > 1:
         parser.add_argument(
             "--scenario", type=int, choices=list(scenario_choices), default=scenario_choices[0],
-            help="3: size; 4: size with p_rand = 0.1 (default %(default)s)",
+            help="1: p_rand; 2: p_lazy; 3: size; 4: size with p_rand = 0.1 (default %(default)s)",
         )
     parser.add_argument("--family", default=DEFAULT_FAMILY, choices=jaxmdp.families(), help="default %(default)s")
     parser.add_argument("--setting", default=DEFAULT_SETTING, choices=["episodic", "continuous"],
@@ -95,14 +113,20 @@ def build_parser(description: str, default_out: str, scenario_choices: Sequence[
     parser.add_argument("--values", type=number, nargs="+", default=None,
                         help="grid of the swept parameter (default: the family's defaults in "
                              "hardness.analysis.scenarios)")
-    parser.add_argument("--seeds", type=int, nargs="+", default=list(DEFAULT_SEEDS), help="default %(default)s")
+    parser.add_argument("--seeds", type=positive, default=len(DEFAULT_SEEDS),
+                        help="number of seeds, 0..N-1 (default %(default)s)")
+    parser.add_argument("--seed-list", type=int, nargs="+", default=None, metavar="SEED",
+                        help="these seeds instead of 0..N-1")
     parser.add_argument("--param", type=parse_param, action="append", default=[], metavar="KEY=VALUE",
                         help="family parameter, repeatable; replaces the family default of that key")
     parser.add_argument("--variant", choices=["paper", "colosseum"], default="paper", help="default %(default)s")
     parser.add_argument("--gamma", type=float, default=0.99, help="discount of value norm and gap sum (%(default)s)")
     parser.add_argument("--seeds-per-call", type=int, default=1,
                         help="seeds computed per batched call, i.e. between two writes (default %(default)s)")
-    parser.add_argument("--out", type=Path, default=Path(default_out), help="output folder (default %(default)s)")
+    out_help = "output folder (default %(default)s)" if default_out else \
+        "output folder (default: results/sweep_prand, sweep_plazy or sweep_size by scenario)"
+    parser.add_argument("--out", type=Path, default=Path(default_out) if default_out else None, help=out_help)
+    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
     parser.add_argument("--resume", action="store_true",
                         help="keep the finished seeds of an earlier run with the same settings in --out")
     parser.add_argument("--no-plot", action="store_true", help="skip the PNG figure")
@@ -124,16 +148,20 @@ def build_parser(description: str, default_out: str, scenario_choices: Sequence[
 class Progress:
     """A one-line progress bar with elapsed time and an estimate of the time left."""
 
-    def __init__(self, total: int, label: str, stream: TextIO | None = None, width: int = 28) -> None:
+    def __init__(self, total: int, label: str, stream: TextIO | None = None, width: int = 28,
+                 quiet: bool = False) -> None:
         # Default: the stderr of the moment (a default bound at import time would ignore later redirections).
         stream = sys.stderr if stream is None else stream
         self.total, self.label, self.stream, self.width = max(total, 0), label, stream, width
         self.done = 0
         self.start = time.perf_counter()
+        self.quiet = quiet
         self._tty = hasattr(stream, "isatty") and stream.isatty()
         self.show()
 
     def show(self) -> None:
+        if self.quiet:
+            return
         elapsed = time.perf_counter() - self.start
         frac = self.done / self.total if self.total else 1.0
         bar = "#" * int(round(frac * self.width))
@@ -147,7 +175,7 @@ class Progress:
         self.show()
 
     def close(self) -> None:
-        if self._tty:
+        if self._tty and not self.quiet:
             self.stream.write("\n")
             self.stream.flush()
 
@@ -281,9 +309,14 @@ def finished_rows(spec: scenarios.ScenarioSpec, rows: list[dict]) -> tuple[list[
 
 
 def run(args: argparse.Namespace, scenario: int, parser: argparse.ArgumentParser) -> dict[str, Path]:
+    """Compute the sweep of the parsed ``args`` (module docstring); returns the paths written by kind."""
+    seeds = list(args.seed_list) if args.seed_list is not None else list(range(args.seeds))
+    if args.out is None:
+        args.out = Path(DEFAULT_OUTS[scenario])
+    quiet = getattr(args, "quiet", False)
     try:
         spec = scenarios.scenario_spec(
-            scenario, args.family, episodic=args.setting == "episodic", seeds=args.seeds, values=args.values,
+            scenario, args.family, episodic=args.setting == "episodic", seeds=seeds, values=args.values,
             params=dict(args.param), variant=args.variant, gamma=args.gamma,
         )
     except ValueError as err:
@@ -315,14 +348,15 @@ def run(args: argparse.Namespace, scenario: int, parser: argparse.ArgumentParser
     json_path.write_text(json.dumps(config, indent=1) + "\n")
 
     todo = [s for s in spec.seeds if s not in done]
-    if done:
+    if done and not quiet:
         print(f"resuming: {len(done)} of {len(spec.seeds)} seeds already finished", file=sys.stderr)
     if todo:
         t0 = time.perf_counter()
         grid = scenarios.prepare(spec, todo)
-        print(f"built {grid.batch.T.shape[0]} MDPs ({grid.n_states.min()}-{grid.n_states.max()} states) in "
-              f"{time.perf_counter() - t0:.1f} s", file=sys.stderr)
-        bar = Progress(len(todo), f"scenario {spec.scenario} {spec.family} {spec.setting}")
+        if not quiet:
+            print(f"built {grid.batch.T.shape[0]} MDPs ({grid.n_states.min()}-{grid.n_states.max()} states) in "
+                  f"{time.perf_counter() - t0:.1f} s", file=sys.stderr)
+        bar = Progress(len(todo), f"scenario {spec.scenario} {spec.family} {spec.setting}", quiet=quiet)
         k = args.seeds_per_call
         for start in range(0, len(todo), k):
             chunk = todo[start : start + k]
@@ -379,13 +413,13 @@ def figure(spec: scenarios.ScenarioSpec, rows: list[dict], path: Path) -> Path:
     return plot_scenario(x, curves, path, xlabel=xlabel, title=title)
 
 
-def main(scenario: int, argv: Sequence[str] | None = None, *, description: str = "", default_out: str = "",
+def main(scenario: int, argv: Sequence[str] | None = None, *, description: str = "", default_out: str | None = None,
          scenario_choices: Sequence[int] | None = None, entry_point: bool = False) -> int:
-    """Entry point of the three scripts; ``scenario_choices`` adds ``--scenario`` (sweep_size.py: 3 or 4).
+    """Run one sweep from its command line; ``scenario_choices`` adds ``--scenario`` (default: the first choice).
 
-    ``entry_point=True`` (the scripts, not in-process callers such as the tests) turns on the persistent compilation
-    cache (``--no-compile-cache`` turns it off; :mod:`jaxmdp.experiment.compilation`) and reports the time spent
-    compiling beside the total time on stderr.
+    ``entry_point=True`` (the console commands, not in-process callers such as the tests) turns on the persistent
+    compilation cache (``--no-compile-cache`` turns it off; :mod:`jaxmdp.experiment.compilation`) and reports the time
+    spent compiling beside the total time on stderr.
     """
     choices = list(scenario_choices or [scenario])
     parser = build_parser(description, default_out, choices)

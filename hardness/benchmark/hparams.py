@@ -4,7 +4,7 @@
   tuned by the reference for its own update rules, several of which differ from ours (the ``[quirk]`` entries of
   agents.md), so they are not "tuned" for this code; reference mode (``variant="colosseum"`` of :func:`hparams_for`,
   ``--agent-variant colosseum``) runs them with the rules they were tuned for.
-* ``"tuned"``: :data:`TUNED_FILE`, written by ``scripts/tune_agents.py`` (:mod:`hardness.benchmark.search`) with its
+* ``"tuned"``: :data:`TUNED_FILE`, written by ``jaxmdp-benchmark tune`` (:mod:`hardness.benchmark.search`) with its
   provenance (budget, seeds, commit, date); any other path: a file of the same format.
 * :func:`reference_candidates`: random-search candidates drawn as the reference draws them (agents.md §8): sample
   ``i`` of a search with seed ``sigma`` uses a generator seeded with ``sigma + i`` (here a private
@@ -42,7 +42,7 @@ __all__ = [
     "fit_static_sizes",
 ]
 
-#: The shipped tuned hyperparameters (written by ``scripts/tune_agents.py``).
+#: The shipped tuned hyperparameters (written by ``jaxmdp-benchmark tune``).
 TUNED_FILE = Path(__file__).with_name("tuned_hparams.json")
 
 
@@ -77,7 +77,7 @@ def load_tuned(path: str | os.PathLike = TUNED_FILE) -> dict[str, dict]:
     """The ``agents`` mapping of a tuned file (agent name -> ``{"values": ..., provenance}``)."""
     path = Path(path)
     if not path.exists():
-        raise ValueError(f"hparams file {path} does not exist; write one with scripts/tune_agents.py")
+        raise ValueError(f"hparams file {path} does not exist; write one with jaxmdp-benchmark tune")
     data = json.loads(path.read_text())
     if not isinstance(data, dict) or not isinstance(data.get("agents"), dict):
         raise ValueError(f"hparams file {path} must hold a JSON object with an 'agents' mapping")
@@ -100,7 +100,7 @@ def hparams_for(name: str, source: str | os.PathLike = "tuned", variant: Variant
     if name not in tuned:
         raise ValueError(
             f"hparams file {path} has no values for {name!r} (it has {sorted(tuned)}); tune it with "
-            f"scripts/tune_agents.py --agents {name}, or use --hparams reference"
+            f"jaxmdp-benchmark tune --agents {name}, or use --hparams reference"
         )
     return with_values(agent, tuned[name]["values"])
 

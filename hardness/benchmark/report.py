@@ -1,7 +1,7 @@
 """The benchmark report (paper §3.3 Table 2, App. G Tables 9-12 and Figures 6-10) from a run's output folder.
 
 Written by :func:`write_report` (called at the end of :func:`hardness.benchmark.run.run_benchmark`, or by
-``scripts/benchmark_report.py DIR``) into the folder:
+``jaxmdp-benchmark report DIR``) into the folder:
 
 * ``report.md`` and ``report.tex``, per set:
 

@@ -40,7 +40,6 @@ a run was interrupted (the runner's keys are folded with the step index).
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import hashlib
 import json
@@ -51,7 +50,6 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import jax
 import numpy as np
 
 import agents as agent_registry
@@ -59,10 +57,18 @@ import jaxmdp
 from hardness.benchmark import hparams as hp_sources
 from hardness.benchmark import sets
 from jaxmdp import runner
-from jaxmdp._checks import check_bool, check_variant, did_you_mean
-from jaxmdp.experiment import records
+from jaxmdp._checks import check_bool, check_variant
 from jaxmdp.experiment.members import dynamics
 from jaxmdp.mdp import MDP
+from hardness.benchmark.emissions import (  # noqa: F401 (re-exported: the run's public names)
+    EMISSION_STREAM,
+    KEYED_EMISSIONS,
+    REFERENCE_EMISSIONS,
+    canonical_emission,
+    emission_key,
+    to_block_mdp,
+)
+from hardness.benchmark.tables import BATCH_FIELDS, MEMBER_FIELDS, _finished, _write_atomic, write_tables  # noqa: F401
 
 __all__ = [
     "MEMBER_FIELDS",
@@ -79,22 +85,10 @@ __all__ = [
     "run_benchmark",
 ]
 
-#: Columns of ``members.csv``.
-MEMBER_FIELDS = (
-    "set", "mdp", "family", "agent", "seed", "steps", "cumulative_regret", "normalized_cumulative_regret",
-    "normalized_regret_per_step", "normalized_cumulative_reward", "normalized_cumulative_expected_reward",
-    "random_normalized_regret_per_step", "batch",
-)
-#: Columns of ``batches.csv``. ``member_steps_per_s``: steps of one member per second of the lockstep loop
-#: (``n_steps / run_s``); ``agent_steps_per_s``: summed over the batch's members.
-BATCH_FIELDS = (
-    "batch", "set", "agent", "members", "mdps", "max_states", "compile_s", "run_s", "member_steps_per_s",
-    "agent_steps_per_s",
-)
 #: The reference's quick-test protocol (benchmark.md §2: 2 seeds, indicators every 1000 / 500 steps); the steps are
-#: fewer than its 50 000 so that ``--quick`` takes a few minutes on two CPU cores, and PSRL continuous is left out:
-#: its optimistic planning (up to 60 sampled kernels per pair on the set's 160 padded states) alone took over
-#: 7 minutes for 1000 steps there (``--agents psrl_continuous`` runs it).
+#: fewer than its 50 000 so that ``--quick`` takes minutes on a CPU, and PSRL continuous is left out: its optimistic
+#: planning (up to 60 sampled kernels per pair on the set's 160 padded states) costs more than the rest of the quick
+#: run together (``--agents psrl_continuous`` runs it; docs/performance.md, Benchmark wall time).
 QUICK = dict(sets=sets.QUICK_SETS, seeds=(0, 1), n_steps=1_000, n_buckets=1, agent_buckets={},
              agents=("q_learning_episodic", "psrl_episodic", "random_episodic", "q_learning_continuous", "ucrl2",
                      "random_continuous"),
@@ -105,12 +99,10 @@ QUICK = dict(sets=sets.QUICK_SETS, seeds=(0, 1), n_steps=1_000, n_buckets=1, age
 #: ``[S, A, S]`` posterior at every episode, so a member padded to its bucket's ``S_b`` and ``A_b`` pays ``S_b^2 A_b``
 #: per episode instead of ``S^2 A``, and the small MDPs with short horizons plan most often. Summed over each episodic
 #: set's MDPs per episode, four buckets pad that work by 1.47 (ergodic) and 1.64 (communicating), eight by 1.18 and
-#: 1.22 (``scripts/bench_psrl_draw_floor.py``). Measured on the 2-core CPU (4 seeds, steps 2 000 -> 4 000 of every
-#: bucket, ``scripts/bench_bucket_split.py``), episodic PSRL's steps cost 1.9x (ergodic) and 1.6x (communicating)
-#: less with eight buckets, for 30-60 s more compiling (docs/benchmarks/benchmark_wall_time.md). PSRL continuous's
-#: plans, timed per bucket, came to the same hours on eight buckets as on four (their cost sits in the largest
-#: buckets; docs/benchmarks/continuous_planning.md), so it and the other agents keep four: every batch is one more
-#: compilation (and, on a GPU, one more sequence of lockstep steps).
+#: 1.22, so eight buckets make episodic PSRL's steps cheaper for a little more compiling. PSRL continuous's plans cost
+#: as much on eight buckets as on four (their cost sits in the largest buckets), so it and the other agents keep four:
+#: every batch is one more compilation (and, on a GPU, one more sequence of lockstep steps). See docs/performance.md,
+#: Benchmark wall time.
 PLANNING_BUCKETS: Mapping[str, int] = {"psrl_episodic": 8}
 
 
@@ -261,44 +253,6 @@ def _check(config: RunConfig) -> list[str]:
     return names
 
 
-#: The reference's emission-map class names (benchmark.md §5) and the kinds of :func:`jaxmdp.block_mdp` they are.
-REFERENCE_EMISSIONS = {
-    "StateInfo": "state_info", "OneHotEncoding": "one_hot", "ImageEncoding": "image", "TensorEncoding": "tensor",
-    "StateLinearOptimal": "linear_optimal", "StateLinearRandom": "linear_random",
-}
-#: Emission kinds whose features are random: their key is derived from the member's seed (:func:`emission_key`).
-KEYED_EMISSIONS = ("linear_optimal", "linear_random")
-#: ``fold_in`` constant of the emission key's stream (ASCII "emis"), apart from the agent's ``jax.random.key(seed)``.
-EMISSION_STREAM = 0x656D6973
-
-
-def canonical_emission(emission: str) -> str:
-    """The :data:`jaxmdp.EMISSION_KINDS` name of ``emission``: a kind name (``"state_info"``) or a reference class
-    name (``"StateInfo"``, :data:`REFERENCE_EMISSIONS`); ``ValueError`` listing the closest names otherwise."""
-    name = REFERENCE_EMISSIONS.get(emission, emission)
-    if name in jaxmdp.EMISSION_KINDS:
-        return name
-    known = list(jaxmdp.EMISSION_KINDS) + list(REFERENCE_EMISSIONS)
-    raise ValueError(f"unknown emission {emission!r}{did_you_mean(emission, known)} "
-                     f"Known: {', '.join(map(repr, known))}")
-
-
-def emission_key(seed: int) -> jax.Array:
-    """The key of a keyed emission (:data:`KEYED_EMISSIONS`) for the member of seed ``seed``:
-    ``fold_in(jax.random.key(seed), EMISSION_STREAM)``, so the same seed gives the same features on every run and
-    the features' stream is not the agent's (whose key is ``jax.random.key(seed)``)."""
-    return jax.random.fold_in(jax.random.key(int(seed)), EMISSION_STREAM)
-
-
-def to_block_mdp(mdp: MDP, emission: str, seed: int) -> jaxmdp.BlockMDP:
-    """``mdp`` seen through ``emission`` (a kind or reference class name; no noise, as the reference's benchmark,
-    benchmark.md §6): :func:`jaxmdp.block_mdp`, with :func:`emission_key` of ``seed`` for the linear kinds. This is
-    how the deep agents run on the benchmark's sets (the paper's non-tabular benchmark uses ``StateInfo``)."""
-    kind = canonical_emission(emission)
-    key = emission_key(seed) if kind in KEYED_EMISSIONS else None
-    return jaxmdp.block_mdp(mdp, kind, key=key)
-
-
 def _hparams_repr(hp: Any) -> dict[str, str]:
     return {f.name: repr(np.asarray(getattr(hp, f.name)).tolist()) for f in dataclasses.fields(hp)}
 
@@ -417,21 +371,6 @@ def _split_by_observation(
     return out
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
-
-
-def _finished(run_dir: Path, batch: Batch) -> dict | None:
-    path = run_dir / f"{batch.id}.json"
-    if path.exists():
-        saved = json.loads(path.read_text())
-        if saved.get("key") == batch.key:
-            return saved
-    return None
-
-
 def _content_hash(m: MDP) -> str:
     h = hashlib.sha256()
     for x in (m.T, m.R, m.P0, m.reward_mean, m.reward_conc):
@@ -533,41 +472,6 @@ def _run_batch(batch: Batch, config: RunConfig, run_dir: Path, stop_after_chunks
     _write_atomic(run_dir / f"{batch.id}.json", json.dumps(record) + "\n")
     (run_dir / f"{batch.id}.ckpt.npz").unlink(missing_ok=True)
     return True
-
-
-def _write_csv(path: Path, header: Sequence[str], rows: Sequence[Sequence[Any]]) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    with tmp.open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(header)
-        w.writerows(records.format_row(list(r)) for r in rows)
-    os.replace(tmp, path)
-
-
-def write_tables(out: Path, settings: dict, batches: Sequence[Batch]) -> int:
-    """Rewrite ``members.csv`` and ``batches.csv`` from the finished batches, in the plan's order (sets, MDPs of a
-    set in their order, agents, seeds); returns the number of member rows."""
-    run_dir = out / "runs"
-    order = {s: {i.label: k for k, i in enumerate(sets.instances(s))} for s in settings["sets"]}
-    rows, brows = [], []
-    for batch in batches:
-        saved = _finished(run_dir, batch)
-        if saved is None:
-            continue
-        agents = settings["agents"][batch.set_name]
-        for m in saved["members"]:
-            sort = (settings["sets"].index(batch.set_name), order[batch.set_name][m["mdp"]],
-                    agents.index(batch.agent), m["seed"])
-            rows.append((sort, [batch.set_name, m["mdp"], m["family"], batch.agent, m["seed"], m["steps"]]
-                         + [m[f] for f in MEMBER_FIELDS[6:-1]] + [batch.id]))
-        run_s = saved["run_s"]
-        brows.append([batch.id, batch.set_name, batch.agent, saved["n_members"], saved["n_mdps"], saved["max_states"],
-                      round(saved["compile_s"], 2), round(run_s, 2), saved["n_steps"] / run_s,
-                      saved["n_steps"] * saved["n_members"] / run_s])
-    rows.sort(key=lambda r: r[0])
-    _write_csv(out / "members.csv", MEMBER_FIELDS, [r for _, r in rows])
-    _write_csv(out / "batches.csv", BATCH_FIELDS, brows)
-    return len(rows)
 
 
 def run_benchmark(

@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from hardness.benchmark.sets import Instance
+from hardness.benchmark.instance import Instance
 from jaxmdp.mdp_families import Beta, PointMass
 
 __all__ = ["FAMILIES", "SAMPLERS", "sample_parameters", "sample_instances"]

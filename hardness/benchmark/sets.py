@@ -17,12 +17,10 @@ but RiverSwim and DeepSea, and any family with ``randomize_actions``) gives each
 
 from __future__ import annotations
 
-import dataclasses
-from typing import Any
-
-import jaxmdp
 from jaxmdp._checks import did_you_mean
+from hardness.benchmark import samplers
 from hardness.benchmark import suite as benchmark_suite
+from hardness.benchmark.instance import Instance
 from hardness.benchmark.suite import BenchmarkEntry, _entry
 
 __all__ = [
@@ -45,37 +43,6 @@ QUICK_SETS: tuple[str, ...] = ("episodic quick test", "continuous quick test")
 #: The hyperparameter-search sets (benchmark.md §7).
 SEARCH_SETS: tuple[str, ...] = ("search episodic", "search continuous")
 SET_NAMES: tuple[str, ...] = SETTINGS + QUICK_SETS + SEARCH_SETS
-
-
-@dataclasses.dataclass(frozen=True)
-class Instance:
-    """One MDP of a named set: a family and its constructor parameters; :meth:`build` makes the MDP of a seed.
-
-    Attributes:
-      set_name: the set it belongs to.
-      label: unique within the set, e.g. ``"DeepSea/prms_0"`` (benchmark MDPs) or ``"DeepSea/sample_0"``.
-      family, episodic, params: what :func:`jaxmdp.make` receives (``params`` as sorted-by-order key/value pairs).
-      entry: the :class:`~hardness.benchmark.suite.BenchmarkEntry` of a benchmark or quick-test MDP (its reference
-        ``S``, ``H``, class and cached measures for seed 0), ``None`` for a sampled one.
-    """
-
-    set_name: str
-    label: str
-    family: str
-    episodic: bool
-    params: tuple[tuple[str, Any], ...]
-    entry: BenchmarkEntry | None = None
-
-    @property
-    def name(self) -> str:
-        return f"{self.set_name}/{self.label}"
-
-    def kwargs(self) -> dict[str, Any]:
-        return dict(self.params)
-
-    def build(self, seed: int) -> jaxmdp.MDP:
-        """The MDP of ``seed`` (the reference builds the MDP of experiment seed ``k`` with seed ``k``)."""
-        return jaxmdp.make(self.family, episodic=self.episodic, seed=int(seed), **self.kwargs())
 
 
 def _from_entry(set_name: str, e: BenchmarkEntry) -> Instance:
@@ -142,8 +109,6 @@ def instances(name: str, *, n_per_family: int = 5, search_seed: int = 42) -> lis
         return [_from_entry(key, e) for e in benchmark_suite.entries(key)]
     if key in QUICK_SETS:
         return [_from_entry(key, e) for e in QUICK_TEST if e.setting == key]
-    from hardness.benchmark import samplers  # a cycle otherwise: samplers builds Instances
-
     return samplers.sample_instances(key == "search episodic", n_per_family, seed=search_seed, set_name=key)
 
 

@@ -176,5 +176,5 @@ fig
 # so one network whose "right" output exceeds its "left" output along the whole river is an optimal policy, learnt
 # from a few rewarding transitions and generalised to states the agent has barely visited. The tabular agent has to
 # learn each state on its own. The hardness of the MDP is unchanged; what an agent can share between states is not.
-# `scripts/deep_agents_regret.py` runs every deep agent this way on small RiverSwim, DeepSea and SimpleGrid
+# `python scripts/regret_table.py --deep` runs every deep agent this way on small RiverSwim, DeepSea and SimpleGrid
 # instances (its committed table: `docs/tables/deep_agents_regret.md`).

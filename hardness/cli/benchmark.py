@@ -1,0 +1,266 @@
+"""``jaxmdp-benchmark``: the Colosseum benchmark (paper §3.3, App. F, App. G), in three subcommands.
+
+* ``run``: every (MDP, agent, seed) of the chosen sets runs all its steps (no wall-clock cut-off) in lockstep batches
+  grouped by size; results are written as each batch finishes, and running again on the same folder continues where
+  it stopped (finished batches are never redone; the final ``members.csv`` is the same byte for byte). See
+  :mod:`hardness.benchmark.run` for the output folder and :mod:`hardness.benchmark.report` for the report.
+* ``report``: the report (tables as Markdown and LaTeX, cumulative-regret and hardness figures) of a ``run`` output
+  folder, from the batches finished so far.
+* ``tune``: the random search of the tabular agents' hyperparameters (:mod:`hardness.benchmark.search`), whose
+  winners, with their provenance, go to the tuned file the benchmark reads (``hardness/benchmark/tuned_hparams.json``).
+
+    jaxmdp-benchmark run --quick --out results/benchmark_quick       # the quick-test sets, a few minutes
+    jaxmdp-benchmark run --settings episodic_ergodic --seeds 20 --steps 500000 --out results/benchmark
+    jaxmdp-benchmark run --settings continuous_ergodic --agents ucrl2 --hparams reference --out DIR
+    jaxmdp-benchmark run --quick --hparams reference --agent-variant colosseum --out DIR   # reference mode
+    jaxmdp-benchmark run --quick --hparams reference --agent-variant colosseum --indicators colosseum --out DIR
+    jaxmdp-benchmark run --quick --emission StateInfo --agents dqn_episodic random_episodic --out DIR
+    jaxmdp-benchmark report results/benchmark_quick
+    jaxmdp-benchmark tune                                                 # every tabular agent, full budget
+    jaxmdp-benchmark tune --agents ucrl2 --steps 20000 --candidates 8 --mdps-per-family 1 --seeds 1
+
+``run`` and ``tune`` shard the members over one host device per core (set here, before JAX starts its backend, unless
+``XLA_FLAGS`` already sets the device count).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from hardness.cli._common import add_cache_flag, compile_report
+
+if TYPE_CHECKING:  # imported on use: hardness.benchmark starts JAX's backend, after main() set the host devices
+    from hardness.benchmark.run import RunConfig, RunSummary
+    from hardness.benchmark.search import Budget
+
+__all__ = ["build_parser", "config_from_args", "main", "report_command", "run_command", "tune_command"]
+
+_RAW = argparse.RawDescriptionHelpFormatter
+
+TUNE_HELP = """Tune the tabular agents by random search (paper App. F) and write the winners, with their provenance, to
+the tuned file the benchmark reads.
+
+Defaults are the reference's code-default budget (50 candidates drawn with seeds 42, 43, ..., 5 MDPs per family from
+every family's sampler with seed 42, seeds 0-2, 250 000 steps), plus the reference's cached values as one more
+candidate. Pass smaller numbers for a reduced run (the file records the budget and marks it reduced).
+
+The file is rewritten after every agent, and every size bucket of a search keeps a CSV and a checkpoint in
+``--work-dir`` (default ``results/tuning``, a folder per agent and budget), so a killed run started again with the
+same arguments resumes: agents whose entry in ``--out`` already has this budget are skipped (``--redo`` reruns them)
+and an unfinished search continues from its last checkpoint. Each entry records the search's wall time (``wall_s``,
+building the MDPs, compiling and running).
+"""
+
+
+def add_run_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``run``."""
+    from hardness.benchmark import run, sets
+
+    p.add_argument("--settings", nargs="+", default=None, metavar="SET",
+                   help=f"benchmark sets (default: the four settings); one of: {', '.join(sets.SET_NAMES)}")
+    p.add_argument("--agents", nargs="+", default=None,
+                   help="agents by registry name (default: every tabular agent of each set's type; --quick: all but "
+                        "psrl_continuous; with --emission: every deep agent of the set's type and the random agent)")
+    p.add_argument("--mdps", nargs="+", default=None, metavar="MDP",
+                   help="keep only these MDPs of the sets: labels (RiverSwim/prms_0) or families (default: all)")
+    p.add_argument("--seeds", type=int, default=None, help="number of seeds 0..N-1 (default 20; --quick 2)")
+    p.add_argument("--steps", type=int, default=None, help="steps per run (default 500000; --quick "
+                   f"{run.QUICK['n_steps']})")
+    p.add_argument("--log-period", type=int, default=None,
+                   help="steps between indicator logs (default 100; --quick: 1000 episodic, 500 continuous)")
+    p.add_argument("--hparams", default="tuned",
+                   help="tuned (hardness/benchmark/tuned_hparams.json), reference (the reference's cached values) "
+                        "or a tuned-file path (default %(default)s)")
+    p.add_argument("--agent-variant", default="paper", choices=("paper", "colosseum"),
+                   help="paper: the agents follow their algorithms' papers (default); colosseum: reference mode, the "
+                        "tabular agents with the reference package's update rules (docs/agents.md); with --hparams "
+                        "reference the like-for-like counterpart of the paper's Table 2")
+    p.add_argument("--indicators", default="paper", choices=("paper", "colosseum"),
+                   help="paper: the exact expected regret as the paper defines it (default); colosseum: the "
+                        "reference's indicators (episodic regret at the last episode's start, rho* of the "
+                        "0.99-discounted greedy policy, regrets <= 1e-3 zeroed; docs/measures.md)")
+    p.add_argument("--stop-when-converged", action="store_true",
+                   help="the reference's convergence stop: a run whose normalised regret stayed near 0 for ten logs "
+                        "past a fifth of its steps stops learning (docs/measures.md; off: learn to the end)")
+    p.add_argument("--buckets", type=int, default=None,
+                   help="size buckets per set for every agent (default 4, and 8 for episodic PSRL, whose posterior "
+                        "draws pay for the padding at every episode; --quick 1)")
+    p.add_argument("--max-members", type=int, default=None,
+                   help="members per runner call (default: a bucket, halved until it fits in memory)")
+    p.add_argument("--memory-limit", type=float, default=None, metavar="GIB",
+                   help="GiB a runner call may use (default: the memory available)")
+    p.add_argument("--emission", default=None,
+                   help="observe the MDPs through this emission map, for the deep agents: state_info (the reference's "
+                        "StateInfo), one_hot (OneHotEncoding), image, tensor, linear_optimal, linear_random (default: "
+                        "the states, tabular agents); with it the default agents are the deep agents and the random "
+                        "agent")
+    p.add_argument("--quick", action="store_true", help="the quick-test sets, 2 seeds, few steps")
+    p.add_argument("--out", type=Path, required=True, help="output folder (reused to resume)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_cache_flag(p)
+    p.set_defaults(func=run_command)
+
+
+def add_report_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``report``."""
+    p.add_argument("folder", type=Path, nargs="?", default=None, help="the run's output folder (or --out)")
+    p.add_argument("--out", type=Path, default=None, help="the run's output folder, where the report goes")
+    p.add_argument("--quiet", action="store_true", help="do not list the files written on stdout")
+    add_cache_flag(p)
+    p.set_defaults(func=report_command)
+
+
+def add_tune_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``tune``."""
+    from agents.search_spaces import SEARCH_SPACES
+    from hardness.benchmark import hparams, search
+
+    default = search.Budget()
+    p.add_argument("--agents", nargs="+", default=list(SEARCH_SPACES), choices=list(SEARCH_SPACES),
+                   help="default: every agent with a search space")
+    p.add_argument("--steps", type=int, default=default.n_steps, help="steps per run (%(default)s)")
+    p.add_argument("--candidates", type=int, default=default.n_candidates, help="sampled candidates (%(default)s)")
+    p.add_argument("--mdps-per-family", type=int, default=default.n_per_family, help="%(default)s")
+    p.add_argument("--seeds", type=int, default=default.n_seeds, help="number of seeds 0..N-1 (%(default)s)")
+    p.add_argument("--log-period", type=int, default=default.log_period, help="%(default)s")
+    p.add_argument("--max-states", type=int, default=None, help="leave out sampled MDPs with more states")
+    p.add_argument("--no-reference-candidate", action="store_true",
+                   help="do not add the reference's cached values as a candidate")
+    p.add_argument("--buckets", type=int, default=4, help="size buckets per search (%(default)s)")
+    p.add_argument("--note", default="", help="a note stored with each entry")
+    p.add_argument("--out", type=Path, default=hparams.TUNED_FILE, help="tuned file (default: the shipped one)")
+    p.add_argument("--work-dir", type=Path, default=Path("results/tuning"),
+                   help="runner CSVs and checkpoints, one folder per agent, to resume from (%(default)s)")
+    p.add_argument("--redo", action="store_true", help="rerun agents already tuned with this budget in --out")
+    p.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_cache_flag(p)
+    p.set_defaults(func=tune_command)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """``jaxmdp-benchmark {run,report,tune} ...``."""
+    p = argparse.ArgumentParser(prog="jaxmdp-benchmark", description=__doc__, formatter_class=_RAW)
+    sub = p.add_subparsers(dest="command", required=True, metavar="{run,report,tune}")
+    add_run_arguments(sub.add_parser("run", help="run the benchmark to completion (resumable)",
+                                     description=__doc__, formatter_class=_RAW))
+    add_report_arguments(sub.add_parser("report", help="write the report of a run's folder",
+                                        description=__doc__, formatter_class=_RAW))
+    add_tune_arguments(sub.add_parser("tune", help="tune the tabular agents by random search",
+                                      description=TUNE_HELP, formatter_class=_RAW))
+    return p
+
+
+def config_from_args(args: argparse.Namespace) -> RunConfig:
+    """The run's :class:`hardness.benchmark.run.RunConfig`: ``--quick`` defaults (or the benchmark's), overridden by
+    the options given."""
+    from hardness.benchmark import run, sets
+
+    base = dict(run.QUICK) if args.quick else dict(sets=sets.SETTINGS)
+    if args.emission is not None:
+        base.pop("agents", None)  # --quick's agents are tabular; with an emission: the deep agents and random
+    given = dict(sets=tuple(args.settings) if args.settings else None,
+                 agents=tuple(args.agents) if args.agents else None,
+                 seeds=tuple(range(args.seeds)) if args.seeds is not None else None, n_steps=args.steps,
+                 n_buckets=args.buckets, max_members=args.max_members, emission=args.emission,
+                 only=tuple(args.mdps) if args.mdps else None,
+                 memory_limit=None if args.memory_limit is None else int(args.memory_limit * 2**30))
+    config = {**base, **{k: v for k, v in given.items() if v is not None}, "hparams": args.hparams,
+              "agent_variant": args.agent_variant, "indicator_variant": args.indicators,
+              "stop_when_converged": args.stop_when_converged}
+    if args.buckets is not None:
+        config.update(agent_buckets={})  # --buckets N: N for every agent
+    if args.log_period is not None:
+        config.update(log_period=args.log_period, log_periods={})
+    return run.RunConfig(**config)
+
+
+def run_command(args: argparse.Namespace) -> RunSummary:
+    """``run``: the benchmark of the parsed ``args``; returns its :class:`hardness.benchmark.run.RunSummary`."""
+    from hardness.benchmark import run
+
+    try:
+        config = config_from_args(args)
+        return run.run_benchmark(config, args.out, progress=not args.quiet)
+    except ValueError as err:
+        raise SystemExit(f"jaxmdp-benchmark run: {err}") from None
+
+
+def report_command(args: argparse.Namespace) -> list[Path]:
+    """``report``: the report of the run folder ``args.folder`` (or ``args.out``); returns the paths written."""
+    from hardness.benchmark import report
+
+    folder = args.folder or args.out
+    if folder is None:
+        raise SystemExit("jaxmdp-benchmark report: name the run's folder (positional or --out)")
+    if not (folder / "plan.json").exists() or not (folder / "members.csv").exists():
+        raise SystemExit(f"jaxmdp-benchmark report: {folder} holds no benchmark run (plan.json and members.csv)")
+    written = report.write_report(folder)
+    if not args.quiet:
+        print("\n".join(map(str, written)))
+    return written
+
+
+def tune_command(args: argparse.Namespace) -> dict:
+    """``tune``: search every agent of ``args.agents`` not yet tuned with this budget; returns the new entries."""
+    from hardness.benchmark import search
+
+    budget = search.Budget(n_steps=args.steps, n_candidates=args.candidates, n_per_family=args.mdps_per_family,
+                           n_seeds=args.seeds, log_period=args.log_period, max_states=args.max_states,
+                           include_reference=not args.no_reference_candidate)
+    done = json.loads(args.out.read_text()).get("agents", {}) if args.out.exists() and not args.redo else {}
+    entries = {}
+    for name in args.agents:
+        if name in done and _same_budget(done[name], budget):
+            print(f"{name}: already tuned with this budget in {args.out}; skipped (--redo reruns it)",
+                  file=sys.stderr, flush=True)
+            continue
+        if not args.quiet:
+            print(f"tuning {name}: {budget}", file=sys.stderr, flush=True)
+        start = time.perf_counter()
+        try:
+            result = search.search(name, budget, n_buckets=args.buckets, progress=not args.quiet,
+                                   work_dir=args.work_dir / name / _slug(budget) if args.work_dir else None)
+        except ValueError as err:
+            raise SystemExit(f"jaxmdp-benchmark tune: {err}") from None
+        entries[name] = search.provenance(result, budget, note=args.note)
+        entries[name]["wall_s"] = round(time.perf_counter() - start, 1)
+        search.write_tuned(args.out, {name: entries[name]})  # after every agent, so an interruption keeps it
+        e = entries[name]
+        print(f"  {name}: winner {e['winner']} {e['values']}, objective per step {e['objective_per_step']:.4f} "
+              f"(run {e['run_s']} s, compile {e['compile_s']} s, wall {e['wall_s']} s)", file=sys.stderr, flush=True)
+    return entries
+
+
+def _slug(budget: Budget) -> str:
+    """A folder name for one budget, so checkpoints of different budgets never meet."""
+    return "-".join(f"{k}{v}" for k, v in dataclasses.asdict(budget).items()).replace("_", "")
+
+
+def _same_budget(entry: dict, budget: Budget) -> bool:
+    """Whether a tuned-file entry was searched with ``budget`` (every field of ``hardness.benchmark.search.Budget``)."""
+    return all(entry.get("budget", {}).get(k) == v for k, v in dataclasses.asdict(budget).items())
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``jaxmdp-benchmark {run,report,tune} ...`` (module docstring)."""
+    from jaxmdp.experiment.devices import use_every_core
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] in (["run"], ["tune"]):
+        # One lockstep loop per core: the runner shards the members over the host devices (set before JAX starts).
+        use_every_core()
+    args = build_parser().parse_args(argv)
+    with compile_report(args.no_compile_cache):
+        args.func(args)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
