@@ -22,6 +22,7 @@ import numpy as np
 
 from hardness.measures import HardnessMeasures, measures
 from jaxmdp._checks import Variant, check_int, check_range, check_variant
+from jaxmdp._memory import check_program
 from jaxmdp.batching import size_buckets, stack
 from jaxmdp.episodic import continuous_form, stack_continuous_forms
 from jaxmdp.mdp import MDP
@@ -63,6 +64,11 @@ def measures_many(
         compilations (module docstring).
       batch_size: members per ``lax.map`` step; ``1`` runs them one after another (best on CPU), larger values
         vmap that many in lockstep.
+
+    Raises:
+      ValueError: invalid arguments; :class:`~jaxmdp.NotEnoughMemory` (a ``ValueError``) when a bucket's
+        stack (:func:`jaxmdp.stack`) or its compiled program (XLA's memory analysis) needs more memory than is
+        available, before either is allocated or run.
     """
     mdps = list(mdps)
     if not mdps:
@@ -82,7 +88,19 @@ def measures_many(
             forms = None
             if variant == "colosseum" and is_episodic:
                 forms = stack_continuous_forms([continuous_form(m) for m in members])
-            out = map_measures(stack(members).strip(), forms, float(gamma), variant, int(batch_size))
+            batch = stack(members).strip()
+            # Compiled ahead of time so that its memory need (the per-target arrays of the solvers, e.g. [H, S, S]
+            # in the episodic diameter) is checked before it runs.
+            program = map_measures.lower(batch, forms, float(gamma), variant, int(batch_size)).compile()
+            check_program(
+                program,
+                "hardness.measures_many",
+                {"members": len(members), "S": batch.n_states, "A": batch.n_actions, "H": batch.H},
+                detail=f"the measures of one size bucket, {batch_size} member(s) at a time",
+                remedy="measure fewer or smaller MDPs per call, a smaller batch_size, more n_buckets, "
+                "or use a machine with more memory",
+            )
+            out = program(batch, forms)
             parts.append((np.asarray([idx[g] for g in group]), out))
     where = np.concatenate([p[0] for p in parts])
     inverse = np.empty_like(where)

@@ -11,6 +11,7 @@ from jaxmdp.jaxlib_workarounds import xla_cpu as _xla_cpu
 _xla_cpu.disable_ynn_fusion()
 
 from jaxmdp import dynamic_programming  # noqa: E402
+from jaxmdp._memory import NotEnoughMemory
 from jaxmdp.blockmdp import EMISSION_KINDS, NOISE_KINDS, BlockMDP, block_mdp, emission_table, observe
 from jaxmdp.batching import pad, permute_states, size_buckets, stack, state_permutation, unstack
 from jaxmdp.communication import CommunicationClass, communication_class
@@ -59,6 +60,7 @@ __all__ = [
     "observe",
     "EMISSION_KINDS",
     "NOISE_KINDS",
+    "NotEnoughMemory",
 ]
 
 

@@ -27,9 +27,10 @@ import numpy as np
 from jaxmdp._checks import check_int
 from jaxmdp.blockmdp.block_mdp import BlockMDP
 from jaxmdp.blockmdp.stacking import check_stackable, stack_blocks, unstack_blocks
-from jaxmdp.mdp import MDP, MDPInfo, start_lists
+from jaxmdp._memory import check_memory
+from jaxmdp.mdp import MDP, MDPInfo, mdp_array_bytes, start_lists
 
-__all__ = ["stack", "unstack", "pad", "size_buckets", "permute_states", "state_permutation"]
+__all__ = ["stack", "unstack", "pad", "size_buckets", "permute_states", "state_permutation", "stack_bytes"]
 
 # The traced leaves of an MDP.
 _ARRAY_FIELDS = (
@@ -46,6 +47,33 @@ _ARRAY_FIELDS = (
     "action_mask",
     "horizon",
 )
+
+
+def stack_bytes(n: int, S: int, A: int, K: int, itemsize: int, n_starts: int = 1) -> int:
+    """Peak bytes of padding ``n`` MDPs to ``S`` states, ``A`` actions, ``K`` successors and ``n_starts`` starts
+    and stacking them (``n = 1``: :func:`pad`): every member's padded arrays on the host and the stacked copy on the
+    device (:func:`~jaxmdp.mdp.mdp_array_bytes` twice per member), one stacked field on the host at a time (at most
+    a dense ``[n, S, A, S]``), and a member's dense array read back and gathered over actions while it is padded."""
+    dense = int(S) * int(A) * int(S) * int(itemsize)
+    return 2 * int(n) * mdp_array_bytes(S, A, K, itemsize, n_starts) + int(n) * dense + 2 * dense
+
+
+def _check_stack_memory(what: str, n: int, S: int, A: int, K: int, H: int | None, itemsize: int, n_starts: int) -> None:
+    sizes = {"members": n, "S": S, "A": A, "K": K} if what == "stack" else {"S": S, "A": A, "K": K}
+    if H is not None:
+        sizes["H"] = H
+    if what == "stack":
+        remedy = "stack fewer or smaller MDPs (jaxmdp.size_buckets splits a collection into stacks of similar sizes)"
+    else:
+        remedy = "pad to smaller sizes"
+    check_memory(
+        stack_bytes(n, S, A, K, itemsize, n_starts),
+        f"jaxmdp.{what}",
+        sizes,
+        detail=f"{n} padded member{'s' if n > 1 else ''} of dense [S, A, S] arrays",
+        device_bytes=n * mdp_array_bytes(S, A, K, itemsize, n_starts),
+        remedy=f"{remedy}, use a narrower dtype (float32 rather than float64), or a machine with more memory",
+    )
 
 
 def _pad_host(
@@ -112,6 +140,10 @@ def pad(
     """Pad one (unbatched) MDP to ``n_states``, ``n_actions``, ``n_successors``, time length ``H`` and start-list
     length ``n_starts`` (default: unchanged), host side."""
     n_starts = mdp.max_starts if n_starts is None else n_starts
+    if mdp.T.ndim == 3:
+        _check_stack_memory(
+            "pad", 1, int(n_states), int(n_actions), int(n_successors), H, np.dtype(mdp.dtype).itemsize, int(n_starts)
+        )
     arrays = _pad_host(mdp, n_states, n_actions, n_successors, H, n_starts)
     return mdp.replace(H=H if mdp.episodic else None, **{k: jax.device_put(v) for k, v in arrays.items()})
 
@@ -140,6 +172,7 @@ def stack(mdps: Sequence[MDP] | Sequence[BlockMDP]) -> MDP | BlockMDP:
     K = max(m.max_successors for m in mdps)
     H = max(m.H for m in mdps) if mdps[0].episodic else None
     K0 = max(m.max_starts for m in mdps)
+    _check_stack_memory("stack", len(mdps), S, A, K, H, np.dtype(mdps[0].dtype).itemsize, K0)
     padded = [_pad_host(m, S, A, K, H, K0) for m in mdps]
     # device_put, not jnp.asarray: the latter compiles a small program per shape (JAX 0.10), a cost every stack paid.
     arrays = {k: jax.device_put(np.stack([p[k] for p in padded])) for k in padded[0]}

@@ -42,9 +42,18 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxmdp._checks import check_int
+from jaxmdp._memory import check_memory
 from flax import struct
 
-__all__ = ["MDP", "MDPInfo", "custom_mdp", "successor_lists", "start_lists"]
+__all__ = [
+    "MDP",
+    "MDPInfo",
+    "custom_mdp",
+    "successor_lists",
+    "start_lists",
+    "mdp_array_bytes",
+    "custom_dense_bytes",
+]
 
 # Tolerance used to check that host-side arrays are stochastic.
 _ROW_SUM_ATOL = 1e-5
@@ -173,6 +182,28 @@ class MDP:
         )
 
 
+def mdp_array_bytes(S: int, A: int, K: int, itemsize: int, n_starts: int = 1) -> int:
+    """Bytes of the arrays of one :class:`MDP` with ``S`` states, ``A`` actions, ``K`` successors per row and
+    ``n_starts`` start states in a dtype of ``itemsize`` bytes: the three dense ``[S, A, S]`` arrays, ``R``, the
+    successor lists, ``P0``, the start lists and the masks."""
+    S, A, K, b = int(S), int(A), int(K), int(itemsize)
+    return 3 * S * A * S * b + S * A * b + S * A * K * (4 + b) + S * b + n_starts * (4 + b) + S + A + 4
+
+
+def custom_dense_bytes(S: int, A: int, itemsize: int) -> int:
+    """Peak bytes :func:`custom_mdp` holds for an ``[S, A, S]`` kernel in a dtype of ``itemsize`` bytes, successor
+    lists aside (:func:`successor_lists` checks those once it knows ``K``).
+
+    Per entry of ``[S, A, S]``: 32 bytes of float64 work arrays (``T`` as given and normalised, ``reward_mean``,
+    ``reward_conc``; the transient products and boolean masks of the checks fit in the same room, as they are freed
+    before the casts), the three casts to the dtype and their copies on the device (``6 * itemsize``); the ``[S, A]``
+    and ``[S]`` arrays likewise. A family's construction (:func:`jaxmdp.mdp_families.build_mdp`) passes its three
+    float64 arrays uncopied, so the same count bounds it.
+    """
+    S, A, b = int(S), int(A), int(itemsize)
+    return (32 + 6 * b) * S * A * S + (24 + 2 * b) * S * A + (16 + 2 * b) * S
+
+
 def successor_lists(T: np.ndarray, K: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Host-side successor lists of a dense kernel.
 
@@ -187,6 +218,13 @@ def successor_lists(T: np.ndarray, K: int | None = None) -> tuple[np.ndarray, np
     K = k_needed if K is None else K
     if K < k_needed:
         raise ValueError(f"K={K} is smaller than the largest number of successors ({k_needed})")
+    # int64 indices and their int32 copy, the probabilities and their cast by the caller.
+    check_memory(
+        S * A * K * (12 + 2 * T.dtype.itemsize),
+        "the successor lists",
+        {"S": S, "A": A, "K": K},
+        remedy="use a smaller MDP or one with fewer successors per row, or a machine with more memory",
+    )
     succ = np.broadcast_to(np.arange(S)[:, None, None], (S, A, K)).copy()
     succ_p = np.zeros((S, A, K), dtype=T.dtype)
     for s in range(S):
@@ -248,12 +286,24 @@ def custom_mdp(
 
     Raises:
       ValueError: naming the offending argument, for wrong shapes, NaN/inf, negative probabilities, rows that do not
-        sum to one (the first offending ``(s, a)`` is reported), a non-positive ``H`` or invalid reward parameters.
+        sum to one (the first offending ``(s, a)`` is reported), a non-positive ``H`` or invalid reward parameters;
+        :class:`~jaxmdp.NotEnoughMemory` (a ``ValueError``) before converting anything when the arrays of
+        ``S`` states and ``A`` actions cannot fit in the memory available (:func:`custom_dense_bytes`).
     """
+    shape = np.shape(T)
+    if len(shape) != 3 or shape[0] != shape[2] or shape[0] < 1 or shape[1] < 1:
+        raise ValueError(f"T must have shape [S, A, S] with S, A >= 1; got shape {tuple(shape)}")
+    S, A, _ = shape
+    np_dtype = np.dtype(jnp.dtype(dtype))
+    check_memory(
+        custom_dense_bytes(S, A, np_dtype.itemsize),
+        "jaxmdp.custom_mdp",
+        {"S": S, "A": A, "dtype": np_dtype.name},
+        detail="dense [S, A, S] arrays",
+        device_bytes=mdp_array_bytes(S, A, 1, np_dtype.itemsize),
+        remedy="use a smaller MDP, a narrower dtype (float32 rather than float64), or a machine with more memory",
+    )
     T = np.asarray(T, dtype=np.float64)
-    if T.ndim != 3 or T.shape[0] != T.shape[2] or T.shape[0] < 1 or T.shape[1] < 1:
-        raise ValueError(f"T must have shape [S, A, S] with S, A >= 1; got shape {T.shape}")
-    S, A, _ = T.shape
     _check_finite("T", T)
     if np.any(T < 0):
         s, a, t = (int(i) for i in np.argwhere(T < 0)[0])
@@ -323,7 +373,6 @@ def custom_mdp(
         info = MDPInfo(node_labels=tuple(f"s={i}" for i in range(S)))
 
     succ, succ_p = successor_lists(T)
-    np_dtype = np.dtype(jnp.dtype(dtype))
     start, start_cdf = start_lists(P0.astype(np_dtype))
     # Every leaf is cast on the host and transferred in one device_put: a jnp.asarray(x, dtype=...) per leaf would
     # compile a small conversion program per leaf and shape.

@@ -32,7 +32,10 @@ def families() -> tuple[str, ...]:
 def make(name: str, *, episodic: bool, seed: int, **params) -> MDP:
     """Build an MDP of family ``name``, e.g. ``make("RiverSwim", episodic=False, seed=0, size=10, p_lazy=0.1)``.
 
-    Raises ``ValueError`` for an unknown family (suggesting the closest names) or invalid parameters.
+    Raises ``ValueError`` for an unknown family (suggesting the closest names) or invalid parameters, and
+    :class:`~jaxmdp.NotEnoughMemory` (a ``ValueError``) before building anything when the MDP's arrays cannot
+    fit in the memory available (a built-in family bounds its number of states from its size parameters,
+    :meth:`~jaxmdp.mdp_families.Family.max_states`).
     """
     if name not in _REGISTRY:
         lowered = {k.lower(): k for k in _REGISTRY}

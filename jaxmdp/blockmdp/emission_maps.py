@@ -29,6 +29,7 @@ Tables are built host-side (the renderers are Python) in the MDP's dtype; the ro
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import jax
@@ -37,11 +38,20 @@ import numpy as np
 
 from jaxmdp import dynamic_programming as dp
 from jaxmdp._checks import did_you_mean
+from jaxmdp._memory import check_memory
 from jaxmdp.blockmdp.linear_features import linear_value_features, n_linear_features
 from jaxmdp.mdp import MDP
 from jaxmdp.render import render_grid
 
-__all__ = ["EMISSION_KINDS", "check_emission_kind", "emission_table", "register_symbols", "family_symbols"]
+__all__ = [
+    "EMISSION_KINDS",
+    "check_emission_kind",
+    "emission_table",
+    "emission_shape",
+    "emission_bytes",
+    "register_symbols",
+    "family_symbols",
+]
 
 #: The emission kinds (paper App. A.2; benchmark.md §5).
 EMISSION_KINDS = ("one_hot", "state_info", "image", "tensor", "linear_optimal", "linear_random")
@@ -168,6 +178,51 @@ def _add_time(table: np.ndarray, kind: str, H: int) -> np.ndarray:
     return np.concatenate([rows, np.broadcast_to(h[:, None, None, None, None], (*rows.shape[:-1], 1))], axis=-1)
 
 
+def _grid_shape(mdp: MDP) -> tuple[int, int] | None:
+    """``(rows, cols)`` of the family's rendering (of its first state), or None when it has none."""
+    if _SYMBOLS.get(mdp.info.family) is None or not mdp.info.node_values:
+        return None
+    try:
+        grid = render_grid(mdp, 0)
+    except ValueError:
+        return None
+    return len(grid), len(grid[0]) if grid else 0
+
+
+def emission_shape(mdp: MDP, kind: str) -> tuple[int, ...] | None:
+    """The shape of one observation under ``kind`` (time channel included when episodic), found without building
+    the table; None when the MDP cannot produce ``kind`` (:func:`emission_table` then says why)."""
+    S = mdp.n_states
+    t = 1 if mdp.episodic else 0
+    if kind == "one_hot":
+        return (S,)
+    if kind == "state_info":
+        values = mdp.info.node_values
+        return (len(values[0]) + t,) if values else None
+    if kind in ("image", "tensor"):
+        grid = _grid_shape(mdp)
+        if grid is None:
+            return None
+        rows, cols = grid
+        if kind == "image":
+            return (rows + t, cols)
+        return (rows, cols, len(_SYMBOLS[mdp.info.family]) + t)
+    return (n_linear_features(int(np.sum(np.asarray(mdp.state_mask)))),)
+
+
+def emission_bytes(mdp: MDP, kind: str) -> int:
+    """Peak bytes of :func:`emission_table` for ``kind`` (0 when the MDP cannot produce it): per entry of the
+    ``[H, S, *obs_shape]`` (continuous ``[S, *obs_shape]``) table, three float64 arrays (the time-free table or its
+    time-extended copy, the rows times the state mask, the symbol grids of ``image``/``tensor``), the cast to the
+    MDP's dtype and its device copy; the linear kinds' features cover ``H + 1`` steps."""
+    shape = emission_shape(mdp, kind)
+    if shape is None:
+        return 0
+    steps = (mdp.H + (1 if kind.startswith("linear") else 0)) if mdp.episodic else 1
+    entries = steps * mdp.n_states * math.prod(shape)
+    return entries * (24 + 2 * np.dtype(mdp.dtype).itemsize)
+
+
 def emission_table(mdp: MDP, kind: str, *, key: jax.Array | None = None) -> jax.Array:
     """The observation of every state (and in-episode step) under emission map ``kind`` (module docstring).
 
@@ -188,6 +243,17 @@ def emission_table(mdp: MDP, kind: str, *, key: jax.Array | None = None) -> jax.
     if mdp.T.ndim != 3:
         raise ValueError("emission_table expects a single MDP; build one BlockMDP per MDP and jaxmdp.stack them")
     S = mdp.n_states
+    shape = emission_shape(mdp, kind)
+    if shape is not None:
+        check_memory(
+            emission_bytes(mdp, kind),
+            f"jaxmdp.emission_table(kind={kind!r})",
+            {"S": S, "H": mdp.H, "obs_shape": shape} if mdp.episodic else {"S": S, "obs_shape": shape},
+            detail="one observation per state" + (" and step" if mdp.episodic else ""),
+            device_bytes=(mdp.H if mdp.episodic else 1) * S * math.prod(shape) * np.dtype(mdp.dtype).itemsize,
+            remedy="use a smaller MDP or another emission (one_hot grows with S^2, and with H when episodic), "
+            "a narrower dtype, or a machine with more memory",
+        )
     table = _state_table(mdp, kind, key)
     if kind in ("linear_optimal", "linear_random"):
         table = table[: mdp.H] if mdp.episodic else table

@@ -9,11 +9,13 @@ one-hot vector of a state gains trailing zeros, which carry no information).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import jax.numpy as jnp
 import numpy as np
 
+from jaxmdp._memory import check_memory
 from jaxmdp.blockmdp.block_mdp import BlockMDP
 from jaxmdp.mdp import MDP
 
@@ -48,6 +50,16 @@ def stack_blocks(blocks: Sequence[BlockMDP], stacked: MDP) -> BlockMDP:
     S, H = stacked.n_states, stacked.H
     obs_shape = (S,) if _pads_one_hot(blocks) else blocks[0].obs_shape
     lead = (H, S) if H is not None else (S,)
+    entries = len(blocks) * math.prod((*lead, *obs_shape))
+    # Each padded table on the host, their stack, and its copy on the device.
+    itemsize = np.dtype(blocks[0].emissions.dtype).itemsize
+    check_memory(
+        3 * entries * itemsize,
+        "jaxmdp.stack (the emission tables)",
+        {"members": len(blocks), "S": S, "H": H, "obs_shape": obs_shape},
+        device_bytes=entries * itemsize,
+        remedy="stack fewer or smaller BlockMDPs, or use a machine with more memory",
+    )
     tables = []
     for b in blocks:
         table = np.asarray(b.emissions)

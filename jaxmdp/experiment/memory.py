@@ -5,17 +5,18 @@ buffers (``Compiled.memory_analysis()``, per device; arguments donated to output
 (:func:`jaxmdp.experiment.runner.run`) compares that with what the devices have before it starts, and raises
 :class:`ProgramTooLarge` naming the remedy (fewer members per call) when it does not fit. On a CPU every shard's
 loop runs in the same host memory, so the need is per device times the shards, against the host's available memory
-(``MemAvailable`` of ``/proc/meminfo``, else the physical memory); on an accelerator it is per device against the
-device's ``bytes_limit``.
+(:func:`jaxmdp._memory.host_available_bytes`: ``MemAvailable``, else the physical memory, within the cgroup's and the
+process's limits); on an accelerator it is per device against the device's ``bytes_limit``.
 """
 
 from __future__ import annotations
 
-import os
 from collections.abc import Sequence
 from typing import Any
 
 import jax
+
+from jaxmdp._memory import device_available_bytes, format_bytes, host_available_bytes, program_bytes
 
 __all__ = ["ProgramTooLarge", "available_bytes", "program_bytes", "check_fits"]
 
@@ -30,51 +31,15 @@ class ProgramTooLarge(MemoryError):
         self.available = available
 
 
-def _host_available() -> int | None:
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):
-        return None
-
-
 def available_bytes(device: jax.Device | None = None) -> int | None:
     """Memory a program can use on ``device`` (default the first local device): the host's available memory for a
-    CPU, the allocator's ``bytes_limit`` for an accelerator; ``None`` when it cannot be told."""
+    CPU (:func:`jaxmdp._memory.host_available_bytes`: ``MemAvailable``, the cgroup's limit and the process's limits),
+    the allocator's free bytes for an accelerator (:func:`jaxmdp._memory.device_available_bytes`); ``None`` when it
+    cannot be told."""
     device = jax.local_devices()[0] if device is None else device
     if device.platform == "cpu":
-        return _host_available()
-    stats = device.memory_stats() or {}
-    limit = stats.get("bytes_limit")
-    return None if limit is None else int(limit) - int(stats.get("bytes_in_use", 0))
-
-
-def program_bytes(compiled: Any) -> int | None:
-    """Bytes one execution of a compiled program needs on one device: arguments + outputs + temporaries - donated
-    (aliased) buffers, from XLA's memory analysis; ``None`` if the backend gives none."""
-    try:
-        stats = compiled.memory_analysis()
-    except (NotImplementedError, RuntimeError, AttributeError):
-        return None
-    if stats is None:
-        return None
-    return int(
-        stats.argument_size_in_bytes + stats.output_size_in_bytes + stats.temp_size_in_bytes
-        - stats.alias_size_in_bytes
-    )
-
-
-def _size(n: int) -> str:
-    for unit, scale in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
-        if n >= scale:
-            return f"{n / scale:.2f} {unit}"
-    return f"{n} bytes"
+        return host_available_bytes()
+    return device_available_bytes(device)
 
 
 def check_fits(
@@ -97,8 +62,8 @@ def check_fits(
     if worst is not None and available is not None and worst > available:
         where = f"{n_shards} host devices together" if shared and n_shards > 1 else f"one {device.platform} device"
         raise ProgramTooLarge(
-            f"the {worst_name} program needs {_size(worst)} on {where} but {_size(available)} are available"
-            f"{'; ' + remedy if remedy else ''}",
+            f"the {worst_name} program needs {format_bytes(worst)} on {where} but {format_bytes(available)} are "
+            f"available{'; ' + remedy if remedy else ''}",
             worst,
             available,
         )

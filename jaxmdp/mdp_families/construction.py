@@ -36,7 +36,8 @@ from typing import Any
 import numpy as np
 
 from jaxmdp._checks import check_bool, check_int
-from jaxmdp.mdp import MDP, MDPInfo, custom_mdp
+from jaxmdp._memory import check_memory
+from jaxmdp.mdp import MDP, MDPInfo, custom_dense_bytes, custom_mdp, mdp_array_bytes
 from jaxmdp.mdp_families.distributions import (
     Distribution,
     PointMass,
@@ -56,9 +57,29 @@ __all__ = [
     "family_builder",
     "check_noise_probability",
     "integer_parameter",
+    "construction_bytes",
 ]
 
 Node = Hashable
+
+
+#: Item size of the dtype a family's MDP is built in (:func:`~jaxmdp.custom_mdp`'s default, float32).
+_BUILD_ITEMSIZE = 4
+#: Bytes a family's expansion holds in Python objects per state and action, besides the arrays: the node records and
+#: their discovery index, the outcome lists of every base action, the action permutations, the labels, node values and
+#: successor orders of the MDPInfo (the built-in families hold about 700, traced with tracemalloc; three times that).
+PYTHON_BYTES_PER_STATE_ACTION = 2048
+
+
+def construction_bytes(S: int, A: int) -> int:
+    """Peak bytes of :func:`build_mdp` for at most ``S`` states and ``A`` actions: its three float64 ``[S, A, S]``
+    arrays and :func:`~jaxmdp.custom_mdp`'s work on them (:func:`~jaxmdp.mdp.custom_dense_bytes`, which counts those
+    three arrays), the successor lists of one successor per row, and the Python objects of the expansion."""
+    return (
+        custom_dense_bytes(S, A, _BUILD_ITEMSIZE)
+        + S * A * (12 + 2 * _BUILD_ITEMSIZE)
+        + PYTHON_BYTES_PER_STATE_ACTION * S * A
+    )
 
 
 def integer_parameter(name: str, value: Any, minimum: int, family: str, maximum: int | None = None) -> int:
@@ -224,6 +245,41 @@ class Family(abc.ABC):
         """A horizon that the family imposes (and that the user may not set), or None."""
         return None
 
+    def max_states(self) -> int | None:
+        """An upper bound on the number of states, from the parameters alone and without building anything (no node
+        is expanded): what :meth:`check_memory` sizes the dense arrays with. ``None`` (the default) when the family
+        knows none; its MDP is then checked by :func:`~jaxmdp.custom_mdp` only, once the expansion has found ``S``."""
+        return None
+
+    def size_parameters(self) -> dict[str, Any]:
+        """The parameters :meth:`max_states` is computed from, by name (named by a refusal)."""
+        return {}
+
+    def extra_bytes(self) -> int:
+        """Bytes the family's own set-up holds besides the MDP's arrays (a layout drawn in batches, ...); 0 unless a
+        family says otherwise."""
+        return 0
+
+    def check_memory(self) -> None:
+        """Raise :class:`~jaxmdp.NotEnoughMemory` (a ``ValueError``) naming the size parameters if the MDP of
+        at most :meth:`max_states` states cannot be built in the memory available (:func:`construction_bytes`).
+
+        A family calls it in its constructor as soon as its size parameters are validated, before it draws or builds
+        anything that grows with them; :func:`build_mdp` calls it again before expanding the nodes."""
+        S = self.max_states()
+        if S is None:
+            return
+        need = construction_bytes(int(S), self.n_actions) + int(self.extra_bytes())
+        names = list(self.size_parameters())
+        check_memory(
+            need,
+            f"the {self.name} MDP",
+            self.size_parameters(),
+            detail=f"at most {int(S)} states, {self.n_actions} actions",
+            device_bytes=mdp_array_bytes(int(S), self.n_actions, 1, _BUILD_ITEMSIZE),
+            remedy=f"use a smaller {' / '.join(names) if names else 'MDP'}, or a machine with more memory",
+        )
+
     def node_values(self, node: Node) -> tuple[int, ...]:
         """The node's fields as integers (the ``StateInfo`` vector)."""
         return tuple(int(v) for v in node)
@@ -284,6 +340,7 @@ def _eccentricity(successors: Callable[[Node], Sequence[Node]], sources: Sequenc
 
 def build_mdp(fam: Family, common: CommonParams) -> MDP:
     """Build the :class:`~jaxmdp.MDP` of family ``fam`` with the common parameters (see the module docstring)."""
+    fam.check_memory()
     A = fam.n_actions
     G = np.random.RandomState(common.seed)
     F = random.Random(common.seed)

@@ -50,6 +50,7 @@ class DeepSeaFamily(Family):
 
     def __init__(self, *, size: int, rewards: RewardArguments) -> None:
         self.size = integer_parameter("size", size, 2, self.name)
+        self.check_memory()
         self.set_rewards(rewards)
 
     def default_rewards(self, stochastic: bool, v: float) -> tuple[Distribution, ...]:
@@ -86,6 +87,13 @@ class DeepSeaFamily(Family):
 
     def fixed_horizon(self) -> int:
         return self.size
+
+    def max_states(self) -> int:
+        """The ``size (size + 1) / 2`` cells of the triangle."""
+        return self.size * (self.size + 1) // 2
+
+    def size_parameters(self) -> dict[str, Any]:
+        return {"size": self.size}
 
     def params(self) -> tuple[tuple[str, Any], ...]:
         return (

@@ -33,6 +33,8 @@ UP, RIGHT, DOWN, LEFT = 0, 1, 2, 3
 
 #: Boards drawn before giving up on a lake whose goal is reachable (the reference would keep drawing forever).
 MAX_LAKE_DRAWS = 1_000_000
+#: The most boards :func:`random_lake` draws at once.
+MAX_LAKE_BATCH = 4096
 
 
 def _goal_reachable(frozen: np.ndarray) -> np.ndarray:
@@ -79,7 +81,7 @@ def random_lake(size: int, p_frozen: float, seed: int) -> tuple[str, ...]:
             board[0, 0], board[-1, -1] = "S", "G"
             return tuple("".join(row) for row in board)
         drawn += batch
-        batch = min(2 * batch, 4096)
+        batch = min(2 * batch, MAX_LAKE_BATCH)
     raise ValueError(
         f"p_frozen={p_frozen} is too low for size={size}: none of the first {MAX_LAKE_DRAWS} random lakes connects "
         "the start to the goal"
@@ -104,6 +106,7 @@ class FrozenLakeFamily(Family):
 
     def __init__(self, *, seed: int, size: int, p_frozen: float, is_slippery: bool, rewards: RewardArguments) -> None:
         self.size = integer_parameter("size", size, 3, self.name)
+        self.check_memory()
         if isinstance(p_frozen, bool) or not isinstance(p_frozen, (int, float, np.number)) or not p_frozen >= 0.1:
             raise ValueError(f"p_frozen must be a number >= 0.1 (values above 1 act as 1); got {p_frozen!r}")
         optimal_return, suboptimal_return = rewards.means["optimal_return"], rewards.means["suboptimal_return"]
@@ -116,6 +119,17 @@ class FrozenLakeFamily(Family):
         self.is_slippery = bool(is_slippery)
         self.set_rewards(rewards)
         self.lake = random_lake(self.size, self.p_frozen, seed)
+
+    def max_states(self) -> int:
+        """The ``size^2`` cells (the holes and the cells they cut off are not states)."""
+        return self.size**2
+
+    def size_parameters(self) -> dict[str, Any]:
+        return {"size": self.size}
+
+    def extra_bytes(self) -> int:
+        """:func:`random_lake`'s largest batch of boards: a float64 uniform and a few boolean maps per cell."""
+        return MAX_LAKE_BATCH * self.size**2 * 12
 
     def default_rewards(self, stochastic: bool, v: float) -> tuple[Distribution, ...]:
         """Goal and default: point masses 1 and 0, or Betas of means ``1 - r_opt/size^2`` and ``r_sub/size^2``."""

@@ -91,6 +91,7 @@ class MiniGridDoorKeyFamily(MiniGridFamily):
         rewards: RewardArguments,
     ) -> None:
         self.size = integer_parameter("size", size, 3, self.name)
+        self.check_memory()
         # The smallest agent room is one line of `size` cells, one of which holds the key.
         self.n_starting_states = integer_parameter(
             "n_starting_states", n_starting_states, 1, self.name, 4 * (self.size - 1)
@@ -100,6 +101,15 @@ class MiniGridDoorKeyFamily(MiniGridFamily):
         self.door: tuple[int, int] = (-1, -1)
         self.key: tuple[int, int] = (-1, -1)
         self.goal: tuple[int, int] = (-1, -1)
+
+    def max_states(self) -> int:
+        """4 directions on: the agent room's cells without and with the key while the door is closed (each room holds
+        at most ``size (size - 2)`` cells), and every cell but the wall's ``size - 1`` once it is open."""
+        size = self.size
+        return 4 * (2 * size * (size - 2) + size**2 - (size - 1))
+
+    def size_parameters(self) -> dict[str, Any]:
+        return {"size": self.size}
 
     def _draw_layout(self, G: np.random.RandomState) -> list[tuple[int, int]]:
         """Steps 1-6 of the module docstring; returns the agent room's cells."""

@@ -69,9 +69,17 @@ class MiniGridEmptyFamily(MiniGridFamily):
         rewards: RewardArguments,
     ) -> None:
         self.size = integer_parameter("size", size, 3, self.name)
+        self.check_memory()
         # Only the `size` cells of the start side can be starting cells.
         self.n_starting_states = integer_parameter("n_starting_states", n_starting_states, 1, self.name, self.size)
         self.set_rewards(rewards)
+
+    def max_states(self) -> int:
+        """The ``size^2`` cells, each in 4 directions."""
+        return 4 * self.size**2
+
+    def size_parameters(self) -> dict[str, Any]:
+        return {"size": self.size}
 
     def outcomes(self, node: MiniGridEmptyNode, action: int) -> list[tuple[MiniGridEmptyNode, float]]:
         x, y, d = node

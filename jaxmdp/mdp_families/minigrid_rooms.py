@@ -90,8 +90,18 @@ class MiniGridRoomsFamily(MiniGridFamily):
             "n_starting_states", n_starting_states, 1, self.name, 4 * self.room_size**2
         )
         self.side = k * self.room_size + k - 1
+        self.check_memory()
         self.cells = admissible_cells(self.room_size, k)
         self.set_rewards(rewards)
+
+    def max_states(self) -> int:
+        """The admissible cells (:func:`admissible_cells`: ``k^2 room_size^2`` room cells and ``2 k (k - 1)`` doors),
+        each in 4 directions."""
+        k = self.k
+        return 4 * (k * k * self.room_size**2 + 2 * k * (k - 1))
+
+    def size_parameters(self) -> dict[str, Any]:
+        return {"room_size": self.room_size, "n_rooms": self.n_rooms}
 
     def default_reward_side(self) -> int:
         """The room cells per side, walls excluded: the side that the reference sizes the default rewards with."""

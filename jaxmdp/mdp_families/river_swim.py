@@ -46,6 +46,7 @@ class RiverSwimFamily(Family):
 
     def __init__(self, *, size: int, episodic: bool, rewards: RewardArguments) -> None:
         self.size = integer_parameter("size", size, 2, self.name)
+        self.check_memory()
         self.episodic = episodic
         self.set_rewards(rewards)
 
@@ -72,6 +73,13 @@ class RiverSwimFamily(Family):
         if node.X == 0 and action == LEFT:
             return self.dists["sub_optimal_distribution"]
         return self.dists["other_distribution"]
+
+    def max_states(self) -> int:
+        """``size`` cells."""
+        return self.size
+
+    def size_parameters(self) -> dict[str, Any]:
+        return {"size": self.size}
 
     def starting_nodes(self, G: np.random.RandomState, F: random.Random):
         start = RiverSwimNode(0)

@@ -76,6 +76,7 @@ class SimpleGridFamily(Family):
 
     def __init__(self, *, size: int, reward_type: Any, n_starting_states: int, rewards: RewardArguments) -> None:
         self.size = integer_parameter("size", size, 2, self.name)
+        self.check_memory()
         self.reward_type = _reward_type(reward_type)
         # The starting cells are drawn among the (size-1)^2 cells closest to the centre.
         self.n_starting_states = integer_parameter(
@@ -94,6 +95,13 @@ class SimpleGridFamily(Family):
         check_default_reward_parameter("optimal_mean_reward", mu_o, 1)
         check_default_reward_parameter("sub_optimal_mean_reward", mu_s, 1)
         return Beta(v, v * (1 / mu_o - 1)), Beta(v, v * (10 / mu_s - 1)), Beta(v, v * (1 / mu_s - 1))
+
+    def max_states(self) -> int:
+        """The ``size^2`` cells."""
+        return self.size**2
+
+    def size_parameters(self) -> dict[str, Any]:
+        return {"size": self.size}
 
     def outcomes(self, node: SimpleGridNode, action: int) -> list[tuple[SimpleGridNode, float]]:
         x, y, top = node.X, node.Y, self.size - 1

@@ -77,12 +77,7 @@ def taxi_walls(size: int, length: int, width: int, space: int) -> np.ndarray:
     rows: list[list[int]] = []
     j = 0
     while len(rows) < size:
-        row = [0] * ((width + space) // 2) if j % 2 == 0 else []
-        i = 0
-        while len(row) < size:
-            row.extend([1] * width if i % (space + 1) == 0 else [0])
-            i += 1
-        row = row[:size]
+        row = _pattern_row(size, width, space, j)
         for _ in range(length):
             if len(rows) == size:
                 break
@@ -91,6 +86,36 @@ def taxi_walls(size: int, length: int, width: int, space: int) -> np.ndarray:
             rows.append([0] * size)
         j += 1
     return np.array(rows, dtype=bool)
+
+
+def _pattern_row(size: int, width: int, space: int, j: int) -> list[int]:
+    row = [0] * ((width + space) // 2) if j % 2 == 0 else []
+    i = 0
+    while len(row) < size:
+        row.extend([1] * width if i % (space + 1) == 0 else [0])
+        i += 1
+    return row[:size]
+
+
+def taxi_free_cells(size: int, length: int, width: int, space: int) -> int:
+    """The number of free cells of :func:`taxi_walls` (``size^2`` minus its sum), counted in closed form: a pattern
+    row is its free prefix, then periods of ``width`` walls and ``space`` free cells, cut at ``size``; block ``j``
+    is ``length`` copies of pattern row ``j`` and one free row, the last block cut at ``size`` rows."""
+
+    def free_in_pattern(j: int) -> int:
+        prefix = (width + space) // 2 if j % 2 == 0 else 0
+        if prefix >= size:
+            return size
+        periods, rest = divmod(size - prefix, width + space)
+        return prefix + periods * space + max(0, rest - width)
+
+    blocks, rest = divmod(size, length + 1)
+    even, odd = (blocks + 1) // 2, blocks // 2
+    return (
+        blocks * size
+        + length * (even * free_in_pattern(0) + odd * free_in_pattern(1))
+        + rest * free_in_pattern(blocks)
+    )
 
 
 class TaxiFamily(Family):
@@ -128,6 +153,7 @@ class TaxiFamily(Family):
                 f"n_locations must satisfy size > 2 sqrt(n_locations), i.e. n_locations < size^2 / 4 = "
                 f"{self.size**2 / 4:g}, for {self.name}; got n_locations={n_locations}, size={self.size}"
             )
+        self.check_memory()
         root = math.isqrt(self.n_locations)
         self.rows_of_quadrants = root if root * root == self.n_locations else root + 1
         self.n_quadrants = self.rows_of_quadrants**2
@@ -166,6 +192,15 @@ class TaxiFamily(Family):
         check_default_reward_parameter("sub_optimal_mean_reward", mu_s, 1)
         check_default_reward_parameter("optimal_mean_reward", mu_o, 1)
         return Beta(v, v * (1 / mu_s - 1)), Beta(v, v * (1 / mu_o - 1)), Beta(v, v * (10 / mu_s - 1))
+
+    def max_states(self) -> int:
+        """The free cells (:func:`taxi_free_cells`), times the passenger's ``n_locations`` places or the taxi, times
+        the ``n_locations`` destinations (a waiting passenger's destination differs from its place)."""
+        n = self.n_locations
+        return taxi_free_cells(self.size, self.length, self.width, self.space) * (n * (n - 1) + n)
+
+    def size_parameters(self) -> dict[str, Any]:
+        return {"size": self.size, "n_locations": self.n_locations}
 
     def _draw_locations(self, G: np.random.RandomState) -> list[tuple[int, int]]:
         min_distance = max(self.size / self.rows_of_quadrants / 2, 2)
