@@ -22,6 +22,7 @@ from jaxmdp.mdp_families.distributions import (
     PointMass,
     RewardArguments,
     RewardParameters,
+    beta_with_mean,
     check_default_reward_parameter,
 )
 from jaxmdp.render import register_renderer
@@ -64,7 +65,7 @@ class DeepSeaFamily(Family):
         check_default_reward_parameter("optimal_return", self.optimal_return, self.size, f"size={self.size}")
         return (
             Beta(v * (self.size / self.optimal_return - 1), v),
-            Beta(v, v * (self.size / self.suboptimal_return - 1)),
+            beta_with_mean(v, self.suboptimal_return, self.size),
             Beta(v, 10 * v * (self.size / self.suboptimal_return - 1)),
         )
 

@@ -15,6 +15,7 @@ __all__ = [
     "Beta",
     "PointMass",
     "Distribution",
+    "beta_with_mean",
     "as_distribution",
     "resolve_distributions",
     "check_default_reward_parameter",
@@ -66,6 +67,13 @@ class PointMass:
 
 
 Distribution = Beta | PointMass
+
+
+def beta_with_mean(v: float, mu: float, scale: float = 1) -> Beta:
+    """``Beta(v, v (scale / mu - 1))``: the family defaults' Beta of mean ``mu / scale`` with first parameter ``v``
+    (the variance multiplier; ``a + b = v scale / mu``). Proper exactly when ``0 < mu < scale``, which the families
+    check first (:func:`check_default_reward_parameter`)."""
+    return Beta(v, v * (scale / mu - 1))
 
 
 def as_distribution(name: str, spec: Any) -> Distribution:

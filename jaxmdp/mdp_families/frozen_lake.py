@@ -23,6 +23,7 @@ from jaxmdp.mdp_families.distributions import (
     PointMass,
     RewardArguments,
     RewardParameters,
+    beta_with_mean,
     check_default_reward_parameter,
 )
 from jaxmdp.render import register_renderer
@@ -140,7 +141,7 @@ class FrozenLakeFamily(Family):
         n_cells = self.size**2
         check_default_reward_parameter("optimal_return", self.optimal_return, n_cells, f"size^2={n_cells}")
         check_default_reward_parameter("suboptimal_return", self.suboptimal_return, n_cells, f"size^2={n_cells}")
-        return Beta(v * (n_cells / self.optimal_return - 1), v), Beta(v, v * (n_cells / self.suboptimal_return - 1))
+        return Beta(v * (n_cells / self.optimal_return - 1), v), beta_with_mean(v, self.suboptimal_return, n_cells)
 
     def _move(self, x: int, y: int, a: int) -> FrozenLakeNode:
         """One move of action ``a`` (index arithmetic of the reference; the names do not match the directions)."""

@@ -15,11 +15,11 @@ import numpy as np
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.mdp_families.construction import Family, family_builder, integer_parameter
 from jaxmdp.mdp_families.distributions import (
-    Beta,
     Distribution,
     PointMass,
     RewardArguments,
     RewardParameters,
+    beta_with_mean,
     check_default_reward_parameter,
 )
 from jaxmdp.render import register_renderer
@@ -61,7 +61,7 @@ class RiverSwimFamily(Family):
         check_default_reward_parameter("sub_optimal_mean_reward", self.sub_optimal_mean_reward, 1)
         mu_s = self.sub_optimal_mean_reward / (self.size if self.episodic else 1)
         mu_o = self.optimal_mean_reward
-        return Beta(v, v * (1 / mu_o - 1)), Beta(v, v * (1 / mu_s - 1)), Beta(v, v * (10 / mu_s - 1))
+        return beta_with_mean(v, mu_o), beta_with_mean(v, mu_s), beta_with_mean(v, mu_s, 10)
 
     def outcomes(self, node: RiverSwimNode, action: int) -> list[tuple[RiverSwimNode, float]]:
         x = node.X

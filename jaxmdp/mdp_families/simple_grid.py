@@ -17,11 +17,11 @@ import numpy as np
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.mdp_families.construction import Family, family_builder, integer_parameter
 from jaxmdp.mdp_families.distributions import (
-    Beta,
     Distribution,
     PointMass,
     RewardArguments,
     RewardParameters,
+    beta_with_mean,
     check_default_reward_parameter,
 )
 from jaxmdp.render import register_renderer
@@ -94,7 +94,7 @@ class SimpleGridFamily(Family):
         mu_o, mu_s = self.optimal_mean_reward, self.sub_optimal_mean_reward
         check_default_reward_parameter("optimal_mean_reward", mu_o, 1)
         check_default_reward_parameter("sub_optimal_mean_reward", mu_s, 1)
-        return Beta(v, v * (1 / mu_o - 1)), Beta(v, v * (10 / mu_s - 1)), Beta(v, v * (1 / mu_s - 1))
+        return beta_with_mean(v, mu_o), beta_with_mean(v, mu_s, 10), beta_with_mean(v, mu_s)
 
     def max_states(self) -> int:
         """The ``size^2`` cells."""

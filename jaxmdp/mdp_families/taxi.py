@@ -45,11 +45,11 @@ import numpy as np
 from jaxmdp.mdp import MDP, MDPInfo
 from jaxmdp.mdp_families.construction import Family, family_builder, integer_parameter
 from jaxmdp.mdp_families.distributions import (
-    Beta,
     Distribution,
     PointMass,
     RewardArguments,
     RewardParameters,
+    beta_with_mean,
     check_default_reward_parameter,
 )
 from jaxmdp.render import register_renderer
@@ -191,7 +191,7 @@ class TaxiFamily(Family):
         mu_s, mu_o = self.sub_optimal_mean_reward, self.optimal_mean_reward
         check_default_reward_parameter("sub_optimal_mean_reward", mu_s, 1)
         check_default_reward_parameter("optimal_mean_reward", mu_o, 1)
-        return Beta(v, v * (1 / mu_s - 1)), Beta(v, v * (1 / mu_o - 1)), Beta(v, v * (10 / mu_s - 1))
+        return beta_with_mean(v, mu_s), beta_with_mean(v, mu_o), beta_with_mean(v, mu_s, 10)
 
     def max_states(self) -> int:
         """The free cells (:func:`taxi_free_cells`), times the passenger's ``n_locations`` places or the taxi, times
