@@ -56,6 +56,8 @@ _CHILD = textwrap.dedent(
     out = {"import_s": time.perf_counter() - t0, "cases": {}}
     far = json.loads(sys.argv[1])
 
+    # Peak resident memory is the address space's high-water mark (VmHWM), not getrusage's ru_maxrss: Linux carries
+    # ru_maxrss across exec, so a child started from a large pytest worker would report the worker's peak.
     def status(key):
         for line in open("/proc/self/status"):
             k, _, v = line.partition(":")
@@ -102,7 +104,7 @@ _CHILD = textwrap.dedent(
     construction.Family.check_memory = spy
     before = status("VmRSS")
     deep = jaxmdp.make("DeepSea", episodic=True, seed=0, size=45)
-    out["calibration"] = dict(peak=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 - before,
+    out["calibration"] = dict(peak=status("VmHWM") - before,
                               estimate=need["bytes"])
     construction.Family.check_memory = check
 
@@ -134,7 +136,7 @@ _CHILD = textwrap.dedent(
     attempt("ok make", lambda: jaxmdp.make("MiniGridEmpty", episodic=True, seed=0, size=6))
     attempt("ok stack", lambda: jaxmdp.stack([small, small]))
     attempt("ok emission_table", lambda: jaxmdp.emission_table(small, "one_hot"))
-    out["maxrss"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    out["maxrss"] = status("VmHWM")
     print(json.dumps(out))
     """
 )
