@@ -1,4 +1,5 @@
-"""Pictures of an MDP: its graph, a policy's Markov chain, a value function and a run's state-visitation counts.
+"""Pictures of an MDP: its graph, a policy's Markov chain, a value function and a run's state-visitation counts; and
+a run's regret curves (:func:`draw_regret_curves`).
 
 Every function draws on a given ``matplotlib`` axes, or on a new :class:`matplotlib.figure.Figure` (never pyplot, so
 no process-wide state changes), and returns the figure; ``fig.savefig(path)`` writes it. This module imports
@@ -23,7 +24,7 @@ probability and their colour the expected reward of the transition, ``E[r | s, s
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Hashable, Mapping, Sequence
 from typing import Any
 
 import jax
@@ -39,7 +40,16 @@ from jaxmdp.mdp import MDP
 from jaxmdp.occupancy import state_distribution
 from jaxmdp.values import optimal_policy
 
-__all__ = ["MIN_EDGE_PROBABILITY", "layout", "draw_mdp", "draw_markov_chain", "draw_values", "draw_visits"]
+__all__ = [
+    "MIN_EDGE_PROBABILITY",
+    "MEMBER_KEYS",
+    "layout",
+    "draw_mdp",
+    "draw_markov_chain",
+    "draw_values",
+    "draw_visits",
+    "draw_regret_curves",
+]
 
 #: Transitions less likely than this are not drawn.
 MIN_EDGE_PROBABILITY = 1e-3
@@ -197,6 +207,145 @@ def draw_visits(mdp: MDP, counts: Any, ax: Axes | None = None) -> Figure:
     _draw(ax, mdp, W, None, node_values=c, node_label="visits", title=_title(mdp, "state visits"),
           node_cmap="magma_r", log_nodes=c.max() > 100 * max(c[c > 0].min(initial=c.max()), 1.0))
     return fig
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Runs
+# ---------------------------------------------------------------------------------------------------------------
+
+#: What identifies a member of a run: its result's agent, its MDP's label, its hyperparameter set's index and its seed.
+MEMBER_KEYS = ("agent", "mdp", "hparams", "seed")
+
+
+def draw_regret_curves(
+    results: Any,
+    by: str | Sequence[str] | Callable[[Any, int], Hashable] | None = None,
+    *,
+    column: str = "cumulative_regret",
+    band: str | tuple[float, float] = "sem",
+    ax: Axes | None = None,
+) -> Figure:
+    """Curves of a run's members: ``column`` (a CSV column, :meth:`jaxmdp.experiment.records.RunResult.column`;
+    default the cumulative regret) against the steps, one line per group of members, the mean over the group's members
+    with a band around it. ``results`` is a :class:`jaxmdp.experiment.records.RunResult` or a sequence of them (e.g.
+    one per agent), read through its ``column``, ``steps``, ``grid`` and ``agent`` only (this module does not import
+    the experiment layer).
+
+    ``by`` groups the members: names from :data:`MEMBER_KEYS` or fields of the agent's hyperparameters (e.g.
+    ``"mdp"``, ``("agent", "mdp")``, ``"learning_rate"``), or a function ``(result, member) -> key``. The default is
+    every key of :data:`MEMBER_KEYS` but the seed, so each group is one (agent, MDP, hyperparameter set) over its
+    seeds. A line's label names the group by the keys whose values differ between groups (an MDP by its family
+    name, ``"RiverSwim"``, when that tells the figure's MDPs apart, else by its full label).
+
+    ``band``: ``"sem"``, the mean ± the standard error of the mean over the group, ``s / sqrt(n)`` with the sample
+    standard deviation ``s`` (``ddof = 1``; no band for a group of one member); ``"std"``, the mean ± ``s``; or
+    ``(q_lo, q_hi)``, the group's ``q_lo`` and ``q_hi`` quantiles at every record (numpy's linear interpolation), e.g.
+    ``(0.25, 0.75)``. The legend's title states which. Groups merged from several results must share their record
+    steps.
+    """
+    runs = [results] if not isinstance(results, (list, tuple)) else list(results)
+    if not runs or not all(hasattr(r, "column") and hasattr(r, "grid") for r in runs):
+        raise ValueError("results must be a RunResult or a non-empty sequence of RunResults")
+    band_name = _band_name(band)
+    names, key_of = _member_key(by, runs[0])
+    groups: dict[Hashable, list[tuple[int, int]]] = {}
+    for i, r in enumerate(runs):
+        for b in range(r.grid.n_members):
+            groups.setdefault(key_of(r, b), []).append((i, b))
+    try:
+        cols = [np.asarray(r.column(column), np.float64) for r in runs]
+    except KeyError:
+        raise ValueError(f"column must be a column of the run's CSV (e.g. 'cumulative_regret'); got {column!r}")
+    varying = [k for k in range(len(names)) if len({g[k] for g in groups}) > 1] or list(range(len(names)))
+    short = _short_labels({g[k] for g in groups for k in range(len(names)) if names[k] == "mdp"})
+    if ax is None:
+        fig = Figure(figsize=(6.0, 4.0), layout="constrained")
+        ax = fig.add_subplot()
+    for key, members in groups.items():
+        steps = np.asarray(runs[members[0][0]].steps)
+        if any(not np.array_equal(runs[i].steps, steps) for i, _ in members):
+            raise ValueError(f"the members of group {key!r} come from results with different record steps; group by "
+                             "'agent' (or by a key that separates them)")
+        y = np.stack([cols[i][:, b] for i, b in members], axis=1)  # [R, n]
+        mean, lo, hi = _band(y, band)
+        label = ", ".join(str(key[k]) if names[k] == "agent" else
+                          f"mdp={short[key[k]]}" if names[k] == "mdp" else f"{names[k]}={key[k]}" for k in varying)
+        (line,) = ax.plot(steps, mean, label=label)
+        if lo is not None:
+            ax.fill_between(steps, lo, hi, color=line.get_color(), alpha=0.2, linewidth=0)
+    ax.set_xlabel("steps")
+    ax.set_ylabel(column.replace("_", " "))
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, title=f"mean over members; band: {band_name}", title_fontsize=7)
+    return ax.figure
+
+
+def _short_labels(labels: set[str]) -> dict[str, str]:
+    """Each MDP label cut at its first ``(`` (``RiverSwim(seed=0,...)`` -> ``RiverSwim``) when the cut labels are
+    still distinct, else the labels themselves."""
+    cut = {label: label.split("(")[0] for label in labels}
+    return cut if len(set(cut.values())) == len(cut) else {label: label for label in labels}
+
+
+def _band_name(band: Any) -> str:
+    if isinstance(band, str) and band in ("sem", "std"):
+        return {"sem": "± standard error", "std": "± standard deviation"}[band]
+    if (isinstance(band, (tuple, list)) and len(band) == 2 and all(isinstance(q, (int, float)) for q in band)
+            and 0.0 <= band[0] < band[1] <= 1.0):
+        return f"{band[0]:g}-{band[1]:g} quantiles"
+    raise ValueError(f"band must be 'sem', 'std' or a pair of quantile levels 0 <= q_lo < q_hi <= 1; got {band!r}")
+
+
+def _band(y: np.ndarray, band: Any) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """Mean over the members (``y[R, n]``) and the band's lower and upper curves (None for a one-member sem/std)."""
+    mean = y.mean(axis=1)
+    if isinstance(band, str):
+        n = y.shape[1]
+        if n < 2:
+            return mean, None, None
+        half = y.std(axis=1, ddof=1) / (np.sqrt(n) if band == "sem" else 1.0)
+        return mean, mean - half, mean + half
+    lo, hi = np.quantile(y, [band[0], band[1]], axis=1)
+    return mean, lo, hi
+
+
+def _member_key(by: Any, run: Any) -> tuple[tuple[str, ...], Callable[[Any, int], tuple]]:
+    """The key names and the function ``(result, member) -> key tuple`` of ``by``."""
+    if callable(by):
+        return ("group",), lambda r, b: (by(r, b),)
+    if by is None:
+        names = tuple(k for k in MEMBER_KEYS if k != "seed")
+    else:
+        names = (by,) if isinstance(by, str) else tuple(by) if isinstance(by, (list, tuple)) else ()
+    if not names or not all(isinstance(n, str) for n in names):
+        raise ValueError(f"by must be a key name, a sequence of them or a function (result, member) -> key; got {by!r}")
+    for n in names:
+        if n not in MEMBER_KEYS and _hparam(run.grid.hparams, n) is None:
+            raise ValueError(f"by must name keys of {MEMBER_KEYS} or hyperparameter fields; got {n!r}")
+
+    def one(r: Any, b: int, n: str) -> Hashable:
+        g = r.grid
+        if n == "agent":
+            return r.agent
+        if n == "mdp":
+            return g.mdp_labels[int(g.mdp_index[b])]
+        if n == "hparams":
+            return int(g.hparams_index[b])
+        if n == "seed":
+            return int(g.seeds[b])
+        v = _hparam(g.hparams, n)
+        if v is None:
+            raise ValueError(f"by names the hyperparameter {n!r}, which the agent {r.agent!r} does not have")
+        return np.asarray(v)[b].item()
+
+    return names, lambda r, b: tuple(one(r, b, n) for n in names)
+
+
+def _hparam(hparams: Any, name: str) -> Any:
+    """The per-member values ``[B]`` of the hyperparameter ``name`` (None if the agent has no scalar one of that
+    name)."""
+    v = hparams.get(name) if isinstance(hparams, Mapping) else getattr(hparams, name, None)
+    return v if v is not None and np.ndim(v) == 1 else None
 
 
 # ---------------------------------------------------------------------------------------------------------------

@@ -16,47 +16,35 @@ from hardness.analysis import measure_evaluation as me
 from hardness.analysis import scenarios, sweep_cli
 
 
-
-def test_rankdata_mid_ranks():
-    np.testing.assert_array_equal(me.rankdata([10, 20, 20, 5]), [2, 3.5, 3.5, 1])
-    np.testing.assert_array_equal(me.rankdata([3, 3, 3]), [2, 2, 2])
+def _point(x, y, seeds=None):
+    """The point estimates ``(rho, tau_b)`` that :func:`me.correlations` reports for measure ``x`` against regret
+    ``y`` (one row per entry; every row its own seed unless ``seeds`` is given)."""
+    seeds = range(len(x)) if seeds is None else seeds
+    rows = [dict(seed=s, m=float(a), agent_normalized_cumulative_regret=float(b)) for s, a, b in zip(seeds, x, y)]
+    c = me.correlations(rows, ["m"], n_boot=1)[0]
+    return c.spearman, c.kendall
 
 
 def test_spearman_hand_worked():
-    # y's ranks [1, 2, 3.5, 5, 3.5]; centred x ranks [-2..2], centred y ranks [-2, -1, .5, 2, .5]:
+    # y's ranks [1, 2, 3.5, 5, 3.5] (mid-ranks); centred x ranks [-2..2], centred y ranks [-2, -1, .5, 2, .5]:
     # rho = 8 / sqrt(10 * 9.5).
-    assert math.isclose(me.spearman([1, 2, 3, 4, 5], [5, 6, 7, 8, 7]), 8 / math.sqrt(95), rel_tol=1e-12)
-    assert me.spearman([1, 2, 3], [30, 20, 10]) == -1.0
-    assert me.spearman([1, 2, 3], [1, 4, 9]) == 1.0  # any increasing map
-    assert math.isnan(me.spearman([1, 1, 1], [1, 2, 3]))
+    assert math.isclose(_point([1, 2, 3, 4, 5], [5, 6, 7, 8, 7])[0], 8 / math.sqrt(95), rel_tol=1e-12)
+    assert _point([1, 2, 3], [30, 20, 10])[0] == pytest.approx(-1.0, abs=1e-15)
+    assert _point([1, 2, 3], [1, 4, 9])[0] == pytest.approx(1.0, abs=1e-15)  # any increasing map
+    assert all(math.isnan(v) for v in _point([1, 1, 1], [1, 2, 3]))  # a constant input has no ranking
 
 
 def test_kendall_tau_b_hand_worked():
     # 10 pairs: 8 concordant, 1 discordant ((8, 7)), 1 tied in y ((7, 7)): tau_b = 7 / sqrt(10 * 9).
-    assert math.isclose(me.kendall_tau_b([1, 2, 3, 4, 5], [5, 6, 7, 8, 7]), 7 / math.sqrt(90), rel_tol=1e-12)
+    assert math.isclose(_point([1, 2, 3, 4, 5], [5, 6, 7, 8, 7])[1], 7 / math.sqrt(90), rel_tol=1e-12)
     # Ties in both: 1 concordant, 1 discordant, 2 tied in x, 2 tied in y: 0 / sqrt(4 * 4).
-    assert me.kendall_tau_b([1, 1, 2, 2], [1, 2, 1, 2]) == 0.0
+    assert _point([1, 1, 2, 2], [1, 2, 1, 2])[1] == pytest.approx(0.0, abs=1e-15)
     # x = [1, 2, 3, 4], y = [1, 3, 2, 4]: 5 concordant, 1 discordant, no ties: 4 / 6.
-    assert math.isclose(me.kendall_tau_b([1, 2, 3, 4], [1, 3, 2, 4]), 4 / 6, rel_tol=1e-12)
-    assert me.kendall_tau_b([3, 2, 1], [1, 2, 3]) == -1.0
-    assert math.isnan(me.kendall_tau_b([2, 2], [1, 2]))
-
-
-def test_rank_correlations_match_scipy_on_tied_random_data():
-    # Independent computation: scipy.stats (rankdata 'average', spearmanr, kendalltau variant 'b') on small integer
-    # samples, so that most draws hold ties in x, in y and in both.
-    stats = pytest.importorskip("scipy.stats")
-    rng = np.random.default_rng(7)
-    for n in (2, 3, 5, 8, 13, 40):
-        for _ in range(20):
-            x, y = rng.integers(0, 4, n).astype(float), rng.integers(0, 3, n).astype(float)
-            np.testing.assert_array_equal(me.rankdata(x), stats.rankdata(x))
-            if np.ptp(x) == 0 or np.ptp(y) == 0:
-                assert math.isnan(me.spearman(x, y)) and math.isnan(me.kendall_tau_b(x, y))
-                continue
-            assert math.isclose(me.spearman(x, y), stats.spearmanr(x, y).statistic, rel_tol=1e-12, abs_tol=1e-12)
-            assert math.isclose(me.kendall_tau_b(x, y), stats.kendalltau(x, y, variant="b").statistic,
-                                rel_tol=1e-12, abs_tol=1e-12)
+    assert math.isclose(_point([1, 2, 3, 4], [1, 3, 2, 4])[1], 4 / 6, rel_tol=1e-12)
+    assert _point([3, 2, 1], [1, 2, 3])[1] == pytest.approx(-1.0, abs=1e-15)
+    assert math.isnan(_point([2, 2], [1, 2])[1])
+    # One finite row: no pair, no correlation.
+    assert all(math.isnan(v) for v in _point([1.0, np.inf], [1, 2]))
 
 
 def _rows(rng, n_seeds=4, n_values=5):
@@ -72,16 +60,73 @@ def _rows(rng, n_seeds=4, n_values=5):
 def test_correlations_and_bootstrap_over_seeds():
     rows = _rows(np.random.default_rng(0))
     res = {c.measure: c for c in me.correlations(rows, ["good", "bad", "noise", "some_inf"], n_boot=200)}
-    assert res["good"].spearman == res["good"].kendall == 1.0
-    assert res["good"].spearman_ci == (1.0, 1.0) and res["good"].kendall_ci == (1.0, 1.0)
-    assert res["bad"].kendall == -1.0 and res["bad"].kendall_ci == (-1.0, -1.0)
+    one = pytest.approx(1.0, abs=1e-12)  # scipy's rho of identical rankings is 1 up to rounding
+    assert res["good"].spearman == one and res["good"].kendall == one
+    assert res["good"].spearman_ci == (one, one) and res["good"].kendall_ci == (one, one)
+    minus_one = pytest.approx(-1.0, abs=1e-12)
+    assert res["bad"].kendall == minus_one and res["bad"].kendall_ci == (minus_one, minus_one)
     lo, hi = res["noise"].spearman_ci
     assert lo <= res["noise"].spearman <= hi and lo < hi
-    assert res["some_inf"].n_rows == 16 and res["some_inf"].spearman == 1.0  # infinite rows left out
+    assert res["some_inf"].n_rows == 16 and res["some_inf"].spearman == one  # infinite rows left out
     again = me.correlations(rows, ["noise"], n_boot=200)[0]
     assert again.spearman_ci == res["noise"].spearman_ci  # same seed, same intervals
     with pytest.raises(ValueError, match="lack the columns"):
         me.correlations(rows, ["nope"])
+
+
+def _mid_ranks(v):
+    """Ranks 1..n, ties sharing the mean of the ranks they span, by counting."""
+    v = list(v)
+    return [sum(u < a for u in v) + (sum(u == a for u in v) + 1) / 2 for a in v]
+
+
+def _rho_by_hand(x, y):
+    rx, ry = _mid_ranks(x), _mid_ranks(y)
+    if len(rx) < 2:
+        return math.nan
+    mx, my = sum(rx) / len(rx), sum(ry) / len(ry)
+    sxy = sum((a - mx) * (b - my) for a, b in zip(rx, ry))
+    sxx, syy = sum((a - mx) ** 2 for a in rx), sum((b - my) ** 2 for b in ry)
+    return sxy / math.sqrt(sxx * syy) if sxx > 0 and syy > 0 else math.nan
+
+
+def _tau_b_by_hand(x, y):
+    pairs = [(i, j) for i in range(len(x)) for j in range(i + 1, len(x))]
+    sign = lambda d: (d > 0) - (d < 0)  # noqa: E731
+    s = sum(sign(x[i] - x[j]) * sign(y[i] - y[j]) for i, j in pairs)
+    tx, ty = sum(x[i] == x[j] for i, j in pairs), sum(y[i] == y[j] for i, j in pairs)
+    denom = math.sqrt((len(pairs) - tx) * (len(pairs) - ty))
+    return s / denom if denom > 0 else math.nan
+
+
+def test_bootstrap_intervals_equal_a_brute_force_bootstrap_over_seeds():
+    # The documented draw (default_rng(seed).integers(0, n_seeds, (n_boot, n_seeds)) over the sorted seeds), the rows
+    # of the drawn seeds pooled, non-finite rows left out, the 2.5% and 97.5% percentiles (numpy's linear) of the
+    # finite resampled correlations: computed here with hand-written ranks and pair counts.
+    rng = np.random.default_rng(4)
+    rows = []
+    for s in (3, 8, 11, 20):
+        for v in range(4):
+            rows.append(dict(seed=s, agent_normalized_cumulative_regret=float(rng.integers(0, 3)),
+                             m=float(rng.integers(0, 4)) if (s, v) != (8, 2) else math.inf))
+    n_boot = 60
+    c = me.correlations(rows, ["m"], n_boot=n_boot, seed=5)[0]
+    draws = np.random.default_rng(5).integers(0, 4, size=(n_boot, 4))
+    seeds = [3, 8, 11, 20]
+    rho, tau = [], []
+    for d in draws:
+        pooled = [r for i in d for r in rows if r["seed"] == seeds[i] and math.isfinite(r["m"])]
+        x, y = [r["m"] for r in pooled], [r["agent_normalized_cumulative_regret"] for r in pooled]
+        rho.append(_rho_by_hand(x, y))
+        tau.append(_tau_b_by_hand(x, y))
+    for got, boot in ((c.spearman_ci, rho), (c.kendall_ci, tau)):
+        finite = [b for b in boot if math.isfinite(b)]
+        np.testing.assert_allclose(got, np.percentile(finite, [2.5, 97.5]), rtol=1e-12, atol=1e-12)
+    finite_rows = [r for r in rows if math.isfinite(r["m"])]
+    x, y = [r["m"] for r in finite_rows], [r["agent_normalized_cumulative_regret"] for r in finite_rows]
+    assert c.n_rows == 15
+    assert math.isclose(c.spearman, _rho_by_hand(x, y), rel_tol=1e-12)
+    assert math.isclose(c.kendall, _tau_b_by_hand(x, y), rel_tol=1e-12)
 
 
 def test_extra_measures_rebuild_the_sweep_mdps():

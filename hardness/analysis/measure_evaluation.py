@@ -10,10 +10,12 @@ agent's regret), the rank correlation between each measure and the regret, poole
   ``(n_c - n_d) / sqrt((n_0 - n_x)(n_0 - n_y))`` over all pairs, ``n_c``/``n_d`` the concordant/discordant pairs,
   ``n_0 = n(n-1)/2`` and ``n_x``, ``n_y`` the pairs tied in ``x``, in ``y``.
 
-Both are ``+1`` when the measure orders the MDPs exactly as the regret does. Their 95% intervals are percentile
-bootstrap intervals over seeds: each resample draws the sweep's seeds with replacement and pools the rows of the drawn
-seeds (a seed's MDPs share their construction randomness, so seeds are the independent unit, as in the scenario
-figures). Rows where a measure is not finite (an infinite diameter, a chain that never mixes) are left out of that
+Both are computed by scipy (``scipy.stats.spearmanr``, ``scipy.stats.kendalltau(..., variant="b")``), a dependency
+already, rather than by code of ours. Both are ``+1`` when the measure orders the MDPs exactly as the regret does.
+Their 95% intervals are percentile bootstrap intervals over seeds: each resample draws the sweep's seeds with
+replacement and pools the rows of the drawn seeds (a seed's MDPs share their construction randomness, so seeds are the
+independent unit, as in the scenario figures; ``scipy.stats.bootstrap`` resamples single observations, not such
+clusters, hence the numpy draw). Rows where a measure is not finite (an infinite diameter, a chain that never mixes) are left out of that
 measure's correlation. A constant input has no ranking: its correlation is NaN.
 
 Beside the sweep's three measures, :func:`extra_measures` computes the two measures of Table 1 that the paper could
@@ -28,6 +30,7 @@ import ast
 import csv
 import dataclasses
 import json
+import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -36,6 +39,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from matplotlib.figure import Figure
+from scipy import stats
 
 from hardness.analysis import scenarios
 from hardness.mismatch import distribution_mismatch
@@ -46,9 +50,6 @@ from jaxmdp._checks import check_int
 __all__ = [
     "REGRET_COLUMN",
     "EXTRA_MEASURES",
-    "rankdata",
-    "spearman",
-    "kendall_tau_b",
     "Correlation",
     "read_sweep",
     "extra_measures",
@@ -69,37 +70,16 @@ EXTRA_MEASURES = ("mixing_time", "distribution_mismatch")
 # ---------------------------------------------------------------------------------------------------------------
 
 
-def rankdata(x: Sequence[float]) -> np.ndarray:
-    """Mid-ranks ``1..n`` of ``x`` (tied entries share the mean of the ranks they span)."""
-    _, inverse, counts = np.unique(np.asarray(x, np.float64), return_inverse=True, return_counts=True)
-    last = np.cumsum(counts)  # 1-based rank of each distinct value's last copy
-    return (last - 0.5 * (counts - 1))[inverse].astype(np.float64)
-
-
-def spearman(x: Sequence[float], y: Sequence[float]) -> float:
-    """Spearman's ``rho``: Pearson's correlation of the mid-ranks; NaN when either input is constant or has fewer
-    than two entries."""
-    rx, ry = rankdata(x), rankdata(y)
-    if len(rx) < 2:
-        return float("nan")
-    rx, ry = rx - rx.mean(), ry - ry.mean()
-    denom = np.sqrt((rx * rx).sum() * (ry * ry).sum())
-    return float((rx * ry).sum() / denom) if denom > 0 else float("nan")
-
-
-def kendall_tau_b(x: Sequence[float], y: Sequence[float]) -> float:
-    """Kendall's ``tau_b`` (module docstring), by comparing all pairs (``O(n^2)``, fine for sweep tables); NaN when
-    either input is constant."""
-    x, y = np.asarray(x, np.float64), np.asarray(y, np.float64)
-    n = len(x)
-    if n < 2:
-        return float("nan")
-    iu = np.triu_indices(n, k=1)
-    dx = np.sign(x[:, None] - x[None, :])[iu]
-    dy = np.sign(y[:, None] - y[None, :])[iu]
-    n0 = len(dx)
-    denom = np.sqrt(float(n0 - np.sum(dx == 0)) * float(n0 - np.sum(dy == 0)))
-    return float(np.sum(dx * dy) / denom) if denom > 0 else float("nan")
+def _rank_correlations(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """``(Spearman's rho, Kendall's tau_b)`` of ``x`` and ``y`` (scipy.stats, module docstring); NaN for fewer than
+    two entries or a constant input (scipy's ``ConstantInputWarning`` is expected there and silenced)."""
+    if len(x) < 2:
+        return float("nan"), float("nan")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", stats.ConstantInputWarning)
+        rho = stats.spearmanr(x, y)[0]
+        tau = stats.kendalltau(x, y, variant="b")[0]
+    return float(rho), float(tau)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -141,17 +121,18 @@ def correlations(
     for m in measures:
         x = np.asarray([r[m] for r in rows], np.float64)
         ok = np.isfinite(x) & np.isfinite(y)
-        boot_s, boot_k = [], []
+        boot = []
         for d in draws:
             idx = np.concatenate([by_seed[i] for i in d])
             idx = idx[ok[idx]]
-            boot_s.append(spearman(x[idx], y[idx]))
-            boot_k.append(kendall_tau_b(x[idx], y[idx]))
+            boot.append(_rank_correlations(x[idx], y[idx]))
+        rho, tau = _rank_correlations(x[ok], y[ok])
+        boot_s, boot_k = zip(*boot)
         out.append(Correlation(
             measure=m,
-            spearman=spearman(x[ok], y[ok]),
+            spearman=rho,
             spearman_ci=_percentiles(boot_s),
-            kendall=kendall_tau_b(x[ok], y[ok]),
+            kendall=tau,
             kendall_ci=_percentiles(boot_k),
             n_rows=int(ok.sum()),
         ))

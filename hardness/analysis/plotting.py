@@ -2,7 +2,10 @@
 
 One panel per scenario: every normalised measure against the swept parameter, as the mean over seeds with its 95%
 percentile-bootstrap confidence band over seeds (the paper: "95% bootstrapped confidence intervals over twelve
-random seeds"). The bootstrap is numpy with an explicit seed, so a figure is reproducible. Figures are built on
+random seeds"). The bootstrap is numpy with an explicit seed, so a figure is reproducible. It is the percentile
+bootstrap of ``scipy.stats.bootstrap(..., method="percentile")``, written out because a sweep has non-finite entries
+(an infinite diameter) and may have a single seed, where scipy's gives NaN for the whole column or refuses; here the
+non-finite entries are left out of each resample's mean. Figures are built on
 :class:`matplotlib.figure.Figure` directly, so plotting touches neither pyplot's global figures nor the backend.
 
 Curves are keyed by name, so an extra measure (e.g. the normalised regret of a tuned near-optimal agent) is one more

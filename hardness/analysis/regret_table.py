@@ -53,7 +53,7 @@ from typing import Any
 
 import jax
 import numpy as np
-from scipy import stats  # the Student-t quantile (jax and numpy have none)
+from scipy import stats  # the Student-t quantile and the standard error of the mean
 
 import agents
 import jaxmdp
@@ -119,7 +119,7 @@ def mean_ci(x: np.ndarray, level: float = 0.95) -> tuple[float, float]:
     n = x.size
     if n < 2:
         return float(x.mean()), float("nan")
-    half = stats.t.ppf(0.5 + level / 2, n - 1) * x.std(ddof=1) / math.sqrt(n)
+    half = stats.t.ppf(0.5 + level / 2, n - 1) * stats.sem(x)  # sem: s / sqrt(n), s with ddof = 1
     return float(x.mean()), float(half)
 
 
