@@ -22,10 +22,12 @@ import numpy as np
 from jaxmdp._checks import check_int
 from jaxmdp.experiment.agent_interface import Agent
 
-__all__ = ["SEARCH_SPACES", "CHOICE_SPACES", "search_space", "sample_candidates", "sample_candidate_groups"]
+__all__ = ["SEARCH_SPACES", "CHOICE_SPACES", "search_space", "check_space", "sample_candidates",
+           "sample_candidate_groups"]
 
-#: Agent name -> ``{field: (low, high)}``, uniform ranges of docs/agents.md.
-SEARCH_SPACES: Mapping[str, Mapping[str, tuple[float, float]]] = MappingProxyType(
+#: Agent name -> ``{field: (low, high)}``: the shipped agents' uniform ranges of docs/agents.md, then those given to
+#: :func:`agents.register` (a read-only view of the registry's spaces).
+_RANGES: dict[str, Mapping[str, tuple[float, float]]] = dict(
     {
         "psrl_episodic": MappingProxyType({"prior_mean": (0.001, 2.0), "transition_prior": (0.001, 2.0)}),
         "q_learning_episodic": MappingProxyType(
@@ -46,6 +48,8 @@ SEARCH_SPACES: Mapping[str, Mapping[str, tuple[float, float]]] = MappingProxyTyp
         ),
     }
 )
+SEARCH_SPACES: Mapping[str, Mapping[str, tuple[float, float]]] = MappingProxyType(_RANGES)
+_SHIPPED_RANGES = frozenset(_RANGES)
 
 _Q_NETWORK_CHOICES = {
     "network_width": (64, 128, 256),
@@ -89,6 +93,50 @@ def search_space(agent: Agent | str) -> Mapping[str, tuple[float, ...]]:
     raise ValueError(
         f"agent {name!r} has no search space; agents with one: {', '.join([*SEARCH_SPACES, *CHOICE_SPACES])}"
     )
+
+
+def check_space(agent: Agent, space: Mapping[str, Any]) -> Mapping[str, tuple[float, float]]:
+    """``space`` checked as a search space of ``agent`` (the tuner's format, :data:`SEARCH_SPACES`) and returned
+    read-only: a non-empty mapping from fields of ``agent.default_hparams`` that are numeric scalar leaves (not
+    static) to ``(low, high)`` with finite ``low < high``. ``ValueError`` naming the field otherwise."""
+    if not isinstance(space, Mapping) or not space:
+        raise ValueError(f"search_space of {agent.name!r} must be a non-empty mapping {{field: (low, high)}}; got "
+                         f"{space!r}")
+    default = agent.default_hparams
+    if not dataclasses.is_dataclass(default):
+        raise ValueError(f"search_space of {agent.name!r}: its default_hparams must be a flax.struct dataclass")
+    fields = {f.name for f in dataclasses.fields(default)}
+    static = _static_fields(default)
+    out = {}
+    for field, bounds in space.items():
+        if field not in fields:
+            raise ValueError(f"search_space of {agent.name!r} names {field!r}, not a field of its hyperparameters "
+                             f"({', '.join(sorted(fields))})")
+        if field in static:
+            raise ValueError(f"search_space of {agent.name!r}: field {field!r} is static (it shapes arrays); the tuner "
+                             "searches numeric leaves only")
+        if np.ndim(getattr(default, field)) != 0 or not np.issubdtype(np.asarray(getattr(default, field)).dtype,
+                                                                      np.number):
+            raise ValueError(f"search_space of {agent.name!r}: field {field!r} must hold a numeric scalar")
+        try:
+            low, high = (float(b) for b in bounds)
+        except (TypeError, ValueError):
+            raise ValueError(f"search_space of {agent.name!r}: {field!r} must map to (low, high); got "
+                             f"{bounds!r}") from None
+        if not (np.isfinite(low) and np.isfinite(high) and low < high):
+            raise ValueError(f"search_space of {agent.name!r}: {field!r} needs finite low < high; got {bounds!r}")
+        out[field] = (low, high)
+    return MappingProxyType(out)
+
+
+def _set_space(name: str, space: Mapping[str, tuple[float, float]] | None) -> None:
+    """Set (or, with ``None``, remove) the search space of a registered agent (:func:`agents.register`)."""
+    if name in _SHIPPED_RANGES or name in CHOICE_SPACES:
+        raise ValueError(f"the search space of the shipped agent {name!r} is fixed")
+    if space is None:
+        _RANGES.pop(name, None)
+    else:
+        _RANGES[name] = space
 
 
 def _static_fields(hparams: Any) -> set[str]:

@@ -24,7 +24,8 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 NOTEBOOK_DIR = ROOT / "notebooks"
 NAMES = (
-    "01_mdps_and_hardness", "02_agents_and_regret", "03_blockmdps_and_deep_agents", "04_pictures_and_new_measures"
+    "01_mdps_and_hardness", "02_agents_and_regret", "03_blockmdps_and_deep_agents", "04_pictures_and_new_measures",
+    "06_benchmark_your_agent",
 )
 TIMEOUT_S = 600
 #: Source lines replaced before a notebook runs in the test: ``(full size, small)``. Each must occur exactly once, so

@@ -4,8 +4,10 @@
   tuned by the reference for its own update rules, several of which differ from ours (the ``[quirk]`` entries of
   agents.md), so they are not "tuned" for this code; reference mode (``variant="colosseum"`` of :func:`hparams_for`,
   ``--agent-variant colosseum``) runs them with the rules they were tuned for.
-* ``"tuned"``: :data:`TUNED_FILE`, written by ``jaxmdp-benchmark tune`` (:mod:`hardness.benchmark.search`) with its
-  provenance (budget, seeds, commit, date); any other path: a file of the same format.
+* ``"tuned"``: :data:`TUNED_FILE`, the shipped file (package data, read only: ``jaxmdp-benchmark tune`` writes into
+  its output folder unless told this path, :mod:`hardness.benchmark.search`), each entry with its provenance (budget,
+  seeds, commit, date); any other path: a file of the same format (``tune``'s output, which starts as a copy of the
+  shipped file, so that it also holds the shipped agents' values).
 * :func:`reference_candidates`: random-search candidates drawn as the reference draws them (agents.md §8): sample
   ``i`` of a search with seed ``sigma`` uses a generator seeded with ``sigma + i`` (here a private
   ``numpy.random.RandomState``, the same stream as the reference's seeded global one), draws every field of the
@@ -13,7 +15,8 @@
 
 Agents without a search space (the random agents) have no tunable hyperparameters: every source gives their
 defaults. The deep agents have search spaces but the reference ships no tuned values for them (agents.md §7): unless
-the shipped file holds some, ``"tuned"`` gives their defaults too (bsuite's own, as ``"reference"``).
+the shipped file holds some, ``"tuned"`` gives their defaults too (bsuite's own, as ``"reference"``), and so it does
+for an agent added with :func:`agents.register` (tune it and pass the file written by ``tune`` instead).
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ __all__ = [
     "load_tuned",
     "hparams_for",
     "fit_static_sizes",
+    "source_of",
 ]
 
 #: The shipped tuned hyperparameters (written by ``jaxmdp-benchmark tune``).
@@ -95,14 +99,25 @@ def hparams_for(name: str, source: str | os.PathLike = "tuned", variant: Variant
         return agent.default_hparams
     path = TUNED_FILE if str(source) == "tuned" else Path(source)
     tuned = load_tuned(path)
-    if name not in tuned and str(source) == "tuned" and agent.observation == "emission":
-        return agent.default_hparams  # deep agents: no tuned values shipped (module docstring)
+    if name not in tuned and str(source) == "tuned" and (agent.observation == "emission"
+                                                         or name not in agent_registry.SHIPPED):
+        return agent.default_hparams  # deep and registered agents: no tuned values shipped (module docstring)
     if name not in tuned:
         raise ValueError(
             f"hparams file {path} has no values for {name!r} (it has {sorted(tuned)}); tune it with "
             f"jaxmdp-benchmark tune --agents {name}, or use --hparams reference"
         )
     return with_values(agent, tuned[name]["values"])
+
+
+def source_of(name: str, source: str | os.PathLike = "tuned") -> str:
+    """Where :func:`hparams_for` takes the hyperparameters of ``name`` from, in words (for a report)."""
+    if str(source) == "reference" or name not in SEARCH_SPACES:
+        return "its defaults" if name not in agent_registry.SHIPPED else "the reference's cached values"
+    path = TUNED_FILE if str(source) == "tuned" else Path(source)
+    if str(source) == "tuned" and name not in load_tuned(path):
+        return "its defaults (not in the shipped tuned file)"
+    return "the shipped tuned file" if str(source) == "tuned" else f"the tuned file {path}"
 
 
 def fit_static_sizes(name: str, hparams: Sequence[Any], mdps: Sequence[MDP]) -> list[Any]:

@@ -18,12 +18,22 @@ Written by :func:`write_report` (called at the end of :func:`hardness.benchmark.
     paper's regret (as in the first table), steps per second of one member (``n_steps`` over its batch's lockstep run
     time) and completed seeds, ours and the paper's (tabular agents only; their runs were cut off after ten minutes);
 
+* an *Aggregates across MDPs* section: per set, every agent's interquartile mean and mean of the per-step
+  normalised regret pooled over seeds and MDPs with stratified-bootstrap intervals
+  (:func:`hardness.benchmark.aggregate.aggregate_table`), the baseline's agents included;
+
 * ``curves_<set>.png/.pdf``: the cumulative regret of every agent (mean over seeds) against the steps, one panel per
   MDP, with the random agent as baseline (its own runs when it was run, else the uniform policy's exact expected
   regret);
 * ``hardness_<set>.png/.pdf``: the MDPs placed by diameter and environmental value norm (the reference's variant,
   :data:`MEASURE_VARIANT`, mean over the first five seeds as the reference's helper does, benchmark.md §4), one panel per learning agent, coloured by its
   mean per-step normalised regret (§3.3, Figure 2); the measures are cached in ``measures.csv``.
+
+With ``baseline`` (:mod:`hardness.benchmark.baselines`: ``"committed"``, the shipped agents' committed results, or
+another run folder) the agents of that source that this run did not run are set beside its own wherever they were
+made under the same protocol: extra columns named ``agent (committed)`` (or the folder's name) in both tables and
+panels in the hardness figure (their curves are not kept), with the paper's numbers of those agents; the report says
+which source each comes from and which agents were left out, and why.
 
 Figures are drawn on :class:`matplotlib.figure.Figure` objects (no pyplot, no global backend change).
 """
@@ -41,7 +51,7 @@ from typing import Any
 
 import numpy as np
 
-from hardness.benchmark import published, sets
+from hardness.benchmark import aggregate, baselines, published, sets
 
 __all__ = ["Summary", "summarize", "markdown_table", "latex_table", "write_report"]
 
@@ -69,11 +79,14 @@ class Summary:
 
     Attributes:
       settings: the run's ``plan.json`` settings.
-      scores: ``{(set, mdp, agent): {field: [value per seed]}}``.
-      rates: ``{(set, mdp, agent): member steps per second}`` (the rate of the member's batch).
+      scores: ``{(set, mdp, agent): {field: [value per seed]}}``, the baseline's agents included.
+      rates: ``{(set, mdp, agent): member steps per second}`` (the rate of the member's batch; the run's own agents).
+      beside: what :func:`hardness.benchmark.baselines.select` took from ``baseline`` (``None`` without one).
+      members: one dict per (set, MDP, agent, seed), ``members.csv``'s rows then the baseline's (``set``, ``mdp``,
+        ``agent``, ``seed`` and the scores), for :func:`hardness.benchmark.aggregate.aggregate_table`.
     """
 
-    def __init__(self, out: Path):
+    def __init__(self, out: Path, baseline: str | os.PathLike | None = None):
         self.out = Path(out)
         plan = json.loads((self.out / "plan.json").read_text())
         self.settings: dict[str, Any] = plan["settings"]
@@ -84,13 +97,27 @@ class Summary:
             with (self.out / "batches.csv").open(newline="") as f:
                 batch_rate = {r["batch"]: float(r["member_steps_per_s"]) for r in csv.DictReader(f)}
         self.rates: dict[tuple[str, str, str], float] = {}
+        self.members: list[dict[str, Any]] = []
         with (self.out / "members.csv").open(newline="") as f:
             for r in csv.DictReader(f):
+                self.members.append(r)
                 key = (r["set"], r["mdp"], r["agent"])
                 for field in ("normalized_regret_per_step", "normalized_cumulative_reward",
                               "normalized_cumulative_expected_reward", "random_normalized_regret_per_step"):
                     self.scores[key][field].append(float(r[field]))
                 self.rates[key] = batch_rate.get(r["batch"], math.nan)
+        self.beside: baselines.Beside | None = None
+        if baseline is not None:
+            if Path(baseline).resolve() == self.out.resolve():
+                raise ValueError(f"baseline {baseline} is the run's own folder")
+            self.beside = baselines.select(self.settings, {s: self.labels(s) for s in self.settings["sets"]},
+                                           baseline)
+            for key, fields in self.beside.scores.items():
+                self.scores[key] = defaultdict(list, {f: list(v) for f, v in fields.items()})
+                set_name, mdp, agent = key
+                for i, seed in enumerate(self.settings["seeds"]):
+                    self.members.append(dict(set=set_name, mdp=mdp, agent=self.column(set_name, agent), seed=seed,
+                                             **{f: v[i] for f, v in fields.items()}))
 
     @property
     def n_seeds(self) -> int:
@@ -106,7 +133,15 @@ class Summary:
         return [i.label for i in sets.instances(set_name) if i.label in planned]
 
     def agents(self, set_name: str) -> list[str]:
-        return list(self.settings["agents"][set_name])
+        """The run's agents of ``set_name``, then the baseline's set beside them."""
+        return list(self.settings["agents"][set_name]) + self.beside_agents(set_name)
+
+    def beside_agents(self, set_name: str) -> list[str]:
+        return list(self.beside.agents.get(set_name, [])) if self.beside is not None else []
+
+    def column(self, set_name: str, agent: str) -> str:
+        """An agent's column name: its name, marked with the baseline's label when it comes from there."""
+        return f"{agent} ({self.beside.label})" if agent in self.beside_agents(set_name) else agent
 
     def cell(self, set_name: str, mdp: str, agent: str, field: str = "normalized_regret_per_step"):
         """``(mean, std, completed seeds)`` of ``field``; ``None`` when no seed has finished."""
@@ -117,9 +152,10 @@ class Summary:
         return float(x.mean()), float(x.std(ddof=1)) if x.size > 1 else 0.0, int(x.size)
 
 
-def summarize(out: str | os.PathLike) -> Summary:
-    """The :class:`Summary` of a run folder."""
-    return Summary(Path(out))
+def summarize(out: str | os.PathLike, baseline: str | os.PathLike | None = None) -> Summary:
+    """The :class:`Summary` of a run folder, with ``baseline``'s comparable results beside its own (module
+    docstring; ``ValueError`` naming what differs when none is comparable)."""
+    return Summary(Path(out), baseline)
 
 
 def _is_learning(agent: str) -> bool:
@@ -138,7 +174,7 @@ def _table2_rows(s: Summary, set_name: str, latex: bool) -> tuple[list[str], lis
     agents = s.agents(set_name)
     paper = published.regret_table(set_name, s.settings.get("emission"))
     paper_agents = [a for a in agents if a in paper]
-    header = ["MDP"] + agents + [f"{a} (paper)" for a in paper_agents] + ["seeds"]
+    header = ["MDP"] + [s.column(set_name, a) for a in agents] + [f"{a} (paper)" for a in paper_agents] + ["seeds"]
     display = _display_labels([i.label for i in sets.instances(set_name)])
     rows, means = [], defaultdict(list)
     for label in s.labels(set_name):
@@ -193,11 +229,12 @@ def _appendix_rows(s: Summary, set_name: str, latex: bool) -> tuple[list[str], l
                                                                "normalized_cumulative_expected_reward")]
             fields = [(c[0] / s.n_steps, c[1] / s.n_steps) for c in fields]
             p, p_regret = published.appendix_g(set_name, a, label), paper.get(a, {}).get(label)
-            rows.append([display[label] if k == 0 else "", a]
+            rate = s.rates.get((set_name, label, a), math.nan)
+            rows.append([display[label] if k == 0 else "", s.column(set_name, a)]
                         + [_fmt(m, sd, 3, False, latex) for m, sd in fields]
                         + [_fmt(regret[0], regret[1], 3, False, latex),
                            _fmt(*p_regret, 2, False, latex) if p_regret else "",
-                           f"{s.rates[(set_name, label, a)]:,.0f}",
+                           f"{rate:,.0f}" if math.isfinite(rate) else "",
                            f"{regret[2]}/{s.n_seeds}", f"{p.completed}/20" if p else ""])
     return header, rows
 
@@ -365,10 +402,40 @@ def _paper_source(emission: str | None) -> str:
     return f"; the paper has no numbers for agents observing the `{emission}` emission."
 
 
-def write_report(out: str | os.PathLike) -> list[Path]:
-    """Write ``report.md``, ``report.tex`` and the figures into the run folder ``out`` (module docstring); returns
+def _beside_text(s: Summary) -> list[str]:
+    """The report's paragraph on where the columns come from: the run's own registered agents' hyperparameters, the
+    baseline's folders and the agents it left out."""
+    from hardness.benchmark import hparams as hp_sources
+
+    import agents as agent_registry
+
+    lines = []
+    own = dict.fromkeys(a for agents in s.settings["agents"].values() for a in agents)
+    for a in own:
+        if a not in agent_registry.SHIPPED:  # your own agent: its values, and where they came from when known here
+            values = ", ".join(f"{k}={v}" for k, v in s.settings["hparams"].get(a, {}).items())
+            source = (f", {hp_sources.source_of(a, s.settings['hparams_source'])}" if a in agent_registry.AGENTS
+                      else "")
+            lines.append(f"Hyperparameters of `{a}`: {values or 'none'}{source}.")
+    b = s.beside
+    if b is not None:
+        origins = sorted(set(b.origin.values()))
+        lines.append(f"Columns marked ({b.label}): {b.description}, made under this run's protocol (steps, seeds, "
+                     f"log period, emission, agent rules, indicators and the hyperparameters that `--hparams "
+                     f"{s.settings['hparams_source']}` gives them), from {', '.join(f'`{o}`' for o in origins)}; "
+                     "they were not run again (their random streams are those of their own runs, so their numbers "
+                     "are statistically, not bitwise, those of a run here).")
+        if b.left_out:
+            lines.append("Not set beside this run (their protocol differs): " + "; ".join(
+                f"{a} in {st} ({', '.join(d)})" for (st, a), d in b.left_out.items()) + ".")
+    return [" ".join(lines), ""] if lines else []
+
+
+def write_report(out: str | os.PathLike, baseline: str | os.PathLike | None = None) -> list[Path]:
+    """Write ``report.md``, ``report.tex`` and the figures into the run folder ``out`` (module docstring), with
+    ``baseline``'s comparable results beside the run's own (``"committed"`` or a run folder; ``None``: none); returns
     the files written."""
-    s = summarize(out)
+    s = summarize(out, baseline)
     written = []
     stop = ", with the reference's convergence stop" if s.settings.get("stop_when_converged") else ""
     md = [
@@ -382,6 +449,7 @@ def write_report(out: str | os.PathLike) -> list[Path]:
         "`normalized_cumulative_regret` / steps (App. E), mean ± std over seeds; bold: the lowest learning agent per "
         f"row{_paper_source(s.settings.get('emission'))}",
         "",
+        *_beside_text(s),
     ]
     tex = []
     for set_name in s.settings["sets"]:
@@ -395,6 +463,11 @@ def write_report(out: str | os.PathLike) -> list[Path]:
         tex.append(latex_table(s, set_name))
         caption = f"Final performance indicators, {set_name}."
         tex.append("\n".join(_latex(*_appendix_rows(s, set_name, latex=True), caption)))
+    if s.members:
+        md += ["## Aggregates across MDPs", "",
+               "Interquartile mean and mean of the per-step normalised regret pooled over seeds and MDPs, with "
+               "stratified-bootstrap intervals (`hardness.benchmark.aggregate`; Agarwal et al. 2021).", "",
+               aggregate.aggregate_table(s.members)]
     (s.out / "report.md").write_text("\n".join(md) + "\n")
     (s.out / "report.tex").write_text("\n".join(tex) + "\n")
     return [s.out / "report.md", s.out / "report.tex"] + written

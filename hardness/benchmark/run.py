@@ -192,12 +192,12 @@ class RunSummary:
 
 
 def default_agents(set_name: str, emission: str | None = None) -> list[str]:
-    """Every registered agent of the set's type that observes what the run hands out (without ``emission``: the
+    """Every shipped agent of the set's type that observes what the run hands out (without ``emission``: the
     tabular agents; with one: the deep agents), the learning agents first (registry order), the random agent (which
-    runs on both, the baseline) last."""
+    runs on both, the baseline) last. Agents added with :func:`agents.register` run when named."""
     episodic = sets.is_episodic(set_name)
     wanted = ("state", "any") if emission is None else ("emission", "any")
-    names = [n for n, a in agent_registry.AGENTS.items() if a.episodic == episodic and a.observation in wanted]
+    names = [n for n in agent_registry.names(episodic=episodic, observations=wanted) if n in agent_registry.SHIPPED]
     return [n for n in names if not n.startswith("random")] + [n for n in names if n.startswith("random")]
 
 
@@ -250,7 +250,9 @@ def _check(config: RunConfig) -> list[str]:
         raise ValueError(f"max_members must be a positive integer or None; got {config.max_members!r}")
     if config.memory_limit is not None and (isinstance(config.memory_limit, bool) or config.memory_limit < 1):
         raise ValueError(f"memory_limit must be a positive number of bytes or None; got {config.memory_limit!r}")
-    return names
+    # Named agents run on the sets of their type only: a set that none of them is for is left out (--quick with
+    # episodic agents runs the episodic quick-test set).
+    return [s for s in names if config.agents is None or _agents_of(config, s)]
 
 
 def _hparams_repr(hp: Any) -> dict[str, str]:
@@ -481,15 +483,28 @@ def run_benchmark(
     progress: bool = True,
     report: bool = True,
     stop_at: tuple[int, int] | None = None,
+    baseline: str | os.PathLike | None = None,
 ) -> RunSummary:
     """Run every batch of ``config`` that is not finished in ``out`` (module docstring), then write the report.
 
+    ``baseline``: results set beside the run's own in the report (``"committed"``, the shipped agents' committed
+    results, or a run folder; :mod:`hardness.benchmark.baselines`), checked before anything runs: ``ValueError``
+    naming what differs when none of them was made under this run's protocol.
     ``stop_at = (b, c)`` interrupts deterministically (for tests): after ``b`` batches of this call have finished, run
     ``c`` runner chunks of the next one and stop; the next call continues from there.
     """
     out = Path(out)
+    planned_before = (out / "plan.json").exists()
+    settings, batches = plan(config, out if planned_before else None)  # a refused run writes nothing
+    if baseline is not None:
+        from hardness.benchmark import baselines
+
+        planned = {label for b in batches for label, _ in b.members}
+        baselines.select(settings, {s: [i.label for i in sets.instances(s) if i.label in planned]
+                                    for s in settings["sets"]}, baseline)
     (out / "runs").mkdir(parents=True, exist_ok=True)
-    settings, batches = plan(config, out)
+    if not planned_before:
+        _save_plan(out / "plan.json", settings, batches)
     batches = list(batches)
     todo = [b for b in batches if _finished(out / "runs", b) is None]
     reused = [b.id for b in batches if b not in todo]
@@ -528,11 +543,11 @@ def run_benchmark(
                 bar.update(len(batch.members) * config.n_steps)
                 write_tables(out, settings, batches)
     n_rows = write_tables(out, settings, batches)
-    if finished and report and (ran or not (out / "report.md").exists()):
+    if finished and report and (ran or baseline is not None or not (out / "report.md").exists()):
         from hardness.benchmark import report as report_module
 
         t0 = time.perf_counter()
-        report_module.write_report(out)
+        report_module.write_report(out, baseline)
         if progress:
             print(f"report written to {out} ({n_rows} members, {time.perf_counter() - t0:.0f} s)", file=sys.stderr)
     return RunSummary(ran=ran, reused=reused, finished=finished, out=out)

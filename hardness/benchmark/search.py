@@ -36,13 +36,14 @@ import numpy as np
 import agents as agent_registry
 import jaxmdp
 from hardness.benchmark import hparams as hp_sources
-from agents.search_spaces import search_space
+from agents.search_spaces import SEARCH_SPACES, search_space
 from hardness.benchmark import sets
 from jaxmdp import runner
 from jaxmdp.agent_interface import Agent
 from jaxmdp.mdp import MDP
 
-__all__ = ["Budget", "SearchResult", "evaluate", "select", "search", "provenance", "write_tuned"]
+__all__ = ["Budget", "SearchResult", "check_tunable", "evaluate", "select", "search", "provenance", "write_tuned",
+           "start_tuned_file"]
 
 #: The reference's code-default budget for tabular agents (benchmark.md §7).
 REFERENCE_BUDGET = dict(n_steps=250_000, n_candidates=50, n_per_family=5, n_seeds=3)
@@ -162,6 +163,19 @@ def evaluate(
     return scores, run_s, compile_s
 
 
+def check_tunable(name: str) -> None:
+    """``ValueError`` unless the registered agent ``name`` can be searched here: it has a search space of uniform
+    ranges (:data:`agents.search_spaces.SEARCH_SPACES`, given to :func:`agents.register` for your own) and observes
+    the states or nothing (the search sets are tabular MDPs)."""
+    agent = agent_registry.get(name)
+    if name not in SEARCH_SPACES:
+        raise ValueError(f"agent {name!r} has no search space of ranges to tune; register it with one: "
+                         "agents.register(agent, search_space={field: (low, high), ...}); tunable: "
+                         f"{', '.join(SEARCH_SPACES)}")
+    if agent.observation == "emission":
+        raise ValueError(f"agent {name!r} observes emissions; the search runs on the states of tabular MDPs")
+
+
 def search(
     name: str,
     budget: Budget = Budget(),
@@ -233,9 +247,18 @@ def provenance(result: SearchResult, budget: Budget, note: str = "") -> dict[str
     return entry
 
 
+def start_tuned_file(path: str | os.PathLike) -> None:
+    """Start a tuned file at ``path`` as a copy of the entries of the shipped one
+    (:data:`hardness.benchmark.hparams.TUNED_FILE`), so that with the entries a search adds it is a complete tuned
+    file for ``run --hparams PATH``."""
+    write_tuned(path, hp_sources.load_tuned())
+
+
 def write_tuned(path: str | os.PathLike, entries: dict[str, dict]) -> None:
-    """Merge ``entries`` (agent name -> :func:`provenance`) into the tuned file at ``path`` (other agents kept)."""
+    """Merge ``entries`` (agent name -> :func:`provenance`) into the tuned file at ``path`` (other agents kept;
+    its folder made if missing)."""
     path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
     data = json.loads(path.read_text()) if path.exists() else {}
     data.setdefault("format", 1)
     data["description"] = (

@@ -7,7 +7,14 @@
 * ``report``: the report (tables as Markdown and LaTeX, cumulative-regret and hardness figures) of a ``run`` output
   folder, from the batches finished so far.
 * ``tune``: the random search of the tabular agents' hyperparameters (:mod:`hardness.benchmark.search`), whose
-  winners, with their provenance, go to the tuned file the benchmark reads (``hardness/benchmark/tuned_hparams.json``).
+  winners, with their provenance, go to ``tuned_hparams.json`` in the output folder (a copy of the shipped file,
+  ``hardness/benchmark/tuned_hparams.json``, with the new entries), which ``run --hparams PATH`` reads.
+
+Your own agent (docs/guide/own_agent.md): ``--agents module:NAME`` (or ``path/to/file.py:NAME``) imports the module
+(the current directory first on the path, as ``python -m``) and registers its :class:`~jaxmdp.agent_interface.Agent`
+``NAME`` (:func:`agents.register`); ``--baseline committed`` sets the shipped agents' committed results beside it in
+the report, without running them, when they were made under the same protocol (else it stops and names what
+differs); ``--baseline DIR`` does so with another run folder.
 
     jaxmdp-benchmark run --quick --out results/benchmark_quick       # the quick-test sets, a few minutes
     jaxmdp-benchmark run --settings episodic_ergodic --seeds 20 --steps 500000 --out results/benchmark
@@ -15,9 +22,12 @@
     jaxmdp-benchmark run --quick --hparams reference --agent-variant colosseum --out DIR   # reference mode
     jaxmdp-benchmark run --quick --hparams reference --agent-variant colosseum --indicators colosseum --out DIR
     jaxmdp-benchmark run --quick --emission StateInfo --agents dqn_episodic random_episodic --out DIR
+    jaxmdp-benchmark run --quick --agents my_agents:MY_AGENT --baseline committed --out DIR   # your agent
     jaxmdp-benchmark report results/benchmark_quick
-    jaxmdp-benchmark tune                                                 # every tabular agent, full budget
+    jaxmdp-benchmark report DIR --baseline committed
+    jaxmdp-benchmark tune --out results/tuning                            # every tabular agent, full budget
     jaxmdp-benchmark tune --agents ucrl2 --steps 20000 --candidates 8 --mdps-per-family 1 --seeds 1
+    jaxmdp-benchmark tune --agents my_agents:MY_AGENT --out DIR; jaxmdp-benchmark run --hparams DIR/tuned_hparams.json ...
 
 ``run`` and ``tune`` shard the members over one host device per core (set here, before JAX starts its backend, unless
 ``XLA_FLAGS`` already sets the device count).
@@ -34,7 +44,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from hardness.cli._common import add_cache_flag, compile_report
+from hardness.cli._common import add_cache_flag, compile_report, load_agents
 
 if TYPE_CHECKING:  # imported on use: hardness.benchmark starts JAX's backend, after main() set the host devices
     from hardness.benchmark.run import RunConfig, RunSummary
@@ -51,11 +61,19 @@ Defaults are the reference's code-default budget (50 candidates drawn with seeds
 every family's sampler with seed 42, seeds 0-2, 250 000 steps), plus the reference's cached values as one more
 candidate. Pass smaller numbers for a reduced run (the file records the budget and marks it reduced).
 
+The winners go to ``tuned_hparams.json`` in ``--out`` (a folder, default ``results/tuning``; a path ending in
+``.json`` names the file itself, e.g. the shipped ``hardness/benchmark/tuned_hparams.json`` when regenerating it from a
+checkout); a new file starts as a copy of the shipped one, so that it is a complete tuned file for ``run --hparams
+PATH``. Nothing is written inside the installed package unless its path is given.
+
 The file is rewritten after every agent, and every size bucket of a search keeps a CSV and a checkpoint in
-``--work-dir`` (default ``results/tuning``, a folder per agent and budget), so a killed run started again with the
-same arguments resumes: agents whose entry in ``--out`` already has this budget are skipped (``--redo`` reruns them)
-and an unfinished search continues from its last checkpoint. Each entry records the search's wall time (``wall_s``,
-building the MDPs, compiling and running).
+``--work-dir`` (default ``runs/`` beside the tuned file, a folder per agent and budget), so a killed run started again
+with the same arguments resumes: agents whose entry in the file already has this budget are skipped (``--redo``
+reruns them) and an unfinished search continues from its last checkpoint. Each entry records the search's wall time
+(``wall_s``, building the MDPs, compiling and running).
+
+Your own agent: ``--agents module:NAME`` (registered with a search space, ``agents.register(agent, search_space)``,
+by its module).
 """
 
 
@@ -66,8 +84,10 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--settings", nargs="+", default=None, metavar="SET",
                    help=f"benchmark sets (default: the four settings); one of: {', '.join(sets.SET_NAMES)}")
     p.add_argument("--agents", nargs="+", default=None,
-                   help="agents by registry name (default: every tabular agent of each set's type; --quick: all but "
-                        "psrl_continuous; with --emission: every deep agent of the set's type and the random agent)")
+                   help="agents by registry name, or your own as module:NAME or path/to/file.py:NAME (an Agent, "
+                        "registered on import; the current directory is on the path) (default: every tabular agent of "
+                        "each set's type; --quick: all but psrl_continuous; with --emission: every deep agent of the "
+                        "set's type and the random agent)")
     p.add_argument("--mdps", nargs="+", default=None, metavar="MDP",
                    help="keep only these MDPs of the sets: labels (RiverSwim/prms_0) or families (default: all)")
     p.add_argument("--seeds", type=int, default=None, help="number of seeds 0..N-1 (default 20; --quick 2)")
@@ -76,8 +96,8 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--log-period", type=int, default=None,
                    help="steps between indicator logs (default 100; --quick: 1000 episodic, 500 continuous)")
     p.add_argument("--hparams", default="tuned",
-                   help="tuned (hardness/benchmark/tuned_hparams.json), reference (the reference's cached values) "
-                        "or a tuned-file path (default %(default)s)")
+                   help="tuned (the shipped hardness/benchmark/tuned_hparams.json), reference (the reference's cached "
+                        "values) or a tuned-file path, e.g. one written by tune (default %(default)s)")
     p.add_argument("--agent-variant", default="paper", choices=("paper", "colosseum"),
                    help="paper: the agents follow their algorithms' papers (default); colosseum: reference mode, the "
                         "tabular agents with the reference package's update rules (docs/agents.md); with --hparams "
@@ -102,15 +122,26 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                         "the states, tabular agents); with it the default agents are the deep agents and the random "
                         "agent")
     p.add_argument("--quick", action="store_true", help="the quick-test sets, 2 seeds, few steps")
+    add_baseline_argument(p)
     p.add_argument("--out", type=Path, required=True, help="output folder (reused to resume)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_cache_flag(p)
     p.set_defaults(func=run_command)
 
 
+def add_baseline_argument(p: argparse.ArgumentParser) -> None:
+    """``--baseline``, of ``run`` and ``report``."""
+    p.add_argument("--baseline", default=None, metavar="committed|DIR",
+                   help="set other results beside this run's in the report, without running them: committed (the "
+                        "shipped agents' committed results, package data) or a run folder; refused, naming what "
+                        "differs, unless they were made under this run's protocol (steps, seeds, log period, "
+                        "emission, agent rules, indicators, hyperparameter source)")
+
+
 def add_report_arguments(p: argparse.ArgumentParser) -> None:
     """The options of ``report``."""
     p.add_argument("folder", type=Path, nargs="?", default=None, help="the run's output folder (or --out)")
+    add_baseline_argument(p)
     p.add_argument("--out", type=Path, default=None, help="the run's output folder, where the report goes")
     p.add_argument("--quiet", action="store_true", help="do not list the files written on stdout")
     add_cache_flag(p)
@@ -122,9 +153,13 @@ def add_tune_arguments(p: argparse.ArgumentParser) -> None:
     from agents.search_spaces import SEARCH_SPACES
     from hardness.benchmark import hparams, search
 
+    import agents
+
     default = search.Budget()
-    p.add_argument("--agents", nargs="+", default=list(SEARCH_SPACES), choices=list(SEARCH_SPACES),
-                   help="default: every agent with a search space")
+    shipped = [n for n in SEARCH_SPACES if n in agents.SHIPPED]
+    p.add_argument("--agents", nargs="+", default=shipped,
+                   help=f"agents with a search space: {', '.join(shipped)}, or your own as module:NAME (default: "
+                        "every shipped one)")
     p.add_argument("--steps", type=int, default=default.n_steps, help="steps per run (%(default)s)")
     p.add_argument("--candidates", type=int, default=default.n_candidates, help="sampled candidates (%(default)s)")
     p.add_argument("--mdps-per-family", type=int, default=default.n_per_family, help="%(default)s")
@@ -135,10 +170,13 @@ def add_tune_arguments(p: argparse.ArgumentParser) -> None:
                    help="do not add the reference's cached values as a candidate")
     p.add_argument("--buckets", type=int, default=4, help="size buckets per search (%(default)s)")
     p.add_argument("--note", default="", help="a note stored with each entry")
-    p.add_argument("--out", type=Path, default=hparams.TUNED_FILE, help="tuned file (default: the shipped one)")
-    p.add_argument("--work-dir", type=Path, default=Path("results/tuning"),
-                   help="runner CSVs and checkpoints, one folder per agent, to resume from (%(default)s)")
-    p.add_argument("--redo", action="store_true", help="rerun agents already tuned with this budget in --out")
+    p.add_argument("--out", type=Path, default=Path("results/tuning"),
+                   help="output folder, the winners in its tuned_hparams.json (a path ending in .json: that file; "
+                        f"the shipped one is {hparams.TUNED_FILE}) (default %(default)s)")
+    p.add_argument("--work-dir", type=Path, default=None,
+                   help="runner CSVs and checkpoints, one folder per agent, to resume from (default: runs/ beside "
+                        "the tuned file)")
+    p.add_argument("--redo", action="store_true", help="rerun agents already tuned with this budget in the file")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     add_cache_flag(p)
     p.set_defaults(func=tune_command)
@@ -166,7 +204,7 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
     if args.emission is not None:
         base.pop("agents", None)  # --quick's agents are tabular; with an emission: the deep agents and random
     given = dict(sets=tuple(args.settings) if args.settings else None,
-                 agents=tuple(args.agents) if args.agents else None,
+                 agents=tuple(load_agents(args.agents)) if args.agents else None,
                  seeds=tuple(range(args.seeds)) if args.seeds is not None else None, n_steps=args.steps,
                  n_buckets=args.buckets, max_members=args.max_members, emission=args.emission,
                  only=tuple(args.mdps) if args.mdps else None,
@@ -187,7 +225,7 @@ def run_command(args: argparse.Namespace) -> RunSummary:
 
     try:
         config = config_from_args(args)
-        return run.run_benchmark(config, args.out, progress=not args.quiet)
+        return run.run_benchmark(config, args.out, progress=not args.quiet, baseline=args.baseline)
     except ValueError as err:
         raise SystemExit(f"jaxmdp-benchmark run: {err}") from None
 
@@ -201,7 +239,10 @@ def report_command(args: argparse.Namespace) -> list[Path]:
         raise SystemExit("jaxmdp-benchmark report: name the run's folder (positional or --out)")
     if not (folder / "plan.json").exists() or not (folder / "members.csv").exists():
         raise SystemExit(f"jaxmdp-benchmark report: {folder} holds no benchmark run (plan.json and members.csv)")
-    written = report.write_report(folder)
+    try:
+        written = report.write_report(folder, args.baseline)
+    except ValueError as err:
+        raise SystemExit(f"jaxmdp-benchmark report: {err}") from None
     if not args.quiet:
         print("\n".join(map(str, written)))
     return written
@@ -211,14 +252,23 @@ def tune_command(args: argparse.Namespace) -> dict:
     """``tune``: search every agent of ``args.agents`` not yet tuned with this budget; returns the new entries."""
     from hardness.benchmark import search
 
+    try:
+        names = load_agents(args.agents)
+        for name in names:
+            search.check_tunable(name)
+    except ValueError as err:
+        raise SystemExit(f"jaxmdp-benchmark tune: {err}") from None
+    path, work_dir = tuned_paths(args.out, args.work_dir)
     budget = search.Budget(n_steps=args.steps, n_candidates=args.candidates, n_per_family=args.mdps_per_family,
                            n_seeds=args.seeds, log_period=args.log_period, max_states=args.max_states,
                            include_reference=not args.no_reference_candidate)
-    done = json.loads(args.out.read_text()).get("agents", {}) if args.out.exists() and not args.redo else {}
+    if not path.exists():
+        search.start_tuned_file(path)
+    done = json.loads(path.read_text()).get("agents", {}) if not args.redo else {}
     entries = {}
-    for name in args.agents:
+    for name in names:
         if name in done and _same_budget(done[name], budget):
-            print(f"{name}: already tuned with this budget in {args.out}; skipped (--redo reruns it)",
+            print(f"{name}: already tuned with this budget in {path}; skipped (--redo reruns it)",
                   file=sys.stderr, flush=True)
             continue
         if not args.quiet:
@@ -226,16 +276,23 @@ def tune_command(args: argparse.Namespace) -> dict:
         start = time.perf_counter()
         try:
             result = search.search(name, budget, n_buckets=args.buckets, progress=not args.quiet,
-                                   work_dir=args.work_dir / name / _slug(budget) if args.work_dir else None)
+                                   work_dir=work_dir / name / _slug(budget))
         except ValueError as err:
             raise SystemExit(f"jaxmdp-benchmark tune: {err}") from None
         entries[name] = search.provenance(result, budget, note=args.note)
         entries[name]["wall_s"] = round(time.perf_counter() - start, 1)
-        search.write_tuned(args.out, {name: entries[name]})  # after every agent, so an interruption keeps it
+        search.write_tuned(path, {name: entries[name]})  # after every agent, so an interruption keeps it
         e = entries[name]
         print(f"  {name}: winner {e['winner']} {e['values']}, objective per step {e['objective_per_step']:.4f} "
               f"(run {e['run_s']} s, compile {e['compile_s']} s, wall {e['wall_s']} s)", file=sys.stderr, flush=True)
     return entries
+
+
+def tuned_paths(out: Path, work_dir: Path | None) -> tuple[Path, Path]:
+    """``(tuned file, work folder)`` of ``tune --out OUT [--work-dir W]``: ``OUT/tuned_hparams.json`` and
+    ``OUT/runs``, or, for an ``OUT`` ending in ``.json``, that file and ``runs/`` beside it."""
+    path = out if out.suffix == ".json" else out / "tuned_hparams.json"
+    return path, work_dir if work_dir is not None else path.parent / "runs"
 
 
 def _slug(budget: Budget) -> str:
