@@ -280,12 +280,34 @@ def test_fake_table_holds_the_backend_numbers_inf_and_nan(fake_backend, tmp_path
     assert float(rows[0]["diameter_normalized"]) == 0.0 and float(rows[-1]["diameter_normalized"]) == 1.0
 
 
-def test_progress_goes_to_the_stderr_of_the_moment(fake_backend, tmp_path, capsys):
-    """The bar writes to sys.stderr as it is when the run starts (capsys, contextlib.redirect_stderr)."""
+class Terminal(io.StringIO):
+    """A stream that says it is a terminal."""
+
+    def isatty(self) -> bool:
+        return True
+
+
+def test_progress_goes_to_the_stderr_of_the_moment(fake_backend, tmp_path, monkeypatch):
+    """The bar (jaxmdp.experiment.progress) writes to sys.stderr as it is when the run starts, when that is a
+    terminal: seeds done of the seeds to compute, time left."""
+    term = Terminal()
+    monkeypatch.setattr(sys, "stderr", term)
+    run_main(1, fake_argv(tmp_path))
+    err = term.getvalue()
+    assert "built 9 MDPs (4-11 states)" in err
+    assert "scenario 1 RiverSwim continuous:   0%|" in err and "0/3 seeds [" in err
+    assert err.rsplit("\r", 1)[-1].startswith("scenario 1 RiverSwim continuous: 100%|")
+    assert "3/3 seeds [" in err and " left, " in err
+
+
+def test_no_bar_when_stderr_is_not_a_terminal_or_quiet(fake_backend, tmp_path, capsys, monkeypatch):
     run_main(1, fake_argv(tmp_path))
     err = capsys.readouterr().err
-    assert "built 9 MDPs (4-11 states)" in err
-    assert "scenario 1 RiverSwim continuous [" in err and "0/3 seeds" in err and "3/3 seeds" in err
+    assert "built 9 MDPs (4-11 states)" in err and "seeds" not in err
+    term = Terminal()
+    monkeypatch.setattr(sys, "stderr", term)
+    run_main(1, fake_argv(tmp_path / "quiet", (0, 1, 3), "--quiet"))
+    assert term.getvalue() == ""
 
 
 def test_resume_keeps_finished_seeds_and_computes_new_ones(fake_backend, tmp_path):
@@ -435,19 +457,6 @@ def test_parse_param_and_number():
         sweep_cli.number("x")
 
 
-def test_progress_bar_lines():
-    stream = io.StringIO()
-    bar = sweep_cli.Progress(4, "lbl", stream=stream, width=8)
-    bar.advance(1)
-    bar.advance(3)
-    bar.close()
-    lines = stream.getvalue().splitlines()
-    assert len(lines) == 3
-    assert lines[0].startswith("lbl [        ] 0/4 seeds")
-    assert lines[1].startswith("lbl [##      ] 1/4 seeds") and "s left" in lines[1]
-    assert lines[2].startswith("lbl [########] 4/4 seeds") and "left" not in lines[2]
-
-
 # ---------------------------------------------------------------------------------------------------------------
 # The script itself
 # ---------------------------------------------------------------------------------------------------------------
@@ -467,7 +476,7 @@ def test_sweep_command_smoke(tmp_path):
     assert proc.returncode == 0, proc.stderr
     csv_path = tmp_path / "scenario3_DeepSea_continuous.csv"
     assert proc.stdout.split() == [str(csv_path), str(tmp_path / "scenario3_DeepSea_continuous.json")]
-    assert "1/1 seeds" in proc.stderr
+    assert "seeds" not in proc.stderr  # stderr is a pipe, not a terminal: no progress bar
     assert "of which compiling" in proc.stderr and f"cache {tmp_path / 'jax_cache'}: 0 hits" in proc.stderr
     rows = read_table(csv_path)
     assert [(r["seed"], r["value"], r["n_states"]) for r in rows] == [("0", "3", "6"), ("0", "4", "10")]

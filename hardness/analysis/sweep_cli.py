@@ -7,7 +7,8 @@ per finished ``(seed, value)`` with the raw measures, their ``converged`` flags 
 rows written so far (so the final file holds the normalisation over all seeds and values). ``<stem>.json`` records the
 settings; ``--resume`` reuses the finished seeds of an earlier run with the same settings and computes only the others.
 At the end ``<stem>.png`` shows the normalised measures against the swept parameter (mean over seeds, 95% bootstrap
-band). Progress goes to stderr, the paths written to stdout.
+band). Progress goes to stderr, as a bar on a terminal (:mod:`jaxmdp.experiment.progress`: seeds done, time left),
+the paths written to stdout.
 
 ``--seeds N`` runs seeds ``0..N-1`` (default 3: seeds 0, 1, 2), as in every command of the package;
 ``--seed-list S [S ...]`` names the seeds one by one instead.
@@ -24,12 +25,13 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any
 
 import numpy as np
 
 import jaxmdp
 from jaxmdp.experiment import compilation
+from jaxmdp.experiment.progress import Progress
 from hardness.analysis import scenarios
 from hardness.analysis.near_optimal import NEAR_OPTIMAL_AGENTS, tuned_regret
 from hardness.analysis.plotting import plot_scenario
@@ -138,46 +140,6 @@ def build_parser(description: str, default_out: str | None, scenario_choices: Se
     parser.add_argument("--agent-tuning-seeds", type=int, default=DEFAULT_AGENT_TUNING_SEEDS,
                         help="seeds per candidate in the search (default %(default)s)")
     return parser
-
-
-# ---------------------------------------------------------------------------------------------------------------
-# Progress bar (stderr)
-# ---------------------------------------------------------------------------------------------------------------
-
-
-class Progress:
-    """A one-line progress bar with elapsed time and an estimate of the time left."""
-
-    def __init__(self, total: int, label: str, stream: TextIO | None = None, width: int = 28,
-                 quiet: bool = False) -> None:
-        # Default: the stderr of the moment (a default bound at import time would ignore later redirections).
-        stream = sys.stderr if stream is None else stream
-        self.total, self.label, self.stream, self.width = max(total, 0), label, stream, width
-        self.done = 0
-        self.start = time.perf_counter()
-        self.quiet = quiet
-        self._tty = hasattr(stream, "isatty") and stream.isatty()
-        self.show()
-
-    def show(self) -> None:
-        if self.quiet:
-            return
-        elapsed = time.perf_counter() - self.start
-        frac = self.done / self.total if self.total else 1.0
-        bar = "#" * int(round(frac * self.width))
-        eta = f", ~{elapsed / self.done * (self.total - self.done):.0f} s left" if 0 < self.done < self.total else ""
-        line = f"{self.label} [{bar:<{self.width}}] {self.done}/{self.total} seeds, {elapsed:.1f} s{eta}"
-        self.stream.write(("\r" + line) if self._tty else line + "\n")
-        self.stream.flush()
-
-    def advance(self, n: int = 1) -> None:
-        self.done += n
-        self.show()
-
-    def close(self) -> None:
-        if self._tty and not self.quiet:
-            self.stream.write("\n")
-            self.stream.flush()
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -356,19 +318,20 @@ def run(args: argparse.Namespace, scenario: int, parser: argparse.ArgumentParser
         if not quiet:
             print(f"built {grid.batch.T.shape[0]} MDPs ({grid.n_states.min()}-{grid.n_states.max()} states) in "
                   f"{time.perf_counter() - t0:.1f} s", file=sys.stderr)
-        bar = Progress(len(todo), f"scenario {spec.scenario} {spec.family} {spec.setting}", quiet=quiet)
-        k = args.seeds_per_call
-        for start in range(0, len(todo), k):
-            chunk = todo[start : start + k]
-            # A short last chunk is filled up with copies of its first seed so that it reuses the compiled program.
-            chunk_grid = grid.take(chunk + [chunk[0]] * (k - len(chunk)))
-            raw = scenarios.compute(chunk_grid)
-            if agent is not None:
-                raw.update(agent_regret(chunk_grid, agent))
-            rows += rows_from_raw(spec, chunk, {name: a if name == "agent" else a[: len(chunk)] for name, a in raw.items()})
-            write_table(csv_path, ordered(spec, rows))
-            bar.advance(len(chunk))
-        bar.close()
+        label = f"scenario {spec.scenario} {spec.family} {spec.setting}"
+        with Progress(len(todo), label, "seeds", quiet=quiet, unit_scale=False) as bar:
+            k = args.seeds_per_call
+            for start in range(0, len(todo), k):
+                chunk = todo[start : start + k]
+                # A short last chunk is filled up with copies of its first seed so that it reuses the compiled program.
+                chunk_grid = grid.take(chunk + [chunk[0]] * (k - len(chunk)))
+                raw = scenarios.compute(chunk_grid)
+                if agent is not None:
+                    raw.update(agent_regret(chunk_grid, agent))
+                raw = {name: a if name == "agent" else a[: len(chunk)] for name, a in raw.items()}
+                rows += rows_from_raw(spec, chunk, raw)
+                write_table(csv_path, ordered(spec, rows))
+                bar.update(len(chunk))
     else:
         write_table(csv_path, ordered(spec, rows))
 

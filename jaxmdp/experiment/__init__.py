@@ -10,7 +10,9 @@
 * :mod:`~jaxmdp.experiment.indicators`: the exact expected regret of a policy and the reference's CSV columns;
 * :mod:`~jaxmdp.experiment.records` and :mod:`~jaxmdp.experiment.checkpoints`: what a run writes;
 * :mod:`~jaxmdp.experiment.compilation`: the scripts' persistent compilation cache and compile-time counters
-  (``enable_compilation_cache``, called by entry points only).
+  (``enable_compilation_cache``, called by entry points only);
+* :mod:`~jaxmdp.experiment.progress`: the one progress display of long runs (member-steps per second, time left,
+  each compilation with its seconds), on a terminal only.
 
 It imports the MDP model of :mod:`jaxmdp` and nothing else of this project; agents import it.
 """

@@ -25,13 +25,13 @@ through ``n_steps`` agent/MDP interaction steps (paper §3.3 and App. A.1; docs/
   static setting, so a run without it compiles no counting at all.
 
 This module is the host driver: it validates a run's settings, compiles its programs, runs them in chunks
-(:func:`run`), shows progress, appends each chunk's records to a CSV and can checkpoint the carry so that an
-interrupted run resumes without losing finished work. Every random draw comes from the member's key folded with the
-step index, so a run's results do not depend on how it was chunked or whether it was resumed. Learning runs for
-``n_steps`` steps and compute time is reported beside the results (the reference instead stops learning after a
-wall-clock budget, docs/benchmark.md §2). ``stop_when_converged=True`` adds the reference's other stop
-(docs/measures.md §6.4): a member whose normalised regret has been near 0 at ten logs in a row past a fifth of the run
-stops learning and acts with its agent as it is for the rest of the run.
+(:func:`run`), shows progress (:mod:`jaxmdp.experiment.progress`), appends each chunk's records to a CSV and can
+checkpoint the carry so that an interrupted run resumes without losing finished work. Every random draw comes from the
+member's key folded with the step index, so a run's results do not depend on how it was chunked or whether it was
+resumed. Learning runs for ``n_steps`` steps and compute time is reported beside the results (the reference instead
+stops learning after a wall-clock budget, docs/benchmark.md §2). ``stop_when_converged=True`` adds the reference's
+other stop (docs/measures.md §6.4): a member whose normalised regret has been near 0 at ten logs in a row past a fifth
+of the run stops learning and acts with its agent as it is for the rest of the run.
 
 Step bookkeeping (differs from the reference's off-by-one, docs/measures.md §6.1, which logs at loop index ``t`` with
 ``t + 1`` steps done but labels and charges ``t``): the record labelled ``steps = c`` is made after exactly ``c``
@@ -43,7 +43,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import sys
 import time
 import warnings
 from pathlib import Path
@@ -74,6 +73,7 @@ from jaxmdp.experiment.lockstep import (  # noqa: F401 (the convergence stop's c
 from jaxmdp.experiment.memory import ProgramTooLarge, check_fits
 from jaxmdp.experiment.members import Grid, dynamics, grid, member_mdp, product, seed_keys, stack_hparams
 from jaxmdp.experiment.programs import chunk_program, constants_program, init_program
+from jaxmdp.experiment.progress import Progress
 from jaxmdp.experiment.records import MEMBER_COLUMNS, RunResult, append_rows, csv_rows, record_steps, truncate_csv
 from jaxmdp.gth import band_order
 from jaxmdp.mdp import MDP
@@ -211,10 +211,15 @@ def _final_states(carry: Carry, stop_when_converged: bool) -> Any:
     return jax.tree.map(np.asarray, states)
 
 
-def _progress(done: int, total: int, elapsed: float, members: int) -> None:
-    rate = done * members / elapsed if elapsed > 0 else float("nan")
-    print(f"\r  {done}/{total} steps ({100 * done / total:5.1f}%), {rate / 1e6:.2f} M agent-steps/s", end="",
-          file=sys.stderr, flush=True)
+def _display(progress: bool | Progress, agent: Agent, grid: Grid, n_steps: int) -> tuple[Progress, bool]:
+    """The run's progress display and whether the run owns it (makes and closes it): the caller's
+    :class:`~jaxmdp.experiment.progress.Progress`, or one counting this run's member-steps on stderr."""
+    if isinstance(progress, Progress):
+        return progress, False
+    if not isinstance(progress, (bool, np.bool_)):
+        raise ValueError(f"progress must be True, False or a jaxmdp.experiment.progress.Progress; got {progress!r}")
+    desc = f"{agent.name}, {grid.n_members} member{'s' if grid.n_members > 1 else ''}"
+    return Progress(grid.n_members * n_steps, desc, quiet=not progress), True
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -257,7 +262,7 @@ class _Program:
 
 
 @dataclasses.dataclass
-class _Progress:
+class _RunState:
     """Where a run stands: the loop's carry, the records so far and the run seconds of earlier calls (a resumed
     run)."""
 
@@ -350,9 +355,10 @@ def _band(mdps: MDP | BlockMDP, mdp_index: np.ndarray) -> tuple[jax.Array | None
     return jax.device_put(order[np.asarray(mdp_index) if len(order) > 1 else np.zeros(len(mdp_index), int)]), width
 
 
-def _compile(agent: Agent, grid: Grid, settings: _Settings) -> _Program:
-    """Compute the indicator constants and compile the initialisation and chunk programs (timed together); raise
-    :class:`~jaxmdp.experiment.memory.ProgramTooLarge` before anything runs if one of them would not fit in memory."""
+def _compile(agent: Agent, grid: Grid, settings: _Settings, display: Progress) -> _Program:
+    """Compute the indicator constants and compile the initialisation and chunk programs (timed together, each
+    announced on ``display``); raise :class:`~jaxmdp.experiment.memory.ProgramTooLarge` before anything runs if one of
+    them would not fit in memory."""
     mdps = grid.mdps
     # device_put, not jnp.asarray, which compiles a small program per array shape.
     mdp_index = jax.device_put(grid.mdp_index)
@@ -364,11 +370,13 @@ def _compile(agent: Agent, grid: Grid, settings: _Settings) -> _Program:
         record_period=jnp.asarray(settings.record_period, jnp.int32),
     )
     t0 = time.perf_counter()
-    consts = constants_program(settings.variant)(mdps, mdp_index)
-    orders, bandwidth = _band(mdps, grid.mdp_index)
-    consts = consts.replace(state_order=orders)
+    with display.compiling("the indicator constants"):  # dispatched: they are computed while the rest compiles
+        consts = constants_program(settings.variant)(mdps, mdp_index)
+        orders, bandwidth = _band(mdps, grid.mdp_index)
+        consts = consts.replace(state_order=orders)
     init_jit = init_program(agent, settings.record_visits, bandwidth, settings.stop_when_converged)
-    init_fn = init_jit.lower(mdps, mdp_index, hparams, key_data, sched.n_steps, orders).compile()
+    with display.compiling("the initialisation program"):
+        init_fn = init_jit.lower(mdps, mdp_index, hparams, key_data, sched.n_steps, orders).compile()
     carry_shape = jax.eval_shape(init_jit, mdps, mdp_index, hparams, key_data, sched.n_steps, orders)
     leaves, treedef = jax.tree.flatten(carry_shape)
     carry_layout = (treedef, tuple(x.ndim for x in leaves))
@@ -376,7 +384,8 @@ def _compile(agent: Agent, grid: Grid, settings: _Settings) -> _Program:
         agent, settings.variant, settings.capacity, settings.n_shards, carry_layout, settings.record_visits,
         settings.plan_slots, bandwidth, settings.stop_when_converged,
     )
-    chunk_exe = chunk_fn.lower(carry_shape, mdps, mdp_index, consts, sched, jnp.int32(0)).compile()
+    with display.compiling("the chunk program"):
+        chunk_exe = chunk_fn.lower(carry_shape, mdps, mdp_index, consts, sched, jnp.int32(0)).compile()
     jax.block_until_ready(consts)
     check_fits(
         [("initialisation", init_fn), ("chunk", chunk_exe)],
@@ -399,14 +408,14 @@ def _compile(agent: Agent, grid: Grid, settings: _Settings) -> _Program:
 
 def _start_or_resume(
     program: _Program, n_members: int, run_id: str, ckpt: Path | None, csv_file: Path | None, resume: bool
-) -> _Progress:
+) -> _RunState:
     """Continue this run's checkpoint if there is one (and ``resume``), dropping CSV rows written after it;
     otherwise initialise every member and start a fresh CSV."""
     if ckpt is not None and resume and ckpt.exists():
         carry, steps_done, values_done, meta = load_checkpoint(ckpt, program.carry_shape, run_id)
         if csv_file is not None:
             truncate_csv(csv_file, int(carry.t), program.diagnostic_names)
-        return _Progress(carry, steps_done, values_done, float(meta["run_s"]))
+        return _RunState(carry, steps_done, values_done, float(meta["run_s"]))
     carry = program.init(program.mdps, program.mdp_index, program.hparams, program.key_data, program.sched.n_steps,
                          program.consts.state_order)
     jax.block_until_ready(carry)
@@ -416,30 +425,32 @@ def _start_or_resume(
     steps_done = np.zeros((0,), np.int64)
     n_columns = len(AGENT_COLUMNS) + len(program.diagnostic_names)
     values_done = np.zeros((0, n_members, n_columns), np.dtype(dynamics(program.mdps).dtype))
-    return _Progress(carry, steps_done, values_done, 0.0)
+    return _RunState(carry, steps_done, values_done, 0.0)
 
 
 def _run_chunks(
     agent: Agent,
     grid: Grid,
     program: _Program,
-    start: _Progress,
+    start: _RunState,
     settings: _Settings,
     run_id: str,
     ckpt: Path | None,
     csv_file: Path | None,
-    progress: bool,
+    display: Progress,
     stop_after_chunks: int | None,
-) -> tuple[_Progress, float]:
-    """Run the chunk program until ``n_steps`` (or ``stop_after_chunks``), appending each chunk's records to the CSV
-    and checkpointing after each; returns where the run stands and its run seconds over every call that ran it."""
+) -> tuple[_RunState, float]:
+    """Run the chunk program until ``n_steps`` (or ``stop_after_chunks``), appending each chunk's records to the CSV,
+    checkpointing and advancing ``display`` by the chunk's member-steps after each; returns where the run stands and
+    its run seconds over every call that ran it."""
     n_steps = settings.n_steps
     carry, steps_done, values_done = start.carry, start.steps, start.values
     consts_np = jax.tree.map(np.asarray, program.consts)
     t_start = time.perf_counter()
     chunks = 0
-    while int(carry.t) < n_steps:
-        n = min(settings.chunk_steps, n_steps - int(carry.t))
+    t = int(carry.t)
+    while t < n_steps:
+        n = min(settings.chunk_steps, n_steps - t)
         carry, steps, values, j = program.chunk(
             carry, program.mdps, program.mdp_index, program.consts, program.sched, jnp.int32(n)
         )
@@ -454,15 +465,13 @@ def _run_chunks(
         if ckpt is not None:
             meta = {"fingerprint": run_id, "run_s": elapsed, "t": int(carry.t), "agent": agent.name}
             save_checkpoint(ckpt, carry, steps_done, values_done, meta)
-        if progress:
-            _progress(int(carry.t), n_steps, elapsed, grid.n_members)
+        display.update(grid.n_members * (int(carry.t) - t))
+        t = int(carry.t)
         chunks += 1
-        if stop_after_chunks is not None and chunks >= stop_after_chunks and int(carry.t) < n_steps:
+        if stop_after_chunks is not None and chunks >= stop_after_chunks and t < n_steps:
             break
-    if progress:
-        print(file=sys.stderr)
     run_s = start.elapsed_before + time.perf_counter() - t_start
-    return _Progress(carry, steps_done, values_done, start.elapsed_before), run_s
+    return _RunState(carry, steps_done, values_done, start.elapsed_before), run_s
 
 
 def run(
@@ -477,7 +486,7 @@ def run(
     csv_path: str | os.PathLike | None = None,
     checkpoint_path: str | os.PathLike | None = None,
     resume: bool = True,
-    progress: bool = False,
+    progress: bool | Progress = False,
     stop_after_chunks: int | None = None,
     shards: int | None = None,
     record_visits: bool = False,
@@ -500,7 +509,11 @@ def run(
       csv_path: append each chunk's records to this CSV (``member, mdp, hparams, seed`` + the reference's columns).
       checkpoint_path: save the loop's state after each chunk (``.npz``); with ``resume=True`` an existing
         checkpoint of the same run is continued (records already written are kept).
-      progress: print progress to stderr.
+      progress: ``True``: show a progress bar on stderr when it is a terminal (nothing otherwise;
+        :mod:`jaxmdp.experiment.progress`): member-steps done, member-steps per second, time left, and each program
+        compiled with the seconds it took. A :class:`~jaxmdp.experiment.progress.Progress` instead: advance that
+        display by this run's member-steps after each chunk (a bar counting several runs, as the benchmark's); a
+        resumed run takes its finished steps off that display's total. The results do not depend on it.
       stop_after_chunks: stop after this many chunks of this call (to test interruption; the result then holds the
         records so far).
       shards: split the members over this many local devices (default: as many as divide the batch, up to
@@ -528,9 +541,9 @@ def run(
     Raises:
       ValueError: before anything compiles, for an episodic agent on continuous MDPs (or the reverse), an agent whose
         policy or action does not fit the MDPs' ``S``/``A``/``H``, non-positive ``n_steps``, ``log_period`` or
-        ``n_records``, hyperparameters outside their domain (``agent.check_hparams``), an
-        ``agent.hints.whole_batch_plans`` or ``agent.hints.whole_batch_bytes`` that is neither ``None`` nor an integer
-        >= 0, or a checkpoint of another run.
+        ``n_records``, a ``progress`` that is neither a bool nor a ``Progress``, hyperparameters outside their domain
+        (``agent.check_hparams``), an ``agent.hints.whole_batch_plans`` or ``agent.hints.whole_batch_bytes`` that is
+        neither ``None`` nor an integer >= 0, or a checkpoint of another run.
       ProgramTooLarge: after compiling, before anything runs, when a program needs more memory than
         ``memory_limit`` (a ``MemoryError``; split the members over several calls).
     """
@@ -538,18 +551,26 @@ def run(
         agent, grid, n_steps, log_period, n_records, variant, chunk_steps, shards, record_visits, plan_slots,
         memory_limit, stop_when_converged,
     )
-    program = _compile(agent, grid, settings)
-    run_id = fingerprint(agent.name, grid, settings.n_steps, settings.log_period, settings.record_period, variant)
-    if record_visits:  # a checkpoint of a run without counts cannot continue one with them (and vice versa)
-        run_id += "+visits"
-    if stop_when_converged:
-        run_id += "+converged-stop"
-    ckpt = Path(checkpoint_path) if checkpoint_path is not None else None
-    csv_file = Path(csv_path) if csv_path is not None else None
-    start = _start_or_resume(program, grid.n_members, run_id, ckpt, csv_file, resume)
-    done, run_s = _run_chunks(
-        agent, grid, program, start, settings, run_id, ckpt, csv_file, progress, stop_after_chunks
-    )
+    display, own_display = _display(progress, agent, grid, settings.n_steps)
+    try:
+        program = _compile(agent, grid, settings, display)
+        run_id = fingerprint(agent.name, grid, settings.n_steps, settings.log_period, settings.record_period, variant)
+        if record_visits:  # a checkpoint of a run without counts cannot continue one with them (and vice versa)
+            run_id += "+visits"
+        if stop_when_converged:
+            run_id += "+converged-stop"
+        ckpt = Path(checkpoint_path) if checkpoint_path is not None else None
+        csv_file = Path(csv_path) if csv_path is not None else None
+        start = _start_or_resume(program, grid.n_members, run_id, ckpt, csv_file, resume)
+        if int(start.carry.t):
+            display.write(f"resuming {agent.name} at step {int(start.carry.t)} of {settings.n_steps} ({ckpt})")
+            display.skip(grid.n_members * int(start.carry.t))
+        done, run_s = _run_chunks(
+            agent, grid, program, start, settings, run_id, ckpt, csv_file, display, stop_after_chunks
+        )
+    finally:
+        if own_display:
+            display.close()
     _warn_diagnostics(agent, done.carry.agent_state)
     return RunResult(
         steps=done.steps,
