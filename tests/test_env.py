@@ -211,24 +211,25 @@ def _sparse_and_dense_rollouts(key, mdp, n_steps):
     return got, want
 
 
-def _step_test_mdps():
+@functools.cache
+def _step_test_mdps() -> dict:
+    # Built on first use, not at collection (every xdist worker collects every module).
     rng = np.random.default_rng(11)
-    taxi = jaxmdp.make("Taxi", episodic=True, seed=0, size=5)  # 180 start states: the binary-search reset
-    rooms = jaxmdp.make("MiniGridRooms", episodic=False, seed=0, room_size=3)  # two start states
-    river = jaxmdp.make("RiverSwim", episodic=True, seed=0, size=5, make_reward_stochastic=True)
     noisy = jaxmdp.apply_noise(jaxmdp.make("DeepSea", episodic=True, seed=0, size=6), p_rand=0.3, p_lazy=0.2)
-    return [
-        ("taxi", taxi),
-        ("rooms", rooms),
-        ("river-beta", river),
-        ("deepsea-noisy", noisy),
-        ("random-episodic", random_mdp(rng, S=7, A=3, H=5)),
-        ("random-continuous", random_mdp(rng, S=5, A=2)),
-    ]
+    return {
+        "taxi": jaxmdp.make("Taxi", episodic=True, seed=0, size=5),  # 180 start states: the binary-search reset
+        "rooms": jaxmdp.make("MiniGridRooms", episodic=False, seed=0, room_size=3),  # two start states
+        "river-beta": jaxmdp.make("RiverSwim", episodic=True, seed=0, size=5, make_reward_stochastic=True),
+        "deepsea-noisy": noisy,
+        "random-episodic": random_mdp(rng, S=7, A=3, H=5),
+        "random-continuous": random_mdp(rng, S=5, A=2),
+    }
 
 
-@pytest.mark.parametrize("name, mdp", _step_test_mdps(), ids=lambda x: x if isinstance(x, str) else "")
-def test_sparse_step_samples_the_trajectories_of_the_dense_formulation(name, mdp):
+@pytest.mark.parametrize("name", ["taxi", "rooms", "river-beta", "deepsea-noisy", "random-episodic",
+                                  "random-continuous"])
+def test_sparse_step_samples_the_trajectories_of_the_dense_formulation(name):
+    mdp = _step_test_mdps()[name]
     # The start lists, the reward slots and the start-list search reproduce the dense inverse CDFs draw for draw
     # (same keys, same trajectories), over 40 keys x 60 steps: many resets on every episodic MDP.
     run = jax.jit(jax.vmap(_sparse_and_dense_rollouts, in_axes=(0, None, None)), static_argnums=2)

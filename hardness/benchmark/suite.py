@@ -17,6 +17,7 @@ reproduces the cached seed-0 diameters and value norms (checked in the tests); t
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Any
 
 import jaxmdp
@@ -43,7 +44,12 @@ class BenchmarkEntry:
     communication_class: str
     cached_diameter: float | None
     cached_value_norm: float | None
-    overrides: tuple[tuple[str, Any], ...] = ()
+
+    @property
+    def overrides(self) -> tuple[tuple[str, Any], ...]:
+        """Explicit reward distributions where the printed ones differ from the family defaults (module docstring),
+        worked out on first use: it builds the MDP, so importing the suite does not."""
+        return _distribution_overrides(self.family, self.gin_params, self.effective_distributions)
 
     @property
     def episodic(self) -> bool:
@@ -81,8 +87,12 @@ def _parse_betas(printed: str) -> dict[str, tuple[float, float]]:
     return out
 
 
-def _distribution_overrides(family: str, params: dict[str, Any], printed: str) -> tuple[tuple[str, Any], ...]:
+@functools.cache
+def _distribution_overrides(
+    family: str, gin_params: tuple[tuple[str, Any], ...], printed: str
+) -> tuple[tuple[str, Any], ...]:
     """Explicit distributions when the printed ones differ from the family defaults (see the module docstring)."""
+    params = dict(gin_params)
     printed_betas = _parse_betas(printed)
     if not params.get("make_reward_stochastic") or not printed_betas:
         return ()
@@ -108,7 +118,6 @@ def _entry(setting, family, scope, params, dists, S, H, cls, D, VN) -> Benchmark
         communication_class=cls,
         cached_diameter=D,
         cached_value_norm=VN,
-        overrides=_distribution_overrides(family, params, dists),
     )
 
 
