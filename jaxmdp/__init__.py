@@ -16,6 +16,7 @@ from jaxmdp.blockmdp import EMISSION_KINDS, NOISE_KINDS, BlockMDP, block_mdp, em
 from jaxmdp.batching import pad, permute_states, size_buckets, stack, state_permutation, unstack
 from jaxmdp.communication import CommunicationClass, communication_class
 from jaxmdp.env import EnvState, reset, sample_action, step
+from jaxmdp.gymnax_env import as_gymnax
 from jaxmdp.mdp import MDP, MDPInfo, custom_mdp
 from jaxmdp.mdp_families import Beta, PointMass
 from jaxmdp.registry import families, make, register
@@ -43,6 +44,7 @@ __all__ = [
     "reset",
     "step",
     "sample_action",
+    "as_gymnax",
     "render",
     "dynamic_programming",
     "CommunicationClass",

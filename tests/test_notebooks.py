@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parent.parent
 NOTEBOOK_DIR = ROOT / "notebooks"
 NAMES = (
     "01_mdps_and_hardness", "02_agents_and_regret", "03_blockmdps_and_deep_agents", "04_pictures_and_new_measures",
-    "06_benchmark_your_agent",
+    "05_gymnax_and_ppo", "06_benchmark_your_agent",
 )
 TIMEOUT_S = 600
 #: Source lines replaced before a notebook runs in the test: ``(full size, small)``. Each must occur exactly once, so
@@ -90,7 +90,7 @@ def launched(request, tmp_path_factory):
             proc.wait()
 
 
-@pytest.mark.slow
+@pytest.mark.nightly  # each notebook's steps are tested piecewise in the default profile
 @pytest.mark.parametrize("name", NAMES)
 def test_notebook_runs(launched, name):
     proc, log = launched[name]
