@@ -1,8 +1,8 @@
 """The reference's cached seed-0 diameter and value norm of the benchmark entries (printed with 4 decimals) against
 ours: per setting and size class, a few stacked calls over size buckets (one compilation each), mapped so that each
 member stops at its own convergence. The small entries are checked in tests/test_benchmark_suite.py, the larger ones
-in the slow tests of test_benchmark_suite_large_*.py, one file per setting type so that ``--dist loadfile`` can give
-them to different workers; CI runs them all."""
+in the nightly tests of test_benchmark_suite_large_*.py, one file per setting type so that ``--dist loadfile`` can
+give them to different workers."""
 
 import jax
 import numpy as np
@@ -59,7 +59,7 @@ def check_setting(setting: str, large: bool) -> None:
 def large_entries_test(kind: str):
     """The slow test of the entries above the size cut in the settings of type ``kind`` (episodic, continuous)."""
 
-    @pytest.mark.slow
+    @pytest.mark.nightly
     @pytest.mark.parametrize("setting", [s for s in bs.SETTINGS if s.startswith(kind)])
     def test_cached_seed0_diameter_and_value_norm_large(setting):
         check_setting(setting, large=True)

@@ -1,5 +1,5 @@
 """The reference's cached seed-0 diameter and value norm of the continuous benchmark entries above the size cut of
-tests/benchmark_cached.py (slow; CI runs them). A file of its own so that ``--dist loadfile`` can run it beside
+tests/benchmark_cached.py (nightly profile). A file of its own so that ``--dist loadfile`` can run it beside
 the other setting type's."""
 
 from benchmark_cached import large_entries_test

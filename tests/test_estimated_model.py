@@ -210,7 +210,8 @@ def _dense_q(state: ucrl2.UCRL2State) -> jax.Array:
 
 @pytest.mark.parametrize("family, params", [
     ("RiverSwim", dict(size=8, p_lazy=0.1, make_reward_stochastic=True)),
-    ("MiniGridEmpty", dict(size=5, p_lazy=0.3, n_starting_states=2, make_reward_stochastic=True)),
+    pytest.param("MiniGridEmpty", dict(size=5, p_lazy=0.3, n_starting_states=2, make_reward_stochastic=True),
+                 marks=pytest.mark.nightly),
 ])
 def test_ucrl2_policy_estimate_equals_the_dense_route(family, params):
     """After a lockstep run, UCRL2's slots hold every transition and its policy estimate is the dense route's
@@ -294,7 +295,8 @@ def _near_tie(state: psrl_continuous.PSRLContinuousState) -> jax.Array:
 
 @pytest.mark.parametrize("family, params", [
     ("RiverSwim", dict(size=8, p_lazy=0.1, make_reward_stochastic=True)),
-    ("MiniGridEmpty", dict(size=5, p_lazy=0.3, n_starting_states=2, make_reward_stochastic=True)),
+    pytest.param("MiniGridEmpty", dict(size=5, p_lazy=0.3, n_starting_states=2, make_reward_stochastic=True),
+                 marks=pytest.mark.nightly),
 ])
 def test_psrl_continuous_policy_estimate_equals_the_dense_posterior_mean(family, params):
     """PSRL continuous's policy estimate on its slots (the posterior mean as counts plus a uniform prior part) is the

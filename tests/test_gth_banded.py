@@ -167,11 +167,12 @@ def _policies(mdp, rng):
 
 
 @pytest.mark.parametrize("family,kw", [
-    ("MiniGridEmpty", dict(size=8, p_rand=0.1)),  # every policy irreducible
+    pytest.param("MiniGridEmpty", dict(size=8, p_rand=0.1), marks=pytest.mark.nightly),  # every policy irreducible
     ("MiniGridEmpty", dict(size=8, p_rand=0.0)),  # transient states and several classes
     ("DeepSea", dict(size=12, p_rand=0.0)),
-    ("RiverSwim", dict(size=20, p_rand=0.0)),
-    ("Taxi", dict(size=4, length=1, width=1, space=1, n_locations=3, p_rand=0.0)),
+    pytest.param("RiverSwim", dict(size=20, p_rand=0.0), marks=pytest.mark.nightly),
+    pytest.param("Taxi", dict(size=4, length=1, width=1, space=1, n_locations=3, p_rand=0.0),
+                 marks=pytest.mark.nightly),
 ])
 def test_gain_vector_with_band_order_matches_float64(family, kw):
     # Unchecked, as the runner calls it: the MDP's own band order fits every policy's chain (NaN if one did not).

@@ -183,7 +183,7 @@ def test_chosen_rows_and_expectations_agree_at_any_states(keep_limit):
 
 
 @pytest.mark.statistical(p=0.0)
-@pytest.mark.parametrize("variant", ["paper", "colosseum"])
+@pytest.mark.parametrize("variant", ["paper", pytest.param("colosseum", marks=pytest.mark.nightly)])
 def test_more_pairs_at_eta_than_kept(variant):
     """M = 1 kept pair (``keep_limit=0``), fewer than the pairs at eta: the plan uses the draws of every pair (redrawn
     at each backup), and still solves the dense extended MDP of its draws (discounted: dp.policy_iteration; average

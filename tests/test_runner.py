@@ -228,7 +228,7 @@ def test_record_steps():
 # ---------------------------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("episodic", [False, True])
+@pytest.mark.parametrize("episodic", [pytest.param(False, marks=pytest.mark.nightly), True])
 def test_random_agent_regret_is_the_random_baseline(episodic):
     # p_rand makes every policy ergodic, so the uniform policy's gain does not depend on the current state.
     mdp = river_swim(episodic, p_rand=0.1, make_reward_stochastic=True)
@@ -286,6 +286,7 @@ def two_mdps():
     return small, big
 
 
+@pytest.mark.nightly  # the default profile: tests/test_properties_* (a member alone and in a batch of others)
 def test_vmapped_grid_equals_single_runs(two_mdps):
     agent = agents.get("q_learning_continuous")
     hps = [agent.default_hparams, agent.default_hparams.replace(h_weight=0.5)]
@@ -545,7 +546,7 @@ def test_only_changed_members_are_evaluated():
     np.testing.assert_array_equal(out[1], cache[1])
 
 
-@pytest.mark.parametrize("name", ["q_learning_episodic", "q_learning_continuous"])
+@pytest.mark.parametrize("name", ["q_learning_episodic", pytest.param("q_learning_continuous", marks=pytest.mark.nightly)])
 def test_greedy_action_indices_give_the_same_records_as_the_one_hot_policy(name):
     # The runner compares and evaluates an agent's greedy_actions where it has them; without them (the one-hot
     # policy, as every agent before) every record is bit-identical, on a stacked grid of two MDPs of different sizes
@@ -563,7 +564,7 @@ def test_greedy_action_indices_give_the_same_records_as_the_one_hot_policy(name)
     assert np.all(indices.values[-1, :, 0] > 0)  # some regret: the policies were evaluated, not all optimal
 
 
-@pytest.mark.parametrize("name", ["random_episodic", "random_continuous"])
+@pytest.mark.parametrize("name", ["random_episodic", pytest.param("random_continuous", marks=pytest.mark.nightly)])
 def test_a_fixed_policy_gives_the_same_records_evaluated_once(name, tmp_path):
     # The random agent declares its policy fixed: the runner evaluates it at the first log and never extracts or
     # compares it again. Every record is bit-identical to the comparing runner's, on a stacked grid of two MDPs of

@@ -151,8 +151,8 @@ def _continuous_grid(agent):
 
 @pytest.mark.parametrize("name, make_grid, n_steps", [
     ("psrl_episodic", _episodic_grid, 150),
-    ("ucrl2", _continuous_grid, 400),
-    ("psrl_continuous", _continuous_grid, 400),
+    pytest.param("ucrl2", _continuous_grid, 400, marks=pytest.mark.nightly),
+    pytest.param("psrl_continuous", _continuous_grid, 400, marks=pytest.mark.nightly),
 ])
 def test_results_do_not_depend_on_the_slots(name, make_grid, n_steps):
     agent = agents.get(name)

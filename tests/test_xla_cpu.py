@@ -1,8 +1,13 @@
-"""The jaxlib 0.10.2 CPU miscompilation guard (jaxmdp/jaxlib_workarounds/xla_cpu.py): the pattern that broke is
-computed correctly; the guard logs when it applies and can be turned off."""
+"""The jaxlib CPU miscompilation guard (jaxmdp/jaxlib_workarounds/xla_cpu.py): the pattern that broke is computed
+correctly; the guard applies exactly to the releases that miscompile it, logs when it applies and can be turned
+off."""
 
+import json
 import logging
 import os
+import subprocess
+import sys
+import textwrap
 
 import jax
 import jax.numpy as jnp
@@ -15,14 +20,49 @@ from jaxmdp.jaxlib_workarounds import xla_cpu
 def test_flag_is_set_for_affected_jaxlib():
     import jaxlib
 
-    if xla_cpu._version_tuple(jaxlib.__version__) >= xla_cpu._FIRST_AFFECTED:
+    if xla_cpu.affected(jaxlib.__version__):
         assert xla_cpu.YNN_FLAG in os.environ.get("XLA_FLAGS", "")
 
 
-def test_version_parsing():
+def test_version_parsing_and_the_affected_range():
     assert xla_cpu._version_tuple("0.10.2") == (0, 10, 2)
     assert xla_cpu._version_tuple("0.11.0rc1") == (0, 11, 0)
-    assert xla_cpu._version_tuple("0.10.1") < xla_cpu._FIRST_AFFECTED
+    assert [xla_cpu.affected(v) for v in ("0.9.0", "0.10.1", "0.10.2", "0.11.0", "0.11.2", "0.12.0", "1.0.0")] == [
+        False, False, True, True, True, False, False]
+
+
+# The program of test_nested_vmap_variance_matches_numpy, in a process that leaves XLA_FLAGS alone (jaxmdp is not
+# imported): it prints the largest error against numpy under the installed jaxlib's defaults.
+_UNGUARDED = textwrap.dedent(
+    """
+    import json
+    import jax, jax.numpy as jnp, jaxlib, numpy as np
+    rng = np.random.default_rng(0)
+    S, A, K, B, H = 256, 3, 3, 2, 20
+    succ = rng.integers(0, S, size=(S, A, K)).astype(np.int32)
+    W = rng.random((B, H, S)).astype(np.float32)
+    p = rng.random((B, S, A, K)).astype(np.float32)
+    def variance(sp, w):
+        E = jnp.sum(sp * w[succ], -1)
+        return jnp.sum(sp * (w[succ] - E[..., None]) ** 2, -1)
+    f = jax.jit(lambda Wb, pb: jax.vmap(lambda Wh, sp: jax.vmap(lambda w: variance(sp, w))(Wh))(Wb, pb))
+    g = W[:, :, succ].astype(np.float64)
+    pp = p[:, None].astype(np.float64)
+    want = (pp * (g - (pp * g).sum(-1, keepdims=True)) ** 2).sum(-1)
+    print(json.dumps(dict(jaxlib=jaxlib.__version__, error=float(np.abs(np.asarray(f(W, p)) - want).max()))))
+    """
+)
+
+
+def test_the_guarded_range_is_where_the_installed_jaxlib_miscompiles():
+    # Keeps xla_cpu's version range honest: on a jaxlib the guard covers, the reproducer must go wrong without the
+    # guard (else the range is too wide: narrow it), and on any other it must be right (else widen it).
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    proc = subprocess.run([sys.executable, "-c", _UNGUARDED], env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    wrong = out["error"] > 1e-3
+    assert wrong == xla_cpu.affected(out["jaxlib"]), out
 
 
 def test_nested_vmap_variance_matches_numpy():
@@ -70,7 +110,7 @@ def test_opt_out_and_log(monkeypatch, caplog):
     monkeypatch.setenv(xla_cpu.OPT_OUT_VARIABLE, "0")  # "0" does not opt out
     with caplog.at_level(logging.INFO, logger="jaxmdp"):
         added = xla_cpu.disable_ynn_fusion()
-    affected = xla_cpu._version_tuple(jaxlib.__version__) >= xla_cpu._FIRST_AFFECTED
+    affected = xla_cpu.affected(jaxlib.__version__)
     assert added == affected
     if affected:
         assert os.environ["XLA_FLAGS"] == f"--xla_foo=1 {xla_cpu.YNN_FLAG}="

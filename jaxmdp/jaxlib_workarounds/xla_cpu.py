@@ -7,8 +7,8 @@ episodic value norm under ``jit(vmap(...))`` of a transformed MDP (256 states, 1
 *deterministic* MDP read 12.99 instead of 0. Eager execution and jaxlib 0.10.1 are correct.
 
 Importing :mod:`jaxmdp` therefore adds ``--xla_cpu_experimental_ynn_fusion_type=`` (empty: no YNNPACK fusions) to
-``XLA_FLAGS`` when all of these hold: the installed jaxlib is 0.10.2 or newer (older versions do not know the flag and
-would abort on it), the user has not set that flag themselves, ``JAXMDP_NO_XLA_GUARD`` is not set to a non-empty value
+``XLA_FLAGS`` when all of these hold: the installed jaxlib is one of the affected releases, 0.10.2 up to (not
+including) 0.12.0 (:func:`affected`: older versions have no YNNPACK fusions and would abort on the flag), the user has not set that flag themselves, ``JAXMDP_NO_XLA_GUARD`` is not set to a non-empty value
 other than ``0`` (the opt-out), and no JAX backend exists yet (XLA reads the flags once, when the first backend is
 created). When it adds the flag it says so on the ``jaxmdp`` logger (level INFO). If a backend already exists the
 flag cannot take effect any more and a ``RuntimeWarning`` says so: import jaxmdp before running any JAX computation.
@@ -24,7 +24,7 @@ import os
 import re
 import warnings
 
-__all__ = ["YNN_FLAG", "OPT_OUT_VARIABLE", "disable_ynn_fusion", "ynn_fusion_disabled"]
+__all__ = ["YNN_FLAG", "OPT_OUT_VARIABLE", "affected", "disable_ynn_fusion", "ynn_fusion_disabled"]
 
 #: The XLA option; an empty value disables every YNNPACK fusion on CPU.
 YNN_FLAG = "--xla_cpu_experimental_ynn_fusion_type"
@@ -32,8 +32,14 @@ YNN_FLAG = "--xla_cpu_experimental_ynn_fusion_type"
 #: Set this environment variable (to anything but ``""`` or ``"0"``) to leave ``XLA_FLAGS`` alone.
 OPT_OUT_VARIABLE = "JAXMDP_NO_XLA_GUARD"
 
-# First jaxlib version with the miscompilation (and the flag).
+# The affected jaxlib releases, [_FIRST_AFFECTED, _FIRST_UNAFFECTED). 0.10.2 introduced the YNNPACK fusions and the
+# flag. The reports name 0.10.2 (jax-ml/jax#39103, #40412) and 0.11.0 (#39257); the XNNPACK fix reached XLA's main
+# branch after 0.10.2 was cut, and no report states the first release that carries it, so the guard covers the
+# whole 0.11 series. tests/test_xla_cpu.py runs the #39103 reproducer without the guard on the installed jaxlib
+# and fails if this range and the jaxlib's behaviour disagree (a fixed release inside the range, a broken one
+# outside it): that test is how the range is kept honest.
 _FIRST_AFFECTED = (0, 10, 2)
+_FIRST_UNAFFECTED = (0, 12, 0)
 
 _log = logging.getLogger("jaxmdp")
 
@@ -44,6 +50,11 @@ def _version_tuple(version: str) -> tuple[int, ...]:
         match = re.match(r"\d+", piece)  # "0rc1" -> 0
         parts.append(int(match.group()) if match else 0)
     return tuple(parts)
+
+
+def affected(version: str) -> bool:
+    """Whether jaxlib ``version`` is one of the releases with the YNNPACK miscompilation (module docstring)."""
+    return _FIRST_AFFECTED <= _version_tuple(version) < _FIRST_UNAFFECTED
 
 
 def ynn_fusion_disabled() -> bool:
@@ -69,7 +80,7 @@ def disable_ynn_fusion() -> bool:
     was added."""
     import jaxlib
 
-    if _version_tuple(jaxlib.__version__) < _FIRST_AFFECTED or ynn_fusion_disabled() or _opted_out():
+    if not affected(jaxlib.__version__) or ynn_fusion_disabled() or _opted_out():
         return False
     if _backend_exists():
         warnings.warn(
