@@ -7,13 +7,21 @@ and the random agent, two seeds, 200 steps.
 
 import csv
 import json
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import threading
+import time
 
 import jax
 import numpy as np
 import pytest
 
 import jaxmdp
-from hardness.benchmark import published, report, run, sets
+from conftest import REPO
+from hardness.benchmark import claims, published, report, run, sets
 from jaxmdp import runner
 
 TINY = dict(sets=("episodic quick test",), agents=("q_learning_episodic", "random_episodic"), seeds=(0, 1),
@@ -44,7 +52,8 @@ def test_full_run_writes_members_batches_and_runner_csvs(full_run):
                 float(r["random_normalized_regret_per_step"]), rel=1e-5)
     with (out / "batches.csv").open(newline="") as f:
         batches = list(csv.DictReader(f))
-    assert len(batches) == 4 and all(float(b["run_s"]) > 0 for b in batches)
+    assert len(batches) == 4 and all(float(b["run_s"]) > 0 and float(b["compile_s"]) > 0 for b in batches)
+    assert {(b["host"], b["pid"]) for b in batches} == {(socket.gethostname(), str(os.getpid()))}  # who ran them
     for b in summary.ran:  # the runner's CSV: every member's 4 records (200 steps / 50)
         with (out / "runs" / f"{b}.csv").open(newline="") as f:
             recs = list(csv.DictReader(f))
@@ -502,3 +511,165 @@ def test_the_benchmark_command_reports_a_finished_run(full_run, capsys):
     assert capsys.readouterr().out == ""
     with pytest.raises(SystemExit, match="holds no benchmark run"):
         cli.main(["report", "--out", str(out / "runs"), "--no-compile-cache"])
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Several processes on one folder, shards, merged folders
+# ---------------------------------------------------------------------------------------------------------------
+
+#: A process of the two-process test: waits at a gate so that both start together, then runs the tiny benchmark with
+#: each batch held a second longer (so that the processes overlap), and prints what it ran.
+ONE_OF_TWO = """
+import json, pathlib, sys, time
+from hardness.benchmark import run
+out, ready, gate = sys.argv[1], pathlib.Path(sys.argv[2]), pathlib.Path(sys.argv[3])
+config = {k: tuple(v) if isinstance(v, list) else v for k, v in json.loads(sys.argv[4]).items()}
+real = run._run_batch
+def held_longer(*args, **kwargs):
+    done = real(*args, **kwargs)
+    time.sleep(1.0)
+    return done
+run._run_batch = held_longer
+ready.touch()
+while not gate.exists():
+    time.sleep(0.02)
+s = run.run_benchmark(run.RunConfig(**config), out, progress=False, report=False, poll_s=0.2)
+print(json.dumps(dict(ran=s.ran, others=s.others, reused=s.reused)))
+"""
+
+
+def _events(out, batch_id):
+    return [line.split()[1] for line in (out / "runs" / f"{batch_id}.log").read_text().splitlines()]
+
+
+def _plan_ids(out):
+    return [b["id"] for b in json.loads((out / "plan.json").read_text())["batches"]]
+
+
+def test_two_processes_on_one_folder_run_each_batch_once_and_end_with_the_single_run_s_results(full_run, tmp_path):
+    out = tmp_path / "shared"
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    procs = [subprocess.Popen([sys.executable, "-c", ONE_OF_TWO, str(out), str(tmp_path / f"ready{i}"),
+                               str(tmp_path / "gate"), json.dumps(TINY)], cwd=REPO, env=env, text=True,
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE) for i in range(2)]
+    deadline = time.monotonic() + 600
+    while not all((tmp_path / f"ready{i}").exists() for i in range(2)):
+        assert all(p.poll() is None for p in procs) and time.monotonic() < deadline, [p.communicate() for p in procs]
+        time.sleep(0.05)
+    (tmp_path / "gate").touch()
+    outputs = [p.communicate(timeout=600) for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], outputs
+    did = [json.loads(o.strip().splitlines()[-1]) for o, _ in outputs]
+    ids = _plan_ids(full_run[0])
+    # every batch ran in exactly one process, both processes ran some, and each saw the other's finish
+    assert sorted(did[0]["ran"] + did[1]["ran"]) == sorted(ids) and did[0]["ran"] and did[1]["ran"]
+    for i in range(2):
+        assert sorted(did[i]["others"] + did[i]["reused"]) == sorted(did[1 - i]["ran"])
+    for b in ids:
+        assert _events(out, b) == ["claimed", "finished"], b
+    with (out / "batches.csv").open(newline="") as f:
+        who = {r["batch"]: (r["host"], int(r["pid"])) for r in csv.DictReader(f)}
+    assert who == {b: (socket.gethostname(), procs[i].pid) for i in range(2) for b in did[i]["ran"]}
+    assert (out / "members.csv").read_bytes() == (full_run[0] / "members.csv").read_bytes()
+    assert not list((out / "runs").glob("*.claim")) and not list((out / "runs").glob("*.ckpt.npz"))
+
+
+def test_a_run_takes_over_a_gone_holder_s_batch_and_waits_for_a_live_one(full_run, tmp_path):
+    # Two batches (the random agent on two buckets): the first claimed by a process of this machine that has exited,
+    # the second by a process of another machine that keeps beating until the first has finished and then 2 s more
+    # (twice stale_s), then lets go. The run takes the first over at once, waits for the second, then runs it.
+    config = run.RunConfig(**{**TINY, "agents": ("random_episodic",)})
+    first, second = run.plan(config, tmp_path)[1]
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    (tmp_path / "runs").mkdir()
+    (tmp_path / "runs" / f"{first.id}.claim").write_text(json.dumps(dict(
+        host=socket.gethostname(), machine=claims.machine(), pid=dead.pid, token="t", started="", beat=0)))
+    claim = tmp_path / "runs" / f"{second.id}.claim"
+    released = []
+
+    def elsewhere():
+        beat, until = 0, None
+        while until is None or time.monotonic() < until:
+            claim.write_text(json.dumps(dict(host="elsewhere", machine="elsewhere/b/p", pid=1, token="e", beat=beat)))
+            beat += 1
+            if until is None and (tmp_path / "runs" / f"{first.id}.json").exists():
+                until = time.monotonic() + 2.0
+            time.sleep(0.05)
+        released.append(time.monotonic())
+        claim.unlink()
+
+    holder = threading.Thread(target=elsewhere)
+    holder.start()
+    summary = run.run_benchmark(config, tmp_path, progress=False, report=False, poll_s=0.05, heartbeat_s=0.1,
+                                stale_s=1.0)
+    holder.join()
+    assert summary.finished and summary.ran == [first.id, second.id] and released
+    assert _events(tmp_path, first.id) == ["took", "finished"]
+    assert _events(tmp_path, second.id) == ["claimed", "finished"]  # waited: a live holder is not taken over
+    with (tmp_path / "members.csv").open(newline="") as f, (full_run[0] / "members.csv").open(newline="") as g:
+        assert list(csv.reader(f))[1:] == [r for r in csv.reader(g) if r[3] == "random_episodic"]
+
+
+def test_a_call_naming_fewer_agents_keeps_the_folder_s_results_and_another_protocol_is_refused(full_run, tmp_path):
+    out = tmp_path / "folder"
+    shutil.copytree(full_run[0], out)
+    before = {name: (out / name).read_bytes() for name in ("plan.json", "members.csv")}
+    summary = run.run_benchmark(run.RunConfig(**{**TINY, "agents": ("random_episodic",)}), out, progress=False)
+    assert summary.finished and summary.ran == [] and len(summary.reused) == 2
+    assert {name: (out / name).read_bytes() for name in before} == before  # both agents still, every member
+    with pytest.raises(ValueError, match=r"another protocol \(n_steps: 200 there, 100 here\)"):
+        run.run_benchmark(run.RunConfig(**{**TINY, "n_steps": 100}), out, progress=False)
+    with pytest.raises(ValueError, match=r"hparams_source: 'reference' there, 'tuned' here"):
+        run.plan(run.RunConfig(**{**TINY, "hparams": "tuned"}), out)
+    assert {name: (out / name).read_bytes() for name in before} == before
+    with pytest.raises(ValueError, match="shard must be"):
+        run.run_benchmark(run.RunConfig(**TINY), out, progress=False, shard=(2, 2))
+
+
+def _without_column(text: str, header: str, sep: str) -> str:
+    """``text`` with the cells of the table column named ``header`` emptied (timings cannot repeat)."""
+    lines, at = text.splitlines(), None
+    for k, line in enumerate(lines):
+        cells = line.split(sep)
+        if header in [c.strip(" |\\") for c in cells]:
+            at = [c.strip(" |\\") for c in cells].index(header)
+        elif not line.strip():
+            at = None  # the end of the table
+        elif at is not None and len(cells) > at:
+            lines[k] = sep.join(cells[:at] + [""] + cells[at + 1 :])
+    return "\n".join(lines)
+
+
+def test_two_shards_in_two_folders_merge_into_the_single_run(full_run, tmp_path):
+    from hardness.cli import benchmark as cli
+
+    single = full_run[0]
+    ids = _plan_ids(single)
+    halves = [run.run_benchmark(run.RunConfig(**TINY), tmp_path / f"s{i}", progress=False, shard=(i, 2))
+              for i in range(2)]
+    assert [h.ran for h in halves] == [[ids[0], ids[3]], [ids[1], ids[2]]]  # the snake: shards 0, 1, 1, 0
+    assert all(h.finished for h in halves) and not (tmp_path / "s0" / "report.md").exists()
+    merged = tmp_path / "merged"
+    assert cli.main(["report", str(tmp_path / "s0"), str(tmp_path / "s1"), "--out", str(merged), "--quiet",
+                     "--no-compile-cache"]) == 0
+    for name in ("members.csv", "plan.json", "measures.csv"):
+        assert (merged / name).read_bytes() == (single / name).read_bytes(), name
+    timing = ("compile_s", "run_s", "member_steps_per_s", "agent_steps_per_s", "host", "pid")
+    tables = []
+    for folder in (single, merged):
+        with (folder / "batches.csv").open(newline="") as f:
+            tables.append([{k: v for k, v in r.items() if k not in timing} for r in csv.DictReader(f)])
+    assert tables[0] == tables[1] and len(tables[0]) == 4
+    md = [_without_column((f / "report.md").read_text(), "steps/s", " | ") for f in (single, merged)]
+    assert md[0] == md[1] and "steps/s" in md[0] and md[0] != (single / "report.md").read_text()
+    tex = [_without_column((f / "report.tex").read_text(), "steps/s", " & ") for f in (single, merged)]
+    assert tex[0] == tex[1]
+    assert {p.name for p in (merged / "runs").iterdir()} >= {f"{b}{x}" for b in ids for x in (".json", ".curves.npz")}
+    with pytest.raises(SystemExit, match="name the merged folder with --out"):
+        cli.main(["report", str(tmp_path / "s0"), str(tmp_path / "s1"), "--no-compile-cache"])
+    parser = cli.build_parser()
+    for bad in ("3/2", "x"):
+        with pytest.raises(SystemExit):
+            parser.parse_args(["run", "--quick", "--shard", bad, "--out", "x"])
+    assert parser.parse_args(["run", "--quick", "--shard", "1/2", "--out", "x"]).shard == (1, 2)

@@ -23,19 +23,22 @@ random features come from :func:`emission_key` of the member's seed.
 
 Output folder:
 
-* ``plan.json``: the settings and the batches (reused, without building any MDP, when the settings are unchanged);
+* ``plan.json``: the settings and the batches of every call on the folder, merged (:mod:`hardness.benchmark.plans`:
+  one protocol per folder; the batches a call shares with the folder are reused without building any MDP);
 * ``runs/<batch>.csv``: the runner's per-record CSV of a batch (``member, mdp, hparams, seed`` and the reference's
   columns), written as it runs; ``runs/<batch>.ckpt.npz`` its checkpoint while it runs;
   ``runs/<batch>.json``: a finished batch's final values per member; ``runs/<batch>.curves.npz`` its curves;
 * ``members.csv``: one row per finished (set, MDP, agent, seed): :data:`MEMBER_FIELDS`; rewritten after every batch
   in a fixed order, so an interrupted and resumed run ends with the same file byte for byte;
-* ``batches.csv``: one row per finished batch: its members, compile and run seconds and step rates (timings cannot
-  be reproduced byte for byte, so they live here rather than in ``members.csv``);
+* ``batches.csv``: one row per finished batch: its members, compile and run seconds, step rates, and the host and pid
+  that ran it (these cannot be reproduced byte for byte, so they live here rather than in ``members.csv``);
 * the report (:mod:`hardness.benchmark.report`) once every batch has finished.
 
 Resuming: a finished batch (its ``.json`` holds the same batch key: set, agent, members, steps, periods,
 hyperparameters) is never run again; an interrupted one continues from its checkpoint. Results do not depend on where
-a run was interrupted (the runner's keys are folded with the step index).
+a run was interrupted (the runner's keys are folded with the step index). Processes sharing a folder claim each batch
+they run (``runs/<batch>.claim`` and ``.log``, :mod:`hardness.benchmark.claims`); ``shard`` runs a share of the
+batches, and folders are merged, by :mod:`hardness.benchmark.shards`.
 """
 
 from __future__ import annotations
@@ -44,6 +47,7 @@ import dataclasses
 import hashlib
 import json
 import os
+import socket
 import sys
 import time
 from collections.abc import Mapping, Sequence
@@ -54,11 +58,14 @@ import numpy as np
 
 import agents as agent_registry
 import jaxmdp
+from filelock import FileLock
+
+from hardness.benchmark import claims, plans, sets, shards
 from hardness.benchmark import hparams as hp_sources
-from hardness.benchmark import sets
 from jaxmdp import runner
 from jaxmdp._checks import check_bool, check_variant
 from jaxmdp.experiment.members import dynamics
+from jaxmdp.experiment.progress import Progress
 from jaxmdp.mdp import MDP
 from hardness.benchmark.emissions import (  # noqa: F401 (re-exported: the run's public names)
     EMISSION_STREAM,
@@ -68,6 +75,7 @@ from hardness.benchmark.emissions import (  # noqa: F401 (re-exported: the run's
     emission_key,
     to_block_mdp,
 )
+from hardness.benchmark.plans import Batch
 from hardness.benchmark.tables import BATCH_FIELDS, MEMBER_FIELDS, _finished, _write_atomic, write_tables  # noqa: F401
 
 __all__ = [
@@ -166,29 +174,17 @@ class RunConfig:
         return int(self.agent_buckets.get(agent, self.n_buckets))
 
 
-@dataclasses.dataclass(frozen=True)
-class Batch:
-    """One runner call: ``agent`` on ``members`` (``(MDP label, seed)``) of ``set_name``; ``key`` hashes everything
-    its results depend on."""
-
-    id: str
-    key: str
-    set_name: str
-    agent: str
-    members: tuple[tuple[str, int], ...]
-    #: The members of the batch this one is a part of, when a batch was split because it did not fit in memory
-    #: (:func:`split_batch`): the part is padded and sized like it, so each member runs as it would have there.
-    whole: tuple[tuple[str, int], ...] | None = None
-
-
 @dataclasses.dataclass
 class RunSummary:
-    """What a call did: batches run (or continued), batches already finished, whether every batch is finished."""
+    """What a call did: batches run (or continued), batches already finished, whether every batch of the call (of its
+    shard) is finished."""
 
     ran: list[str]
     reused: list[str]
     finished: bool
     out: Path
+    #: Batches of the call that other processes finished while it ran (:mod:`hardness.benchmark.claims`).
+    others: list[str] = dataclasses.field(default_factory=list)
 
 
 def default_agents(set_name: str, emission: str | None = None) -> list[str]:
@@ -284,42 +280,59 @@ def _slug(text: str) -> str:
 
 
 def plan(config: RunConfig, out: str | os.PathLike | None = None) -> tuple[dict[str, Any], list[Batch]]:
-    """``(settings, batches)`` of ``config`` (module docstring). With ``out``, a ``plan.json`` of the same settings
-    there is reused (no MDP is built) and a new plan is written there."""
+    """``(settings, batches)`` of ``config`` (module docstring). With ``out``, the plan is merged into the folder's
+    ``plan.json`` (:mod:`hardness.benchmark.plans`: ``ValueError`` when the folder holds another protocol): the
+    batches of the (set, agent) pairs that the folder already plans are taken from there (no MDP is built for them;
+    batches split to fit in memory stay split)."""
+    settings, batches = _plan(config, out)
+    if out is not None:
+        batches = plans.commit_call(Path(out), settings, batches)
+    return settings, batches
+
+
+def _plan(config: RunConfig, out: str | os.PathLike | None) -> tuple[dict[str, Any], list[Batch]]:
+    """:func:`plan` without writing anything."""
     names = _check(config)
     settings = _settings(config, names)
-    path = Path(out) / "plan.json" if out is not None else None
-    if path is not None and path.exists():
-        saved = json.loads(path.read_text())
-        if saved.get("settings") == settings:
-            batches = [Batch(b["id"], b["key"], b["set_name"], b["agent"], tuple(map(tuple, b["members"])),
-                             None if b.get("whole") is None else tuple(map(tuple, b["whole"])))
-                       for b in saved["batches"]]
-            return settings, batches
+    folder = plans.load(out) if out is not None else None
+    known: dict[tuple[str, str], list[Batch]] = {}
+    if folder is not None:
+        plans.merge_settings(folder["settings"], settings, str(out))  # refuse another protocol before building
+        for b in folder["batches"]:
+            known.setdefault((b["set_name"], b["agent"]), []).append(plans.to_batch(b))
     batches = []
     for set_name in names:
-        found = [i for i in sets.instances(set_name) if not config.only or {i.label, i.family} & set(config.only)]
-        if not found:
-            raise ValueError(f"only={list(config.only or ())} keeps no MDP of the {set_name!r} set")
-        sizes = [inst.build(config.seeds[0]) for inst in found]
-        grouped = {}
-        for n_buckets in sorted({config.buckets(a) for a in settings["agents"][set_name]}):
-            groups = [(f"b{b}", sorted(g)) for b, g in enumerate(jaxmdp.size_buckets(sizes, n_buckets))]
-            if settings["emission"] is not None:
-                groups = _split_by_observation(groups, sizes, settings["emission"], config.seeds[0])
-            grouped[n_buckets] = groups
+        need = [a for a in settings["agents"][set_name] if (set_name, a) not in known]
+        built = _set_batches(config, settings, set_name, need) if need else {}
         for agent in settings["agents"][set_name]:
-            for gid, group in grouped[config.buckets(agent)]:
-                members = [(found[i].label, int(s)) for i in group for s in config.seeds]
-                step = config.max_members or len(members)
-                parts = [members[k : k + step] for k in range(0, len(members), step)]
-                for p, part in enumerate(parts):
-                    bid = f"{_slug(set_name)}.{agent}.{gid}" + (f".p{p}" if len(parts) > 1 else "")
-                    batches.append(Batch(bid, _batch_key(settings, set_name, agent, part), set_name, agent,
-                                         tuple(part)))
-    if path is not None:
-        _save_plan(path, settings, batches)
+            batches += known.get((set_name, agent)) or built[agent]
     return settings, batches
+
+
+def _set_batches(config: RunConfig, settings: dict, set_name: str, agents: Sequence[str]) -> dict[str, list[Batch]]:
+    """The batches of ``agents`` on ``set_name``: per agent, its size buckets in order (module docstring)."""
+    found = [i for i in sets.instances(set_name) if not config.only or {i.label, i.family} & set(config.only)]
+    if not found:
+        raise ValueError(f"only={list(config.only or ())} keeps no MDP of the {set_name!r} set")
+    sizes = [inst.build(config.seeds[0]) for inst in found]
+    grouped = {}
+    for n_buckets in sorted({config.buckets(a) for a in agents}):
+        groups = [(f"b{b}", sorted(g)) for b, g in enumerate(jaxmdp.size_buckets(sizes, n_buckets))]
+        if settings["emission"] is not None:
+            groups = _split_by_observation(groups, sizes, settings["emission"], config.seeds[0])
+        grouped[n_buckets] = groups
+    out: dict[str, list[Batch]] = {}
+    for agent in agents:
+        out[agent] = []
+        for gid, group in grouped[config.buckets(agent)]:
+            members = [(found[i].label, int(s)) for i in group for s in config.seeds]
+            step = config.max_members or len(members)
+            parts = [members[k : k + step] for k in range(0, len(members), step)]
+            for p, part in enumerate(parts):
+                bid = f"{_slug(set_name)}.{agent}.{gid}" + (f".p{p}" if len(parts) > 1 else "")
+                out[agent].append(Batch(bid, _batch_key(settings, set_name, agent, part), set_name, agent,
+                                        tuple(part)))
+    return out
 
 
 def _batch_key(settings: dict, set_name: str, agent: str, members: Sequence, whole: Sequence | None = None) -> str:
@@ -331,12 +344,6 @@ def _batch_key(settings: dict, set_name: str, agent: str, members: Sequence, who
     if whole is not None:
         key.update(whole=[list(m) for m in whole])
     return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:16]
-
-
-def _save_plan(path: Path, settings: dict, batches: Sequence[Batch]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    data = {"settings": settings, "batches": [dataclasses.asdict(b) for b in batches]}
-    _write_atomic(path, json.dumps(data, indent=1) + "\n")
 
 
 def split_batch(batch: Batch, settings: dict) -> list[Batch]:
@@ -445,9 +452,11 @@ def _finals(batch: Batch, result: runner.RunResult) -> list[dict[str, Any]]:
     return out
 
 
-def _run_batch(batch: Batch, config: RunConfig, run_dir: Path, stop_after_chunks: int | None) -> bool:
-    """Run (or continue from its checkpoint) one batch, stopping after ``stop_after_chunks`` runner chunks if given;
-    returns whether it finished."""
+def _run_batch(
+    batch: Batch, config: RunConfig, run_dir: Path, stop_after_chunks: int | None, bar: Progress | bool = False
+) -> bool:
+    """Run (or continue from its checkpoint) one batch, stopping after ``stop_after_chunks`` runner chunks if given,
+    the runner advancing ``bar`` by the member-steps of each chunk; returns whether it finished."""
     agent = agent_registry.get(batch.agent, config.agent_variant)
     g = batch_grid(batch, config)
     period = config.period(batch.set_name)
@@ -455,7 +464,7 @@ def _run_batch(batch: Batch, config: RunConfig, run_dir: Path, stop_after_chunks
     result = runner.run(agent, g, config.n_steps, log_period=period, n_records=config.n_records,
                         variant=config.indicator_variant, stop_when_converged=config.stop_when_converged,
                         csv_path=run_dir / f"{batch.id}.csv", checkpoint_path=run_dir / f"{batch.id}.ckpt.npz",
-                        stop_after_chunks=stop_after_chunks, memory_limit=config.memory_limit)
+                        stop_after_chunks=stop_after_chunks, memory_limit=config.memory_limit, progress=bar)
     done = int(result.steps[-1]) if result.steps.size else 0
     if done < config.n_steps:
         return False
@@ -465,7 +474,7 @@ def _run_batch(batch: Batch, config: RunConfig, run_dir: Path, stop_after_chunks
     record = dict(
         key=batch.key, batch=batch.id, set=batch.set_name, agent=batch.agent, n_steps=config.n_steps,
         members=_finals(batch, result), n_members=g.n_members, n_mdps=int(mdps.T.shape[0]), max_states=states,
-        compile_s=compile_s, run_s=result.run_s,
+        compile_s=compile_s, run_s=result.run_s, host=socket.gethostname(), pid=os.getpid(),
     )
     curves = {c: result.column(c).astype(np.float32) for c in ("cumulative_regret", "random_cumulative_regret")}
     tmp = run_dir / f"{batch.id}.curves.tmp.npz"
@@ -484,9 +493,18 @@ def run_benchmark(
     report: bool = True,
     stop_at: tuple[int, int] | None = None,
     baseline: str | os.PathLike | None = None,
+    shard: tuple[int, int] | None = None,
+    poll_s: float = 2.0,
+    heartbeat_s: float = claims.HEARTBEAT_S,
+    stale_s: float = claims.STALE_S,
 ) -> RunSummary:
     """Run every batch of ``config`` that is not finished in ``out`` (module docstring), then write the report.
 
+    Several processes may share ``out`` (:mod:`hardness.benchmark.claims`): each batch is claimed by the process that
+    runs it; a process skips the batches that others hold, runs the rest, then polls every ``poll_s`` seconds until
+    the others' batches have finished (taking over those whose holder is gone: ``heartbeat_s``, ``stale_s``).
+    ``shard = (i, N)`` runs only shard ``i``'s share of the batches (:func:`hardness.benchmark.shards.share`); the
+    report is written once every batch of the plan has finished in ``out``.
     ``baseline``: results set beside the run's own in the report (``"committed"``, the shipped agents' committed
     results, or a run folder; :mod:`hardness.benchmark.baselines`), checked before anything runs: ``ValueError``
     naming what differs when none of them was made under this run's protocol.
@@ -494,60 +512,86 @@ def run_benchmark(
     ``c`` runner chunks of the next one and stop; the next call continues from there.
     """
     out = Path(out)
-    planned_before = (out / "plan.json").exists()
-    settings, batches = plan(config, out if planned_before else None)  # a refused run writes nothing
+    if shard is not None:
+        shard = shards.check_shard(shard)
+    if not poll_s > 0:
+        raise ValueError(f"poll_s must be a positive number of seconds; got {poll_s!r}")
+    settings, batches = _plan(config, out)  # a refused run writes nothing
     if baseline is not None:
         from hardness.benchmark import baselines
 
         planned = {label for b in batches for label, _ in b.members}
         baselines.select(settings, {s: [i.label for i in sets.instances(s) if i.label in planned]
                                     for s in settings["sets"]}, baseline)
-    (out / "runs").mkdir(parents=True, exist_ok=True)
-    if not planned_before:
-        _save_plan(out / "plan.json", settings, batches)
-    batches = list(batches)
-    todo = [b for b in batches if _finished(out / "runs", b) is None]
-    reused = [b.id for b in batches if b not in todo]
+    run_dir = out / "runs"
+    run_dir.mkdir(parents=True, exist_ok=True)
+    view = plans.CallView(out, settings, plans.commit_call(out, settings, batches))
+    mine = view.share(shard)
+    done = {b.id for b in mine if _finished(run_dir, b) is not None}
+    reused = [b.id for b in mine if b.id in done]
     ran: list[str] = []
+    others: list[str] = []
     finished = True
-    if todo:
-        from tqdm import tqdm
-
-        total = sum(len(b.members) for b in todo) * config.n_steps
-        with tqdm(total=total, unit="step", unit_scale=True, disable=not progress, file=sys.stderr,
-                  desc="benchmark (member-steps)") as bar:
-            k = 0
-            while todo:
-                batch = todo.pop(0)
-                bar.set_postfix_str(f"{batch.id}: {len(batch.members)} members")
-                chunks = stop_at[1] if stop_at is not None and k == stop_at[0] else None
-                try:
-                    done = _run_batch(batch, config, out / "runs", chunks)
-                except runner.ProgramTooLarge as err:
-                    if config.max_members is not None or len(batch.members) < 2:
-                        raise
-                    halves = split_batch(batch, settings)
-                    if progress:
-                        print(f"\n{batch.id} does not fit in memory ({err}); split into {len(halves)} parts",
-                              file=sys.stderr)
-                    at = batches.index(batch)
-                    batches[at : at + 1] = halves
-                    _save_plan(out / "plan.json", settings, batches)
-                    todo[:0] = halves
-                    continue
-                ran.append(batch.id)
-                if not done:
-                    finished = False
-                    break
-                k += 1
-                bar.update(len(batch.members) * config.n_steps)
-                write_tables(out, settings, batches)
-    n_rows = write_tables(out, settings, batches)
-    if finished and report and (ran or baseline is not None or not (out / "report.md").exists()):
+    total = sum(len(b.members) for b in mine if b.id not in done) * config.n_steps
+    # One bar of member-steps over every batch of this call, advanced by the runner after each of its chunks (so it
+    # moves inside a batch of hours) and by the batches other processes finish; shown on a terminal only.
+    with Progress(total, "benchmark", quiet=not progress or not total) as bar, claims.Claims(
+        out, heartbeat_s=heartbeat_s, stale_s=stale_s
+    ) as held:
+        k = 0
+        while True:
+            mine = view.share(shard)
+            for b in mine:  # batches that other processes finished
+                if b.id not in done and _finished(run_dir, b) is not None:
+                    done.add(b.id)
+                    others.append(b.id)
+                    bar.update(len(b.members) * config.n_steps)
+            todo = [b for b in mine if b.id not in done]
+            if not todo:
+                break
+            batch = next((b for b in todo if held.take(b.id)), None)
+            if batch is None:  # every batch left is another process's: wait for it, or for its holder to go
+                bar.set_postfix(f"waiting for {len(todo)} batches of other processes")
+                time.sleep(poll_s)
+                continue
+            if _finished(run_dir, batch) is not None:  # finished between the look and the claim
+                held.release(batch.id)
+                continue
+            bar.set_postfix(f"{batch.id}: {len(batch.members)} members")
+            chunks = stop_at[1] if stop_at is not None and k == stop_at[0] else None
+            try:
+                complete = _run_batch(batch, config, run_dir, chunks, bar)
+            except runner.ProgramTooLarge as err:
+                held.release(batch.id, "split: does not fit in memory")
+                if config.max_members is not None or len(batch.members) < 2:
+                    raise
+                halves = split_batch(batch, settings)
+                bar.write(f"{batch.id} does not fit in memory ({err}); split into {len(halves)} parts", log=True)
+                plans.replace(out, dataclasses.asdict(batch), [dataclasses.asdict(h) for h in halves])
+                continue
+            except BaseException as err:
+                held.release(batch.id, f"failed: {type(err).__name__}")
+                raise
+            held.release(batch.id, "finished" if complete else "stopped")
+            ran.append(batch.id)
+            if not complete:
+                finished = False
+                break
+            k += 1
+            done.add(batch.id)
+            plans.write_folder_tables(out)
+    n_rows = plans.write_folder_tables(out)
+    whole = view.share(None)  # every shard's batches
+    complete = finished and all(b.id in done or _finished(run_dir, b) is not None for b in whole)
+    if shard is not None and finished and not complete and progress:
+        print(f"shard {shard[0]}/{shard[1]} finished in {out}; once every shard has, merge the folders: "
+              "jaxmdp-benchmark report DIR1 DIR2 ... --out DIR", file=sys.stderr)
+    if complete and report and (ran or others or baseline is not None or not (out / "report.md").exists()):
         from hardness.benchmark import report as report_module
 
         t0 = time.perf_counter()
-        report_module.write_report(out, baseline)
+        with FileLock(str(out / "report.lock")):  # one process writes the report at a time
+            report_module.write_report(out, baseline)
         if progress:
             print(f"report written to {out} ({n_rows} members, {time.perf_counter() - t0:.0f} s)", file=sys.stderr)
-    return RunSummary(ran=ran, reused=reused, finished=finished, out=out)
+    return RunSummary(ran=ran, reused=reused, finished=finished, out=out, others=others)

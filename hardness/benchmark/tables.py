@@ -1,6 +1,7 @@
 """The result tables of a benchmark run (:mod:`hardness.benchmark.run`): ``members.csv`` and ``batches.csv``, rewritten
 from the finished batches' records in ``runs/`` in the plan's order, each written atomically (a crash never leaves
-half a file)."""
+half a file; processes sharing a folder write them under its lock,
+:func:`hardness.benchmark.plans.write_folder_tables`)."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ from hardness.benchmark import sets
 from jaxmdp.experiment import records
 
 if TYPE_CHECKING:
-    from hardness.benchmark.run import Batch
+    from hardness.benchmark.plans import Batch
 
 __all__ = ["MEMBER_FIELDS", "BATCH_FIELDS", "write_tables"]
 
@@ -25,11 +26,13 @@ MEMBER_FIELDS = (
     "normalized_regret_per_step", "normalized_cumulative_reward", "normalized_cumulative_expected_reward",
     "random_normalized_regret_per_step", "batch",
 )
-#: Columns of ``batches.csv``. ``member_steps_per_s``: steps of one member per second of the lockstep loop
-#: (``n_steps / run_s``); ``agent_steps_per_s``: summed over the batch's members.
+#: Columns of ``batches.csv``. ``compile_s``: seconds compiling the batch's programs (in the call that finished it);
+#: ``run_s``: seconds of its lockstep loop, over every call that ran a part of it; ``member_steps_per_s``: steps of one
+#: member per second of the lockstep loop (``n_steps / run_s``); ``agent_steps_per_s``: summed over the batch's
+#: members; ``host``, ``pid``: the process that finished it (empty for a batch finished before they were recorded).
 BATCH_FIELDS = (
     "batch", "set", "agent", "members", "mdps", "max_states", "compile_s", "run_s", "member_steps_per_s",
-    "agent_steps_per_s",
+    "agent_steps_per_s", "host", "pid",
 )
 
 
@@ -76,7 +79,7 @@ def write_tables(out: Path, settings: dict, batches: Sequence[Batch]) -> int:
         run_s = saved["run_s"]
         brows.append([batch.id, batch.set_name, batch.agent, saved["n_members"], saved["n_mdps"], saved["max_states"],
                       round(saved["compile_s"], 2), round(run_s, 2), saved["n_steps"] / run_s,
-                      saved["n_steps"] * saved["n_members"] / run_s])
+                      saved["n_steps"] * saved["n_members"] / run_s, saved.get("host", ""), saved.get("pid", "")])
     rows.sort(key=lambda r: r[0])
     _write_csv(out / "members.csv", MEMBER_FIELDS, [r for _, r in rows])
     _write_csv(out / "batches.csv", BATCH_FIELDS, brows)

@@ -5,7 +5,8 @@
   it stopped (finished batches are never redone; the final ``members.csv`` is the same byte for byte). See
   :mod:`hardness.benchmark.run` for the output folder and :mod:`hardness.benchmark.report` for the report.
 * ``report``: the report (tables as Markdown and LaTeX, cumulative-regret and hardness figures) of a ``run`` output
-  folder, from the batches finished so far.
+  folder, from the batches finished so far; ``report DIR1 DIR2 ... --out DIR`` first merges run folders of one
+  protocol (e.g. the shards of a run, ``run --shard i/N``) into ``DIR`` (:mod:`hardness.benchmark.shards`).
 * ``tune``: the random search of the tabular agents' hyperparameters (:mod:`hardness.benchmark.search`), whose
   winners, with their provenance, go to ``tuned_hparams.json`` in the output folder (a copy of the shipped file,
   ``hardness/benchmark/tuned_hparams.json``, with the new entries), which ``run --hparams PATH`` reads.
@@ -24,6 +25,8 @@ differs); ``--baseline DIR`` does so with another run folder.
     jaxmdp-benchmark run --quick --emission StateInfo --agents dqn_episodic random_episodic --out DIR
     jaxmdp-benchmark run --quick --agents my_agents:MY_AGENT --baseline committed --out DIR   # your agent
     jaxmdp-benchmark report results/benchmark_quick
+    jaxmdp-benchmark run --quick --shard 0/2 --out DIR0; jaxmdp-benchmark run --quick --shard 1/2 --out DIR1
+    jaxmdp-benchmark report DIR0 DIR1 --out DIR                            # the shards merged, the single run's
     jaxmdp-benchmark report DIR --baseline committed
     jaxmdp-benchmark tune --out results/tuning                            # every tabular agent, full budget
     jaxmdp-benchmark tune --agents ucrl2 --steps 20000 --candidates 8 --mdps-per-family 1 --seeds 1
@@ -122,11 +125,26 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                         "the states, tabular agents); with it the default agents are the deep agents and the random "
                         "agent")
     p.add_argument("--quick", action="store_true", help="the quick-test sets, 2 seeds, few steps")
+    p.add_argument("--shard", type=_shard, default=None, metavar="i/N",
+                   help="run only shard i of N (counted from 0) of the batches, a deterministic share, e.g. one job "
+                        "of an array each (--shard $SLURM_ARRAY_TASK_ID/$SLURM_ARRAY_TASK_COUNT); merge the shards' "
+                        "folders with: report DIR1 DIR2 ... --out DIR (default: every batch)")
     add_baseline_argument(p)
-    p.add_argument("--out", type=Path, required=True, help="output folder (reused to resume)")
+    p.add_argument("--out", type=Path, required=True,
+                   help="output folder (reused to resume; several processes may share it, each batch runs once)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_cache_flag(p)
     p.set_defaults(func=run_command)
+
+
+def _shard(text: str) -> tuple[int, int]:
+    """``--shard``'s value (:func:`hardness.benchmark.shards.parse_shard`), its error shown by argparse."""
+    from hardness.benchmark import shards
+
+    try:
+        return shards.parse_shard(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err).removeprefix("--shard ")) from None
 
 
 def add_baseline_argument(p: argparse.ArgumentParser) -> None:
@@ -140,9 +158,13 @@ def add_baseline_argument(p: argparse.ArgumentParser) -> None:
 
 def add_report_arguments(p: argparse.ArgumentParser) -> None:
     """The options of ``report``."""
-    p.add_argument("folder", type=Path, nargs="?", default=None, help="the run's output folder (or --out)")
+    p.add_argument("folder", type=Path, nargs="*", default=[],
+                   help="the run's output folder (or --out); several: folders of one protocol (e.g. the shards of a "
+                        "run) merged into --out")
     add_baseline_argument(p)
-    p.add_argument("--out", type=Path, default=None, help="the run's output folder, where the report goes")
+    p.add_argument("--out", type=Path, default=None,
+                   help="the run's output folder, where the report goes; with folders named: the folder they are "
+                        "merged into (it may be one of them)")
     p.add_argument("--quiet", action="store_true", help="do not list the files written on stdout")
     add_cache_flag(p)
     p.set_defaults(func=report_command)
@@ -225,21 +247,28 @@ def run_command(args: argparse.Namespace) -> RunSummary:
 
     try:
         config = config_from_args(args)
-        return run.run_benchmark(config, args.out, progress=not args.quiet, baseline=args.baseline)
+        return run.run_benchmark(config, args.out, progress=not args.quiet, baseline=args.baseline,
+                                 shard=args.shard)
     except ValueError as err:
         raise SystemExit(f"jaxmdp-benchmark run: {err}") from None
 
 
 def report_command(args: argparse.Namespace) -> list[Path]:
     """``report``: the report of the run folder ``args.folder`` (or ``args.out``); returns the paths written."""
-    from hardness.benchmark import report
+    from hardness.benchmark import report, shards
 
-    folder = args.folder or args.out
-    if folder is None:
+    folders = list(args.folder)
+    if not folders and args.out is None:
         raise SystemExit("jaxmdp-benchmark report: name the run's folder (positional or --out)")
-    if not (folder / "plan.json").exists() or not (folder / "members.csv").exists():
-        raise SystemExit(f"jaxmdp-benchmark report: {folder} holds no benchmark run (plan.json and members.csv)")
+    if len(folders) > 1 and args.out is None:
+        raise SystemExit("jaxmdp-benchmark report: several folders are merged: name the merged folder with --out")
+    folder = args.out if args.out is not None else folders[0]
+    for f in folders or [folder]:
+        if not (f / "plan.json").exists() or not (f / "members.csv").exists():
+            raise SystemExit(f"jaxmdp-benchmark report: {f} holds no benchmark run (plan.json and members.csv)")
     try:
+        if folders and [f.resolve() for f in folders] != [folder.resolve()]:
+            shards.merge_folders(folders, folder)
         written = report.write_report(folder, args.baseline)
     except ValueError as err:
         raise SystemExit(f"jaxmdp-benchmark report: {err}") from None
