@@ -220,7 +220,11 @@ def continuous_form(mdp: MDP, order: np.ndarray | None = None, *, reset_quirk: b
     row_of[order[:, 0], order[:, 1]] = np.arange(N)
     if reset_quirk:
         if starts.max(initial=0) >= N:
-            raise ValueError("reset_quirk needs at least as many pairs as the largest start index")
+            raise ValueError(
+                f"the reference's continuous form (variant='colosseum', reset_quirk=True) sends the reset mass of start "
+                f"state {int(starts.max())} to row {int(starts.max())}, but this MDP reaches only {N} (h, s) pairs; "
+                "the reference cannot represent it: use variant='paper' (or reset_quirk=False)"
+            )
         reset_cols = starts
     else:
         reset_cols = row_of[0, starts]
