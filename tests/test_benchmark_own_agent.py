@@ -26,61 +26,15 @@ TABLES = REPO / "docs" / "tables"
 
 # A user's module, written from an empty file: an epsilon-greedy Q-learner (episodic), registered with its search
 # space on import (the guide's agent).
-USER_MODULE = '''
-import jax
-import jax.numpy as jnp
-from flax import struct
-
-import agents
-from jaxmdp.agent_interface import Agent
-
-
-class HParams(struct.PyTreeNode):
-    epsilon: float = 0.1
-    learning_rate: float = 0.5
+def _user_module() -> str:
+    # The notebook's agent module (notebooks/src/06_benchmark_your_agent.py), so that the test and the notebook show
+    # one agent; the test adds a name that is not an Agent for the refusals.
+    source = (REPO / "notebooks" / "src" / "06_benchmark_your_agent.py").read_text()
+    start = source.index('MODULE = """') + len('MODULE = """')
+    return source[start : source.index('"""', start)] + "\nNOT_AN_AGENT = 3\n"
 
 
-class State(struct.PyTreeNode):
-    q: jax.Array
-    action_mask: jax.Array
-    hparams: HParams
-
-
-def init(key, spec, hparams):
-    h = jnp.arange(spec.H, dtype=jnp.float32)[:, None, None]
-    q = jnp.broadcast_to(spec.H - h, (spec.H, spec.n_states, spec.n_actions))
-    return State(q=q, action_mask=spec.action_mask, hparams=hparams)
-
-
-def _greedy(q, mask):
-    return jnp.argmax(jnp.where(mask, q, -jnp.inf), axis=-1)
-
-
-def act(key, state, obs, h):
-    explore_key, action_key = jax.random.split(key)
-    p = state.action_mask / state.action_mask.sum()
-    random_action = jax.random.choice(action_key, p.shape[0], p=p)
-    explore = jax.random.uniform(explore_key) < state.hparams.epsilon
-    return jnp.where(explore, random_action, _greedy(state.q[h, obs], state.action_mask)).astype(jnp.int32)
-
-
-def update(state, t):
-    H = state.q.shape[0]
-    next_q = jnp.where(state.action_mask, state.q[jnp.minimum(t.h + 1, H - 1), t.next_obs], -jnp.inf)
-    target = t.reward + jnp.where(t.terminated, 0.0, next_q.max())
-    old = state.q[t.h, t.obs, t.action]
-    return state.replace(q=state.q.at[t.h, t.obs, t.action].set(old + state.hparams.learning_rate * (target - old)))
-
-
-def policy(state):
-    return jax.nn.one_hot(_greedy(state.q, state.action_mask), state.q.shape[-1])
-
-
-EPSILON_GREEDY = Agent(name="epsilon_greedy_q", episodic=True, default_hparams=HParams(), init=init, act=act,
-                       update=update, policy=policy)
-agents.register(EPSILON_GREEDY, search_space={"epsilon": (0.01, 0.3), "learning_rate": (0.05, 1.0)})
-NOT_AN_AGENT = 3
-'''
+USER_MODULE = _user_module()
 
 
 @pytest.fixture

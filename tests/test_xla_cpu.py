@@ -31,12 +31,12 @@ def test_version_parsing_and_the_affected_range():
         False, False, True, True, True, False, False]
 
 
-# The program of test_nested_vmap_variance_matches_numpy, in a process that leaves XLA_FLAGS alone (jaxmdp is not
-# imported): it prints the largest error against numpy under the installed jaxlib's defaults.
-_UNGUARDED = textwrap.dedent(
+# The smallest program found that jaxlib 0.10.2 got wrong with YNNPACK fusions on (errors up to ~9 at h >= 14):
+# per-row variances of gathered values, vmapped over time steps and over a batch, with unbatched indices. It sets
+# `got` and its float64 value `want`.
+_PROGRAM = textwrap.dedent(
     """
-    import json
-    import jax, jax.numpy as jnp, jaxlib, numpy as np
+    import jax, jax.numpy as jnp, numpy as np
     rng = np.random.default_rng(0)
     S, A, K, B, H = 256, 3, 3, 2, 20
     succ = rng.integers(0, S, size=(S, A, K)).astype(np.int32)
@@ -46,19 +46,24 @@ _UNGUARDED = textwrap.dedent(
         E = jnp.sum(sp * w[succ], -1)
         return jnp.sum(sp * (w[succ] - E[..., None]) ** 2, -1)
     f = jax.jit(lambda Wb, pb: jax.vmap(lambda Wh, sp: jax.vmap(lambda w: variance(sp, w))(Wh))(Wb, pb))
-    g = W[:, :, succ].astype(np.float64)
+    got = np.asarray(f(W, p))
+    g = W[:, :, succ].astype(np.float64)  # [B, H, S, A, K]
     pp = p[:, None].astype(np.float64)
     want = (pp * (g - (pp * g).sum(-1, keepdims=True)) ** 2).sum(-1)
-    print(json.dumps(dict(jaxlib=jaxlib.__version__, error=float(np.abs(np.asarray(f(W, p)) - want).max()))))
     """
 )
 
 
 def test_the_guarded_range_is_where_the_installed_jaxlib_miscompiles():
-    # Keeps xla_cpu's version range honest: on a jaxlib the guard covers, the reproducer must go wrong without the
-    # guard (else the range is too wide: narrow it), and on any other it must be right (else widen it).
+    # Keeps xla_cpu's version range honest: on a jaxlib the guard covers, the program must go wrong without the guard
+    # (else the range is too wide: narrow it), and on any other it must be right (else widen it). The child process
+    # does not import jaxmdp and leaves XLA_FLAGS alone, so it runs under the installed jaxlib's defaults.
+    child = _PROGRAM + (
+        "import json, jaxlib\n"
+        "print(json.dumps(dict(jaxlib=jaxlib.__version__, error=float(np.abs(got - want).max()))))\n"
+    )
     env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
-    proc = subprocess.run([sys.executable, "-c", _UNGUARDED], env=env, capture_output=True, text=True, timeout=300)
+    proc = subprocess.run([sys.executable, "-c", child], env=env, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-3000:]
     out = json.loads(proc.stdout.strip().splitlines()[-1])
     wrong = out["error"] > 1e-3
@@ -66,25 +71,10 @@ def test_the_guarded_range_is_where_the_installed_jaxlib_miscompiles():
 
 
 def test_nested_vmap_variance_matches_numpy():
-    # The smallest program found that jaxlib 0.10.2 got wrong with YNNPACK fusions on (errors up to ~9 at h >= 14):
-    # per-row variances of gathered values, vmapped over time steps and over a batch, with unbatched indices.
-    rng = np.random.default_rng(0)
-    S, A, K, B, H = 256, 3, 3, 2, 20
-    succ = rng.integers(0, S, size=(S, A, K)).astype(np.int32)
-    W = rng.random((B, H, S)).astype(np.float32)
-    p = rng.random((B, S, A, K)).astype(np.float32)
-
-    def variance(sp, w):
-        E = jnp.sum(sp * w[succ], -1)
-        return jnp.sum(sp * (w[succ] - E[..., None]) ** 2, -1)
-
-    f = jax.jit(lambda Wb, pb: jax.vmap(lambda Wh, sp: jax.vmap(lambda w: variance(sp, w))(Wh))(Wb, pb))
-    got = np.asarray(f(W, p))
-    g = W[:, :, succ].astype(np.float64)  # [B, H, S, A, K]
-    pp = p[:, None].astype(np.float64)
-    E = (pp * g).sum(-1, keepdims=True)
-    want = (pp * (g - E) ** 2).sum(-1)
-    np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-5)
+    # The same program in this process, where importing jaxmdp applied the guard.
+    names: dict = {}
+    exec(_PROGRAM, names)
+    np.testing.assert_allclose(names["got"], names["want"], rtol=1e-5, atol=1e-5)
 
 
 def test_fused_transform_value_norm_of_deterministic_mdp_is_zero():
