@@ -16,7 +16,7 @@ import pytest
 
 import agents
 import jaxmdp
-from agent_loop import make_grid_runner, seeds
+from agent_loop import grid_seeds, make_grid_runner
 from stat_checks import mostly, seed
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition, spec_of
 
@@ -72,13 +72,15 @@ def grid_runner(agent: Agent, n_steps: int):
 
 
 def grid_keys(base: int = 0, n_seeds: int = N_SEEDS) -> jax.Array:
-    """The same ``n_seeds`` member keys for every learning rate."""
-    return jnp.stack([seeds(n_seeds, base)] * len(LEARNING_RATES))
+    """``[G, n_seeds]`` member keys, every member its own (:func:`~agent_loop.grid_seeds`)."""
+    return grid_seeds(len(LEARNING_RATES), n_seeds, base)
 
 
-def run_probe(runner, agent: Agent, kind: str, hparams=None, base: int = 0, n_seeds: int = N_SEEDS):
+def run_probe(runner, agent: Agent, kind: str, hparams=None, base: int = 0, n_seeds: int = N_SEEDS, keys=None):
+    """The ``[G, n_seeds]`` grid on the probe ``kind``, with :func:`grid_keys` from ``base`` unless ``keys``."""
     hparams = probe_hparams(agent) if hparams is None else hparams
-    return runner(grid_keys(base, n_seeds), probe(kind, agent.episodic), hparams, emission_table(agent.episodic))
+    keys = grid_keys(base, n_seeds) if keys is None else keys
+    return runner(keys, probe(kind, agent.episodic), hparams, emission_table(agent.episodic))
 
 
 def evaluate_grid(evaluate, state) -> tuple[np.ndarray, np.ndarray]:
@@ -169,11 +171,12 @@ class ProbeLearning:
         mostly(self.passes(agent, result, kind), self.q_learn[agent.name, kind], f"{agent.name} {kind}")
 
     def test_grid_members_are_independent(self, probe_run):
-        """Reversing the learning-rate grid reverses the members' results (each member uses its own rate and
-        nothing else of the batch), and the two rates give different parameters."""
+        """Reversing the learning-rate grid and its rows of keys reverses the members' results (each member uses its
+        own rate and key and nothing else of the batch), and the two rates give different parameters."""
         agent, runner, result = probe_run
         hp = probe_hparams(agent)
-        flipped = run_probe(runner, agent, "bandit", hp.replace(learning_rate=hp.learning_rate[::-1]))
+        flipped = run_probe(runner, agent, "bandit", hp.replace(learning_rate=hp.learning_rate[::-1]),
+                            keys=grid_keys()[::-1])
         for a, b in zip(jax.tree.leaves(result.state.params), jax.tree.leaves(flipped.state.params), strict=True):
             np.testing.assert_allclose(np.asarray(a)[::-1], np.asarray(b), rtol=1e-5, atol=1e-6)
         leaves = jax.tree.leaves(result.state.params)

@@ -136,6 +136,13 @@ def seeds(n: int, base: int = 0) -> jax.Array:
     return jax.random.split(jax.random.key(base), n)
 
 
+def grid_seeds(n_groups: int, n: int, base: int = 0) -> jax.Array:
+    """``[n_groups, n]`` member keys, all distinct: a grid over hyperparameter sets and seeds whose members are
+    independent (the learning tests' binomial failure counts assume it; the same ``n`` keys in every row would make
+    the rows' outcomes correlated)."""
+    return jax.random.split(jax.random.key(base), n_groups * n).reshape(n_groups, n)
+
+
 def bandit(means, episodic: bool, H: int = 2, conc: float = 4.0) -> jaxmdp.MDP:
     """A one-state MDP whose actions pay Beta rewards of the given means (``conc`` = alpha + beta)."""
     A = len(means)

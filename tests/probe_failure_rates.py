@@ -6,8 +6,9 @@ their ``n`` seeds, where ``q_u`` is the Clopper-Pearson bound (miss probability 
 
 Seeds ``F, F + 1, ...`` (default ``F = 10**6``, away from the tests' defaults), run ``C`` at a time in lockstep
 (agent-loop probes: each chunk's ``4 C`` member keys split from the key of its first seed, a quarter per probe;
-deep agents: the chunk's grid of ``C`` seeds by 2 epsilons or learning rates; the counts are then of members). Prints one row per criterion: label, seeds, failures, q_u, and the first failing seeds (deep agents: also the
-quantiles of the members' margins, their error in units of the tolerance).
+deep agents: the chunk's grid of ``C`` seeds by 2 epsilons or learning rates, every member its own key; the counts are
+then of members). Prints one row per criterion: label, seeds, failures, q_u, and the first failing seeds (deep agents:
+also the quantiles of the members' margins, their error in units of the tolerance).
 """
 
 from __future__ import annotations

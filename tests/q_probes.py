@@ -25,7 +25,7 @@ import numpy as np
 
 import agents
 import jaxmdp
-from tests.agent_loop import RunResult, make_grid_runner, seeds
+from tests.agent_loop import RunResult, grid_seeds, make_grid_runner
 
 PROBES = ("constant", "arms", "discounting")
 CHAIN = np.zeros((2, 2, 2))
@@ -73,33 +73,25 @@ def stack(*hparams: Any) -> Any:
     return jax.tree.map(lambda *x: jnp.stack([jnp.asarray(v) for v in x]), *hparams)
 
 
-def grid_runner(agent: Any, n_steps: int, trace: bool = False):
-    """``run(keys[B], mdp, hparams[E], table) -> RunResult`` with ``[E, B]`` leading axes: the test loop over a
-    hyperparameter grid, the same ``B`` keys for every set (:func:`~tests.agent_loop.make_grid_runner`)."""
-    run = make_grid_runner(agent, n_steps, trace=trace)
-
-    def grid_run(keys, mdp, hparams, table):
-        return run(jnp.stack([keys] * jax.tree.leaves(hparams)[0].shape[0]), mdp, hparams, table)
-
-    return grid_run
-
-
 @functools.cache
 def _cached_runner(name: str, n_steps: int):
-    return grid_runner(agents.get(name), n_steps, trace=True)
+    """``run(keys[E, B], mdp, hparams[E], table) -> RunResult`` with ``[E, B]`` leading axes, actions and rewards
+    traced (:func:`~tests.agent_loop.make_grid_runner`)."""
+    return make_grid_runner(agents.get(name), n_steps, trace=True)
 
 
 def run_epsilon_grid(
     name: str, probe: str, n_steps: int, epsilons: tuple[float, ...], base: int = 0, n_seeds: int = 4, **hparams: Any
 ) -> RunResult:
     """The agent ``name`` on ``probe`` for ``n_steps`` steps: its default hyperparameters with ``hparams``, the probe's
-    discount and one member set per epsilon of ``epsilons``, each with the same ``n_seeds`` keys (``[E, B]`` leading
-    axes, actions and rewards traced; one compiled runner per agent and ``n_steps``)."""
+    discount and one member set per epsilon of ``epsilons``, each of ``n_seeds`` members (``[E, B]`` leading axes, every
+    member its own key from ``base``: :func:`~tests.agent_loop.grid_seeds`; actions and rewards traced; one compiled
+    runner per agent and ``n_steps``)."""
     agent = agents.get(name)
     hp = agent.default_hparams.replace(**hparams, discount=discount(probe, agent.episodic))
     grid = stack(*(hp.replace(epsilon=e) for e in epsilons))
     run = _cached_runner(name, n_steps)
-    return run(seeds(n_seeds, base), probe_mdp(probe, agent.episodic), grid, table(agent.episodic))
+    return run(grid_seeds(len(epsilons), n_seeds, base), probe_mdp(probe, agent.episodic), grid, table(agent.episodic))
 
 
 def reachable_q(q: np.ndarray, episodic: bool) -> np.ndarray:

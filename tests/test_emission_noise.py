@@ -56,23 +56,75 @@ def wishart_draws(key, d, df, s, M):
 # ---------------------------------------------------------------------------------------------------------------
 
 
-@pytest.mark.statistical(p=1.2e-7)
+def orthonormal_pairs(d: int, rng: np.random.Generator) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Pairs of orthonormal directions: two axes, the rotated pair ``(e_0 +- e_1)/sqrt 2``, ``(e_2 +- e_3)/sqrt 2``
+    and the first two columns of a random orthogonal matrix."""
+    eye = np.eye(d)
+    q = np.linalg.qr(rng.standard_normal((d, d)))[0]
+    return [(eye[0], eye[1]), ((eye[0] + eye[1]) / np.sqrt(2), (eye[0] - eye[1]) / np.sqrt(2)),
+            ((eye[2] + eye[3]) / np.sqrt(2), (eye[2] - eye[3]) / np.sqrt(2)), (q[:, 0], q[:, 1])]
+
+
+WISHART_PROBS = (0.02, 0.5, 0.98)
+
+
+def wishart_checks(L: np.ndarray, df: float, s: float, pairs) -> stat_checks.Checks:
+    """The distribution of ``W = L L^T`` for i.i.d. draws ``L[m]`` of ``Wishart(df, s I)`` (float64), through facts of
+    the Wishart distribution itself, not of the sampler. ``W`` is rotation invariant (its density,
+    ``|W|^{(df-d-1)/2} exp(-tr W / 2s)``, is), so for orthonormal ``u, v`` the matrix ``O^T W O`` with
+    ``O = [u, v, ...]`` is again ``Wishart(df, s I)`` and Bartlett's decomposition of it gives, exactly and for real
+    ``df``: ``q_u = u^T W u / s ~ chi2(df)``, ``q_v`` likewise and independent of ``q_u``, and
+    ``r = u^T W v / sqrt(s u^T W u) ~ N(0, 1)`` independent of ``q_u``. Per pair: counts below 3 exact quantiles of
+    ``q_u``, ``q_v`` and ``r`` (binomial) and 2 sign-agreement counts (Binomial(M, 1/2)): 11 checks. (The second moments
+    follow: Var W_ii = 2 df s^2, Var W_ij = df s^2, entries uncorrelated.)"""
+    W = L @ np.swapaxes(L, 1, 2)
+    checks = Checks()
+    chi2 = stats.chi2(df)
+    for u, v in pairs:
+        where = f"u = {np.round(u, 3)}, v = {np.round(v, 3)}"
+        qu, qv = np.einsum("i,mij,j->m", u, W, u) / s, np.einsum("i,mij,j->m", v, W, v) / s
+        r = np.einsum("i,mij,j->m", u, W, v) / np.sqrt(s * s * qu)
+        checks.below_quantiles(qu, chi2.ppf, WISHART_PROBS, f"u^T W u / s ~ chi2({df}), {where}")
+        checks.below_quantiles(qv, chi2.ppf, WISHART_PROBS, f"v^T W v / s ~ chi2({df}), {where}")
+        checks.below_quantiles(r, stats.norm.ppf, WISHART_PROBS, f"u^T W v / sqrt(s u^T W u) ~ N(0, 1), {where}")
+        checks.independent_signs(qu, qv, chi2.median(), chi2.median(), f"q_u, q_v independent, {where}")
+        checks.independent_signs(r, qu, 0.0, chi2.median(), f"r, q_u independent, {where}")
+    return checks
+
+
+def diagonal(x: np.ndarray) -> np.ndarray:
+    """``[M, d]`` -> ``[M, d, d]`` diagonal matrices."""
+    return x[:, :, None] * np.eye(x.shape[1])
+
+
+def no_off_diagonal_normals(rng: np.random.Generator, M: int, d: int, df: float, s: float) -> np.ndarray:
+    """A wrong sampler: Bartlett's factor without its normals below the diagonal (``W_ii ~ s chi2(df - i)``)."""
+    return np.sqrt(s) * diagonal(np.sqrt(rng.chisquare(df - np.arange(d), (M, d))))
+
+
+def diagonal_chi_square(rng: np.random.Generator, M: int, d: int, df: float, s: float) -> np.ndarray:
+    """A wrong sampler with the right mean ``df s I`` and the right law of every diagonal entry: ``W`` diagonal,
+    ``W_ii ~ s chi2(df)`` i.i.d. (every ``u^T W u`` has mean ``df s``; their sums over draws pass a chi-square test of
+    the mean)."""
+    return np.sqrt(s) * diagonal(np.sqrt(rng.chisquare(df, (M, d))))
+
+
+@pytest.mark.statistical(p=4.4e-7)
 @pytest.mark.parametrize("df", [4.0, 6.5])
-def test_wishart_quadratic_forms_are_chi_square(df):
-    # W ~ Wishart(df, s I) iff u^T W u ~ s chi2(df) for every unit u (jointly Wishart aside); summed over M
-    # independent draws, sum_m u^T W_m u / s ~ chi2(M df) exactly. In particular E[W] = df s I (the axes give the
-    # diagonal, the (e_i + e_j)/sqrt 2 forms the off-diagonal entries by polarisation).
-    # 12 checks: false-failure probability <= 1.2e-7.
+def test_wishart_draws_have_the_wishart_distribution(df):
+    # wishart_checks: 4 pairs x 11 = 44 checks: false-failure probability <= 4.4e-7. The two wrong samplers fail them
+    # by far (the diagonal one: r = 0 for the axes, q_u = (c_0 + c_1) / 2 with half the variance on the rotated pair;
+    # counts hundreds of standard deviations outside their bands), so they fail with probability ~1.
     d, s, M = 4, 0.3, 20_000
     L = np.asarray(wishart_draws(key(1), d, df, s, M), np.float64)
     assert np.all(np.triu(L, 1) == 0) and np.all(np.diagonal(L, axis1=1, axis2=2) > 0)
-    W = L @ np.swapaxes(L, 1, 2)
-    checks = Checks()
-    for u in directions(d, stat_checks.rng(0)):
-        checks.chi2(np.einsum("i,mij,j->", u, W, u) / s, M * df, f"u = {np.round(u, 3)}")
-    mean = W.mean(0)
-    np.testing.assert_allclose(mean, df * s * np.eye(d), atol=0.05 * df * s)  # implied by the checks above
-    assert checks.false_failure_bound() < 1e-6
+    pairs = orthonormal_pairs(d, stat_checks.rng(0))
+    assert wishart_checks(L, df, s, pairs).false_failure_bound() < 1e-6
+    np.testing.assert_allclose((L @ np.swapaxes(L, 1, 2)).mean(0), df * s * np.eye(d), atol=0.05 * df * s)
+    rng = np.random.default_rng(0)
+    for wrong in (no_off_diagonal_normals, diagonal_chi_square):
+        with pytest.raises(AssertionError):
+            wishart_checks(wrong(rng, M, d, df, s), df, s, pairs)
 
 
 def test_wishart_rejects_too_few_degrees_of_freedom():
@@ -109,22 +161,50 @@ def test_gaussian_mean_covariance_and_tails():
     assert checks.false_failure_bound() < 1e-6
 
 
-@pytest.mark.statistical(p=2.4e-7)
-@pytest.mark.parametrize("df, s", [(3.0, 1.0), (5.0, 0.3)])
-def test_student_t_is_iid_per_component(df, s):
-    # x_i / s ~ t(df): counts below exact quantiles (median and far tails included) are Binomial(N, p). Independent
-    # components: P(x_i > 0, x_j > 0) = 1/4 (the reference's one shared scalar would give 1/2).
-    # 3 components x 7 quantiles + 3 pairs = 24 checks: false-failure probability <= 2.4e-7.
-    N = 200_000
-    x = np.asarray(draws(key(3), "student_t", (3,), s, df, None, N), np.float64)
+T_PROBS = (1e-3, 0.02, 0.25, 0.5, 0.75, 0.98, 0.999)
+PAIRS = ((0, 1), (0, 2), (1, 2))
+
+
+def student_t_checks(x: np.ndarray, df: float, s: float) -> stat_checks.Checks:
+    """i.i.d. components ``x[:, i] / s ~ t(df)`` of i.i.d. draws ``x[n]`` (float64, 3 components).
+
+    Each component: counts below 7 exact quantiles (median and far tails included) are Binomial(N, p). Each pair
+    ``i, j``: independent components have independent signs (``P(x_i > 0, x_j > 0) = 1/4``) and independent magnitudes:
+    ``|x_i|`` and ``|x_j|`` on the same side of their median ``s t_{0.75}`` for half the draws (Binomial(N, 1/2)), and
+    both beyond ``s t_{0.995}`` for a fraction ``0.01^2`` (Binomial(N, 1e-4)). The magnitudes are what tells i.i.d.
+    components from a shared denominator ``z_i / sqrt(u / df)``, whose marginals are exactly ``t(df)`` and whose signs
+    are independent too. 3 x 7 + 3 x 3 = 30 checks."""
     checks = Checks()
-    for p in (1e-3, 0.02, 0.25, 0.5, 0.75, 0.98, 0.999):
+    for p in T_PROBS:
         q = s * stats.t.ppf(p, df)
         for i in range(3):
-            checks.binomial(int(np.sum(x[:, i] <= q)), N, p, f"component {i} below its {p} quantile")
-    for i, j in ((0, 1), (0, 2), (1, 2)):
-        checks.binomial(int(np.sum((x[:, i] > 0) & (x[:, j] > 0))), N, 0.25, f"components {i}, {j} both positive")
-    assert checks.false_failure_bound() < 1e-6
+            checks.binomial(int(np.sum(x[:, i] <= q)), x.shape[0], p, f"component {i} below its {p} quantile")
+    median, tail = s * stats.t.ppf(0.75, df), s * stats.t.isf(0.005, df)
+    for i, j in PAIRS:
+        both_positive = int(np.sum((x[:, i] > 0) & (x[:, j] > 0)))
+        checks.binomial(both_positive, x.shape[0], 0.25, f"components {i}, {j} both positive")
+        checks.independent_signs(np.abs(x[:, i]), np.abs(x[:, j]), median, median, f"|x_{i}|, |x_{j}|")
+        checks.binomial(int(np.sum((np.abs(x[:, i]) > tail) & (np.abs(x[:, j]) > tail))), x.shape[0], 1e-4,
+                        f"components {i}, {j} both beyond their 0.995 quantile in magnitude")
+    return checks
+
+
+@pytest.mark.statistical(p=3e-7)
+@pytest.mark.parametrize("df, s", [(3.0, 1.0), (5.0, 0.3)])
+def test_student_t_is_iid_per_component(df, s):
+    # student_t_checks: 30 checks, false-failure probability <= 3e-7. Two wrong samplers with exact t(df) marginals
+    # must fail: one shared denominator (the magnitudes agree about their median for ~56% (df 3) / 54% (df 5) of the
+    # draws against a band of 50 +- 0.7%, and both are in the far tail ~20 times as often), and the reference's one
+    # scalar for every component (signs agree always).
+    N = 200_000
+    x = np.asarray(draws(key(3), "student_t", (3,), s, df, None, N), np.float64)
+    assert student_t_checks(x, df, s).false_failure_bound() < 1e-6
+    rng = np.random.default_rng(0)
+    shared_denominator = s * rng.standard_normal((N, 3)) / np.sqrt(rng.chisquare(df, (N, 1)) / df)
+    one_scalar = np.repeat(s * rng.standard_t(df, (N, 1)), 3, axis=1)
+    for wrong in (shared_denominator, one_scalar):
+        with pytest.raises(AssertionError):
+            student_t_checks(wrong, df, s)
 
 
 @pytest.mark.statistical(p=2.4e-7)

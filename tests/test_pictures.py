@@ -8,6 +8,8 @@ import matplotlib.image
 import numpy as np
 import pytest
 from matplotlib.figure import Figure
+from matplotlib.patches import Circle, FancyArrowPatch
+from matplotlib.path import Path
 
 import jaxmdp
 import jaxmdp.plotting as plotting
@@ -79,17 +81,53 @@ def test_layouts(mdps):
     assert kind in ("spectral", "circle") and xy.shape == (7, 2)
 
 
-def test_chain_draws_the_policy_edges_only():
-    m = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=6)  # deterministic moves
-    right = np.zeros((m.n_states, m.n_actions))
-    right[:, 1] = 1.0
-    left = np.zeros_like(right)
-    left[:, 0] = 1.0
-    # Patches: 6 nodes, then one arrow per edge (or a ring per self-loop): "always right" has 0->1 ... 4->5 and the
-    # loop at 5; "always left" has the loop at 0 and 1->0 ... 5->4; the MDP has all of them.
-    assert len(plotting.draw_markov_chain(m, right).axes[0].patches) == 6 + 6
-    assert len(plotting.draw_markov_chain(m, left).axes[0].patches) == 6 + 6
-    assert len(plotting.draw_mdp(m).axes[0].patches) == 6 + 12
+def drawn_graph(ax) -> tuple[set[tuple[int, int]], np.ndarray]:
+    """The graph a picture shows, read back from its patches: the edges ``(s, t)`` (an arrow from the node nearest its
+    start to the other node nearest its path; a ring for a self-loop, at the node nearest its centre) and the nodes'
+    face colours ``[S, 4]`` (filled circles, in state order when the layout puts state ``s`` at ``x = s``)."""
+    nodes = [p for p in ax.patches if isinstance(p, Circle) and p.get_fill()]
+    centres = np.array([p.center for p in nodes])
+    order = np.argsort(centres[:, 0])
+    centres = centres[order]
+    nearest = lambda xy: int(np.argmin(np.linalg.norm(centres - np.asarray(xy), axis=-1)))  # noqa: E731
+    edges = set()
+    for p in ax.patches:
+        if isinstance(p, Circle) and not p.get_fill():
+            s = nearest(p.center)
+            edges.add((s, s))
+        elif isinstance(p, FancyArrowPatch):
+            path = p.get_path()
+            v = path.vertices[path.codes != Path.CLOSEPOLY] if path.codes is not None else path.vertices
+            s = nearest(v[0])
+            d = np.linalg.norm(v[:, None, :] - centres[None], axis=-1).min(axis=0)
+            d[s] = np.inf
+            edges.add((s, int(np.argmin(d))))
+    return edges, np.array([nodes[i].get_facecolor() for i in order])
+
+
+def test_chain_draws_the_policy_edges_and_its_stationary_distribution():
+    # Deterministic RiverSwim 6 with action 0 = left, action 1 = right in every state (checked on T below). The
+    # chain of "always right" has the edges s -> s + 1 and the loop at 5, and all its stationary mass on state 5;
+    # "always left" the edges s -> s - 1, the loop at 0 and its mass on state 0; the MDP graph has both sets. The
+    # pictures are read back edge by edge and node by node, so exchanging the actions (or drawing the MDP's edges,
+    # or another policy's) fails.
+    m = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=6, randomize_actions=False)
+    S = m.n_states
+    T = np.asarray(m.T)
+    np.testing.assert_array_equal(T[np.arange(S), 1].argmax(-1), np.minimum(np.arange(S) + 1, S - 1))
+    np.testing.assert_array_equal(T[np.arange(S), 0].argmax(-1), np.maximum(np.arange(S) - 1, 0))
+    right_edges = {(s, min(s + 1, S - 1)) for s in range(S)}
+    left_edges = {(s, max(s - 1, 0)) for s in range(S)}
+    for action, edges, mass_on in ((1, right_edges, S - 1), (0, left_edges, 0)):
+        policy = np.zeros((S, m.n_actions))
+        policy[:, action] = 1.0
+        drawn, faces = drawn_graph(plotting.draw_markov_chain(m, policy).axes[0])
+        assert drawn == edges, f"always action {action}"
+        darkness = 1.0 - faces[:, :3].mean(-1)  # the Greens map darkens with the probability
+        others = np.delete(darkness, mass_on)
+        assert darkness[mass_on] > others.max() + 0.5 and np.ptp(others) == 0.0, f"always action {action}: {darkness}"
+    drawn, _ = drawn_graph(plotting.draw_mdp(m).axes[0])
+    assert drawn == right_edges | left_edges
 
 
 def test_bad_input(mdps):
