@@ -97,6 +97,7 @@ from agents.extended_policy_iteration import (  # noqa: F401 (re-exported: the p
 )
 from agents.tabular_common import copy_action_zero, discounted_greedy_policy, greedy_action, only_if
 from jaxmdp import dynamic_programming as dp
+from jaxmdp._asserts import assert_observation, assert_transition
 from jaxmdp._checks import VARIANTS, Variant, check_int, check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, RunnerHints, Transition, where_due
 
@@ -282,12 +283,14 @@ def init(key: jax.Array, spec: MDPSpec, hparams: PSRLContinuousHParams) -> PSRLC
 
 def act(key: jax.Array, state: PSRLContinuousState, obs: jax.Array, h: jax.Array) -> jax.Array:
     """The real action of the best extended action: ``argmax_a max_k Q_ext(obs, (a, k))`` (random tie-break)."""
+    assert_observation(obs, h)
     del h
     return greedy_action(key, state.Q[obs], state.action_mask)
 
 
 def update(state: PSRLContinuousState, tr: Transition) -> PSRLContinuousState:
     """Fold the transition and reward into the posteriors and test the doubling rule on the pair played."""
+    assert_transition(tr)
     s, a = tr.obs, tr.action
     schedule, ends = record_visit(state.schedule, s, a)
     return state.replace(

@@ -54,6 +54,7 @@ from agents.posteriors import (
 )
 from agents.tabular_common import copy_action_zero, greedy_action
 from jaxmdp import dynamic_programming as dp
+from jaxmdp._asserts import assert_observation, assert_transition
 from jaxmdp._checks import Variant, check_range, did_you_mean
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, RunnerHints, Transition, where_due
 
@@ -143,6 +144,7 @@ def init(key: jax.Array, spec: MDPSpec, hparams: PSRLEpisodicHParams) -> PSRLEpi
 
 def act(key: jax.Array, state: PSRLEpisodicState, obs: jax.Array, h: jax.Array) -> jax.Array:
     """``argmax_a Q~_h(obs, a)`` over valid actions (random tie-break)."""
+    assert_observation(obs, h)
     return greedy_action(key, state.Q[h, obs], state.action_mask)
 
 
@@ -151,6 +153,7 @@ def update(state: PSRLEpisodicState, tr: Transition) -> PSRLEpisodicState:
 
     The step that ends an episode counts its next state, nothing, or a visit to the last real state of the MDP, as
     ``final_transition`` says (``"learn"``, ``"skip"``, ``"last_state"``)."""
+    assert_transition(tr)
     rule = state.hparams.final_transition
     learn = ~tr.terminated if rule == "skip" else jnp.ones((), bool)
     next_obs = tr.next_obs

@@ -50,6 +50,7 @@ from flax import struct
 
 from agents.tabular_common import greedy_action_single_draw, row_max, valid_counts
 from jaxmdp import dynamic_programming as dp
+from jaxmdp._asserts import assert_observation, assert_transition
 from jaxmdp._checks import Variant, check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, RunnerHints, Transition
 
@@ -174,12 +175,14 @@ def _stepped_table(state: QLearningContinuousState, tr: Transition, v_next: jax.
 
 def update(state: QLearningContinuousState, tr: Transition) -> QLearningContinuousState:
     """One optimistic Q-learning step at ``(s, a)`` (module docstring)."""
+    assert_transition(tr)
     v_next = row_max(jnp.where(state.action_mask, state.table[tr.next_obs, :, _Q_HAT], -jnp.inf))
     return state.replace(table=_stepped_table(state, tr, v_next, _Q))
 
 
 def act(key: jax.Array, state: QLearningContinuousState, obs: jax.Array, h: jax.Array) -> jax.Array:
     """Greedy in ``Q_hat(obs, .)``, exact ties at random."""
+    assert_observation(obs, h)
     del h
     return greedy_action_single_draw(key, state.table[obs, :, _Q_HAT], state.action_mask)
 
@@ -248,6 +251,7 @@ def update_colosseum(
     """The reference's step at ``(s, a)``: the running estimate restarts from the monotone one,
     ``Q(s, a) <- (1 - alpha_tau) Q_hat(s, a) + alpha_tau (r + gamma V(s') + b_tau)``, ``Q_hat(s, a) <- min(Q_hat(s, a),
     Q(s, a))``, and the *next* state's value is refreshed, ``V(s') <- max_a Q_hat(s', a)``."""
+    assert_transition(tr)
     table = _stepped_table(state, tr, state.v[tr.next_obs], _Q_HAT)
     v_next = row_max(jnp.where(state.action_mask, table[tr.next_obs, :, _Q_HAT], -jnp.inf))
     return state.replace(table=table, v=state.v.at[tr.next_obs].set(v_next))

@@ -48,6 +48,7 @@ from flax import struct
 
 from agents.tabular_common import greedy_action_single_draw, read_at, row_max, valid_counts, write_at
 from jaxmdp import dynamic_programming as dp
+from jaxmdp._asserts import assert_observation, assert_transition
 from jaxmdp._checks import Variant, check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, RunnerHints, Transition
 
@@ -205,6 +206,7 @@ def update(state: QLearningEpisodicState, tr: Transition) -> QLearningEpisodicSt
     of :func:`bonus` and the swapped weights ``Q <- alpha_t Q + (1 - alpha_t) (r + V_{h+1}(s') + b_t)``; its refresh
     ``V_h(s) <- min(H, max_a Q_h(s, a))`` is implicit (:func:`table_values` reads ``V`` off the table).
     """
+    assert_transition(tr)
     h, s, a = tr.h, tr.obs, tr.action
     row = read_at(state.stats, h, s, a)
     t = row[_N] + 1.0
@@ -226,6 +228,7 @@ def update(state: QLearningEpisodicState, tr: Transition) -> QLearningEpisodicSt
 
 def act(key: jax.Array, state: QLearningEpisodicState, obs: jax.Array, h: jax.Array) -> jax.Array:
     """Greedy in ``Q_h(obs, .)``, exact ties at random (one uniform draw)."""
+    assert_observation(obs, h)
     return greedy_action_single_draw(key, read_at(state.q, h, obs), state.action_mask)
 
 

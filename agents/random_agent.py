@@ -16,6 +16,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from jaxmdp._asserts import assert_observation, assert_transition
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, RunnerHints, Transition
 from jaxmdp.sampling import fused_random
 
@@ -40,15 +41,16 @@ def init(key: jax.Array, spec: MDPSpec, hparams: RandomHParams) -> RandomState:
 
 
 def act(key: jax.Array, state: RandomState, obs: jax.Array, h: jax.Array) -> jax.Array:
-    """The ``k``-th valid action with ``k`` uniform on ``0 .. n_valid - 1``."""
-    del obs, h
+    """The ``k``-th valid action with ``k`` uniform on ``0 .. n_valid - 1`` (``obs`` ignored: a state index or an
+    emission)."""
+    assert_observation(obs, h, obs_shape=None)
     n_valid = jnp.sum(state.action_mask)
     k = jnp.minimum(jnp.floor(fused_random.uniform(key) * n_valid).astype(jnp.int32), n_valid - 1)
     return jnp.argmax(jnp.cumsum(state.action_mask) > k).astype(jnp.int32)
 
 
 def update(state: RandomState, transition: Transition) -> RandomState:
-    del transition
+    assert_transition(transition, obs_shape=None)
     return state
 
 

@@ -63,6 +63,7 @@ from agents.extended_value_iteration import (
     sparse_extended_value_iteration,
 )
 from agents.tabular_common import discounted_greedy_policy, greedy_action, valid_counts
+from jaxmdp._asserts import assert_observation, assert_transition
 from jaxmdp._checks import check_int, check_range
 from jaxmdp.dynamic_programming import PlanResult
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, RunnerHints, Transition, where_due
@@ -166,12 +167,14 @@ def init(key: jax.Array, spec: MDPSpec, hparams: UCRL2HParams) -> UCRL2State:
 
 def act(key: jax.Array, state: UCRL2State, obs: jax.Array, h: jax.Array) -> jax.Array:
     """The optimistic policy of the epoch: ``argmax_a Q(obs, a)`` (random tie-break)."""
+    assert_observation(obs, h)
     del h
     return greedy_action(key, state.Q[obs], state.action_mask)
 
 
 def update(state: UCRL2State, tr: Transition) -> UCRL2State:
     """Count the transition, update the empirical mean reward and test the doubling rule on the pair played."""
+    assert_transition(tr)
     s, a = tr.obs, tr.action
     schedule, ends = record_visit(state.schedule, s, a)
     n = schedule.visits[s, a].astype(state.reward_mean.dtype)

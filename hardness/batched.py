@@ -17,6 +17,7 @@ import functools
 from collections.abc import Sequence
 from typing import Any
 
+import chex
 import jax
 import numpy as np
 
@@ -37,6 +38,7 @@ def map_measures(
     """:func:`hardness.measures` of every member of a stacked ``batch`` (``forms``: the stacked continuous forms of
     an episodic batch under ``variant="colosseum"``, else None), mapped with ``lax.map`` so that each member's
     solvers stop at its own convergence; ``batch_size`` members per step in lockstep. One compilation per shape."""
+    chex.assert_rank(batch.T, 4, custom_message="batch: a stacked MDP, T [M, S, A, S] (jaxmdp.stack)")
 
     def one(args):
         m, cf = args

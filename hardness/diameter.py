@@ -50,6 +50,7 @@ import jax.numpy as jnp
 
 from hardness.reference_vi import uses_jacobi
 from hardness.result import MeasureResult
+from jaxmdp._asserts import assert_mdp
 from jaxmdp._checks import Variant, check_int, check_range, check_variant
 from jaxmdp.dynamic_programming import compiled
 from jaxmdp.episodic import reachable_pairs
@@ -91,7 +92,7 @@ def strongly_connected(mdp: MDP) -> jax.Array:
     """Whether every valid state can reach every other one (the MDP is communicating), by forward and backward
     reachability from state 0 through the successor lists (``O(S A K)`` per step, at most ``S`` steps). Jitted
     (:func:`jaxmdp.dynamic_programming.compiled`)."""
-    S = mdp.n_states
+    S, _ = assert_mdp(mdp)
     edge = (mdp.succ_p > 0) & mdp.action_mask[None, :, None] & mdp.state_mask[:, None, None]
     start = jnp.arange(S) == 0
 
@@ -403,6 +404,7 @@ def _episodic_colosseum(mdp: MDP, max_iter: int) -> MeasureResult:
 
 @functools.partial(jax.jit, static_argnames=("variant", "rtol", "max_iter", "n_candidates"))
 def _diameter(mdp: MDP, variant: str, rtol: float, max_iter: int, n_candidates: int) -> MeasureResult:
+    assert_mdp(mdp)
     if variant == "paper":
         if mdp.episodic:
             return _episodic_paper(mdp)

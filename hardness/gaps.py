@@ -25,12 +25,14 @@ from __future__ import annotations
 import functools
 from typing import Literal
 
+import chex
 import jax
 import jax.numpy as jnp
 
 from hardness.result import MeasureResult
 from hardness.value_norm import optimal_values
 from jaxmdp import dynamic_programming as dp
+from jaxmdp._asserts import assert_mdp
 from jaxmdp._checks import Variant, check_range, check_variant
 from jaxmdp.episodic import reachable_pairs
 from jaxmdp.mdp import MDP
@@ -51,6 +53,9 @@ def suboptimality_gaps(
     """``(Delta, mask, V_scale, converged)``: the gaps (``[S, A]`` or ``[H, S, A]``), the pairs the sum runs over,
     the largest ``|V*|`` (for the raw form's zero threshold) and whether the values converged. Traceable;
     ``values`` = :func:`hardness.value_norm.optimal_values` of a continuous MDP if already computed."""
+    S, A = assert_mdp(mdp)
+    if values is not None:
+        chex.assert_shape(values[:2], [(S, A), (S,)], custom_message="values: (Q [S, A], V [S], converged)")
     if mdp.episodic:
         Q, V = dp.finite_horizon_value_iteration(mdp)
         delta = V[:-1, :, None] - Q
@@ -65,6 +70,7 @@ def suboptimality_gaps(
 
 def sum_reciprocal_gaps_from(mdp, gamma, regularizer, zero_tol, variant, form, max_iter, values=None):
     """Traceable core of :func:`sum_reciprocal_gaps` (``values`` as in :func:`suboptimality_gaps`)."""
+    chex.assert_rank([regularizer, zero_tol], 0, custom_message="regularizer and zero_tol: scalars")
     delta, mask, scale, converged = suboptimality_gaps(mdp, gamma, variant=variant, max_iter=max_iter, values=values)
     if form == "regularized":
         terms = jnp.where(mask, 1.0 / (delta + regularizer), 0.0)

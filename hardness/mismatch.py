@@ -27,11 +27,13 @@ from __future__ import annotations
 
 import functools
 
+import chex
 import jax
 import jax.numpy as jnp
 
 from hardness.mixing import policy_check
 from hardness.result import MeasureResult
+from jaxmdp._asserts import assert_mdp, assert_policy
 from jaxmdp._checks import check_range
 from jaxmdp.mdp import MDP
 from jaxmdp.occupancy import state_distribution
@@ -88,6 +90,13 @@ def distribution_mismatch(
 
 @functools.partial(jax.jit, static_argnames=("ref_is_policy",))
 def _distribution_mismatch(mdp: MDP, policy, reference, gamma, ref_is_policy):
+    S, A = assert_mdp(mdp)
+    if policy is not None:
+        assert_policy(policy, S, A, "policy", time_indexed=mdp.episodic)
+    if ref_is_policy:
+        assert_policy(reference, S, A, "reference", time_indexed=mdp.episodic)
+    else:
+        chex.assert_shape(reference, (S,), custom_message="reference: a distribution [S]")
     pi = optimal_policy(mdp) if policy is None else policy.astype(mdp.dtype)
     d = state_distribution(mdp, pi, gamma)
     mu = state_distribution(mdp, reference, gamma) if ref_is_policy else reference
@@ -103,6 +112,11 @@ def mismatch_ratio(
 ) -> jax.Array:
     """``max_s d(s) / mu(s)`` with ``0 / 0 = 0`` and ``x / 0 = inf``, over ``state_mask`` (default all states).
     Masses at most ``rel_tol`` times the largest count as zero (round-off where the exact mass is zero)."""
+    chex.assert_rank(d, 1, custom_message="d: a distribution [S]")
+    chex.assert_equal_shape([d, mu], custom_message="d and mu: distributions [S]")
+    chex.assert_type([d, mu], float, custom_message="d and mu: distributions")
+    if state_mask is not None:
+        chex.assert_shape(state_mask, d.shape, custom_message="state_mask: [S]")
     d = jnp.where(d > rel_tol * jnp.max(d), d, 0.0)
     mu_pos = mu > rel_tol * jnp.max(mu)
     ratio = jnp.where(mu_pos, d / jnp.where(mu_pos, mu, 1.0), jnp.where(d > 0, jnp.inf, 0.0))

@@ -26,11 +26,13 @@ from __future__ import annotations
 
 import functools
 
+import chex
 import jax
 import jax.numpy as jnp
 
 from hardness.result import MeasureResult
 from jaxmdp import dynamic_programming as dp
+from jaxmdp._asserts import assert_chain, assert_mdp, assert_policy
 from jaxmdp._checks import check_int, check_range
 from jaxmdp.mdp import MDP
 from jaxmdp.occupancy import cesaro_limit
@@ -55,7 +57,10 @@ def chain_mixing_time(
     ``converged=False``); the answer in ``(2^(k-1), 2^k]`` is then found by bisection with the stored powers. Only the
     states of ``state_mask`` (default all) are starts. Jittable; vmaps over a batch of matrices.
     """
-    S = P.shape[0]
+    S = assert_chain(P)
+    chex.assert_rank(eps, 0, custom_message="eps: a scalar threshold")
+    if state_mask is not None:
+        chex.assert_shape(state_mask, (S,), custom_message="state_mask: [S]")
     dtype = P.dtype
     mask = jnp.ones((S,), bool) if state_mask is None else state_mask
     eps = jnp.asarray(eps, dtype)
@@ -139,6 +144,9 @@ def mixing_time(
 
 @functools.partial(jax.jit, static_argnames=("lazy", "max_doublings"))
 def _mixing_time(mdp: MDP, policy, eps, lazy, max_doublings):
+    S, A = assert_mdp(mdp)
+    if policy is not None:
+        assert_policy(policy, S, A, "policy")
     pi = optimal_policy(mdp) if policy is None else policy.astype(mdp.dtype)
     P = dp.policy_matrix(mdp, pi)
     if lazy:

@@ -37,12 +37,14 @@ from __future__ import annotations
 
 import functools
 
+import chex
 import jax
 import jax.numpy as jnp
 
 from hardness.reference_vi import reference_value_iteration, uses_jacobi
 from hardness.result import MeasureResult
 from jaxmdp import dynamic_programming as dp
+from jaxmdp._asserts import assert_mdp
 from jaxmdp._checks import Variant, check_range, check_variant
 from jaxmdp.episodic import ContinuousForm, continuous_form, reachable_pairs
 from jaxmdp.mdp import MDP
@@ -57,6 +59,7 @@ _DETERMINISTIC_ATOL = 1e-6
 def deterministic_base(mdp: MDP) -> jax.Array:
     """The reference's shortcut test: every valid ``(s, a)`` has a single next state and every reward distribution
     on a possible transition is a point mass (``reward_conc == 0``)."""
+    assert_mdp(mdp)
     valid = mdp.state_mask[:, None] & mdp.action_mask[None, :]
     det_t = jnp.all((jnp.max(mdp.succ_p, axis=-1) >= 1.0 - _DETERMINISTIC_ATOL) | ~valid)
     det_r = jnp.all((mdp.reward_conc == 0) | (mdp.T <= 0) | ~valid[:, :, None])
@@ -148,6 +151,8 @@ def optimal_values(mdp: MDP, gamma, variant: str, max_iter: int = 1_000_000):
     """``(Q, V, converged)`` of a continuous MDP as each variant defines them: exact (``"paper"``,
     :func:`~jaxmdp.dynamic_programming.solve_discounted`) or the reference's value iteration (``"colosseum"``).
     Shared by the value norm and the gap sum."""
+    assert_mdp(mdp)
+    chex.assert_rank(gamma, 0, custom_message="gamma: a scalar discount")
     if variant == "paper":
         sol = dp.solve_discounted(mdp, gamma)
         return sol.Q, sol.V, sol.converged
@@ -159,6 +164,13 @@ def optimal_values(mdp: MDP, gamma, variant: str, max_iter: int = 1_000_000):
 
 def value_norm_from(mdp, cf, gamma, variant, discounted, max_iter, values=None) -> MeasureResult:
     """Traceable core of :func:`value_norm`; ``values`` = :func:`optimal_values` (continuous) if already known."""
+    S, A = assert_mdp(mdp)
+    chex.assert_rank(gamma, 0, custom_message="gamma: a scalar discount")
+    if cf is not None:
+        chex.assert_rank(cf.succ, 3, custom_message="continuous_form.succ: one MDP's form [N, A, K] (vmap a stack)")
+        chex.assert_equal_shape([cf.succ, cf.succ_p], custom_message="continuous_form: succ and succ_p [N, A, K]")
+    if values is not None:
+        chex.assert_shape(values[:2], [(S, A), (S,)], custom_message="values: (Q [S, A], V [S], converged)")
     if variant == "paper":
         if mdp.episodic:
             return _paper_episodic(mdp, gamma if discounted else 1.0)

@@ -34,7 +34,14 @@ import jax.numpy as jnp
 from flax import struct
 
 from agents.deep import policy_gradient as pg
-from agents.deep.common import cast_hparams, make_optimizer, observation_shape, observation_table
+from agents.deep.common import (
+    assert_act,
+    assert_update,
+    cast_hparams,
+    make_optimizer,
+    observation_shape,
+    observation_table,
+)
 from agents.deep.networks import MLP
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
 
@@ -129,13 +136,14 @@ def init(key: jax.Array, spec: MDPSpec, hparams: ActorCriticHParams, *, episodic
 
 def act(key: jax.Array, state: ActorCriticState, obs: jax.Array, h: jax.Array) -> jax.Array:
     """``a ~ softmax(logits(obs))`` over the valid actions."""
-    del h
+    assert_act(state, obs, h)
     logits, _ = state.net.apply(state.params, obs)
     return pg.sample_action(key, logits, state.action_mask)
 
 
 def update(state: ActorCriticState, tr: Transition) -> ActorCriticState:
     """Append the step to the buffer (learning happens in ``plan``)."""
+    assert_update(state, tr)
     return state.replace(buffer=pg.append(state.buffer, tr, state.episodic))
 
 

@@ -43,6 +43,7 @@ from agents.deep.actor_critic import (
     make_agent,
     table_rows,
 )
+from agents.deep.common import assert_act, assert_update
 from agents.deep.networks import MLP, orthogonal
 from jaxmdp.experiment.agent_interface import MDPSpec, Transition
 
@@ -114,7 +115,7 @@ def init(
 
 def act(key: jax.Array, state: ActorCriticRNNState, obs: jax.Array, h: jax.Array) -> jax.Array:
     """``a ~ softmax(logits(carry, obs))`` over the valid actions."""
-    del h
+    assert_act(state, obs, h)
     _, (logits, _) = state.net.apply(state.params, state.carry, obs)
     return pg.sample_action(key, logits, state.action_mask)
 
@@ -122,6 +123,7 @@ def act(key: jax.Array, state: ActorCriticRNNState, obs: jax.Array, h: jax.Array
 def update(state: ActorCriticRNNState, tr: Transition) -> ActorCriticRNNState:
     """Advance the acting LSTM state through ``tr.obs`` (reset to zero after an episode's last step, episodic) and
     append the step to the buffer."""
+    assert_update(state, tr)
     carry, _ = state.net.apply(state.params, state.carry, tr.obs)
     if state.episodic:
         carry = jax.tree.map(lambda c: jnp.where(tr.terminated, jnp.zeros_like(c), c), carry)

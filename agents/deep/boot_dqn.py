@@ -54,7 +54,15 @@ import jax.numpy as jnp
 from flax import struct
 
 from agents.deep import replay
-from agents.deep.common import cast_hparams, make_optimizer, observation_shape, observation_table, on_table
+from agents.deep.common import (
+    assert_act,
+    assert_update,
+    cast_hparams,
+    make_optimizer,
+    observation_shape,
+    observation_table,
+    on_table,
+)
 from agents.deep.dqn import (
     QHParams,
     QState,
@@ -180,13 +188,14 @@ def head_q(state: BootDQNState, head: jax.Array, obs: jax.Array) -> jax.Array:
 
 def act(key: jax.Array, state: BootDQNState, obs: jax.Array, h: jax.Array) -> jax.Array:
     """Epsilon-greedy in the active head's ``Q_k(obs, .)``."""
-    del h
+    assert_act(state, obs, h)
     return epsilon_greedy(key, head_q(state, state.active_head, obs), state.action_mask, state.hparams.epsilon)
 
 
 def update(state: BootDQNState, tr: Transition) -> BootDQNState:
     """Store the transition with fresh masks and noise; resample the active head at an episode end (episodic) or
     with probability ``switch_prob`` (continuous)."""
+    assert_update(state, tr)
     hp = state.hparams
     K = hp.n_ensemble
     key = jax.random.fold_in(jax.random.wrap_key_data(state.key_data), state.steps)

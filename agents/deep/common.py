@@ -13,12 +13,15 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from jaxmdp._asserts import assert_observation, assert_transition
 from jaxmdp._checks import check_range
-from jaxmdp.experiment.agent_interface import MDPSpec
+from jaxmdp.experiment.agent_interface import MDPSpec, Transition
 
 __all__ = [
     "observation_table",
     "observation_shape",
+    "assert_act",
+    "assert_update",
     "cast_hparams",
     "check_whole",
     "make_optimizer",
@@ -56,6 +59,18 @@ def observation_table(spec: MDPSpec, agent_name: str, episodic: bool | None = No
 def observation_shape(table: jax.Array, episodic: bool) -> tuple[int, ...]:
     """Shape of one observation (a row of the table)."""
     return tuple(table.shape[2 if episodic else 1 :])
+
+
+def assert_act(state: Any, obs: jax.Array, h: jax.Array) -> None:
+    """chex, at trace time: ``obs`` is one row of the state's emission table and ``h`` an integer scalar
+    (:func:`jaxmdp._asserts.assert_observation`)."""
+    assert_observation(obs, h, observation_shape(state.observations, state.episodic))
+
+
+def assert_update(state: Any, tr: Transition) -> None:
+    """chex, at trace time: ``tr`` is one member's step with observations of the emission table's row shape
+    (:func:`jaxmdp._asserts.assert_transition`)."""
+    assert_transition(tr, observation_shape(state.observations, state.episodic))
 
 
 def cast_hparams(hparams: Any, dtype: Any = jnp.float32) -> Any:

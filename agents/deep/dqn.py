@@ -48,6 +48,8 @@ from flax import struct
 from agents.tabular_common import greedy_action
 from agents.deep import replay
 from agents.deep.common import (
+    assert_act,
+    assert_update,
     cast_hparams,
     check_whole,
     make_optimizer,
@@ -230,13 +232,14 @@ def init(key: jax.Array, spec: MDPSpec, hparams: DQNHParams) -> DQNState:
 
 def act(key: jax.Array, state: DQNState, obs: jax.Array, h: jax.Array) -> jax.Array:
     """Epsilon-greedy in ``Q_theta(obs, .)`` (the observation carries whatever time information the emission has)."""
-    del h
+    assert_act(state, obs, h)
     q = q_network(state.hparams, state.n_actions).apply(state.params, obs)
     return epsilon_greedy(key, q, state.action_mask, state.hparams.epsilon)
 
 
 def update(state: DQNState, tr: Transition) -> DQNState:
     """Store the transition; learning happens in :func:`plan` when :func:`needs_plan` says an SGD step is due."""
+    assert_update(state, tr)
     buffer = replay.make(state.hparams.replay_capacity, state.hparams.batch_size)
     item = item_of(tr, state.observations, state.episodic)
     return state.replace(replay=buffer.add(state.replay, item), steps=state.steps + 1)

@@ -28,6 +28,11 @@ iteration with arithmetic of its own, for its tighter tolerance (see there).
 The routines with loops are jitted (:func:`compiled`), so that eager calls compile once per shape; the loops that take
 a backup function (:func:`relative_value_iteration`, :func:`policy_iteration_by`) are meant to be called inside the
 caller's ``jit``.
+
+Every public routine asserts the ranks, shapes and dtypes of its arrays with chex (``jaxmdp._asserts``: an MDP or
+kernel against its ``S`` and ``A``, policies, values and rewards against those). The assertions run while tracing
+and read no values, so the compiled program is the same without them; a wrong input fails with chex's
+``AssertionError`` naming the argument instead of deep inside XLA.
 """
 
 from jaxmdp.dynamic_programming import (

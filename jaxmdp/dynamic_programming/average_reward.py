@@ -10,9 +10,12 @@ extension (the expected long-run average reward from ``d``) otherwise. Exact gai
 
 from __future__ import annotations
 
+import chex
 import jax
 import jax.numpy as jnp
 from flax import struct
+
+from jaxmdp._asserts import assert_mdp, assert_model, assert_policy
 
 from jaxmdp.dynamic_programming.backups import (
     Model,
@@ -51,6 +54,9 @@ def successor_policy_matrix(succ: jax.Array, succ_p: jax.Array, pi: jax.Array) -
     """:func:`~jaxmdp.dynamic_programming.policy_matrix` of a model given by successor lists only: ``P_pi[s, s'] =
     sum_a pi(a|s) sum_k p[s,a,k] [succ[s,a,k] = s']`` (e.g. the continuous form of an episodic MDP, which has no dense
     kernel)."""
+    chex.assert_rank(succ, 3, custom_message="succ: successor lists [S, A, K]")
+    chex.assert_equal_shape([succ, succ_p], custom_message="succ and succ_p: successor lists [S, A, K]")
+    chex.assert_shape(pi, succ.shape[:2], custom_message="pi: a policy [S, A]")
     S = succ.shape[0]
     w = (pi[:, :, None] * succ_p).reshape(S, -1)
     return jnp.zeros((S, S), succ_p.dtype).at[jnp.arange(S)[:, None], succ.reshape(S, -1)].add(w)
@@ -84,6 +90,10 @@ def gain_vector(
     branch it leaves out is a large part of its programs' compile time (docs/performance.md, Compilation)."""
     if (order is None) != (bandwidth is None):
         raise ValueError("order and bandwidth go together: give both (jaxmdp.gth.band_order) or neither")
+    S, A = assert_model(model, rewards)
+    assert_policy(pi, S, A)
+    if order is not None:
+        chex.assert_shape(order, (S,), custom_message="order: a permutation of the states [S]")
     r = policy_rewards(model, pi, rewards)
     if not isinstance(model, MDP):
         return chain_gain(policy_matrix(model, pi), r, order=order, bandwidth=bandwidth)
@@ -169,10 +179,12 @@ def policy_successor_lists(mdp: MDP, pi: jax.Array) -> tuple[jax.Array, jax.Arra
     each successor slot under ``pi`` and ``r = r_pi``. A stochastic ``pi[S, A]`` keeps every action's slots
     (``J = A K``, ``w = pi(a|s) p[s, a, k]``); a deterministic policy given by its action indices (integer ``[S]``)
     keeps the chosen action's ``K`` slots only, an ``A``-fold smaller chain with the same kernel."""
+    S, A = assert_mdp(mdp)
     if jnp.issubdtype(pi.dtype, jnp.integer):
+        chex.assert_shape(pi, (S,), custom_message="pi: action indices [S] (or a policy [S, A])")
         s = jnp.arange(pi.shape[0])
         return mdp.succ[s, pi], mdp.succ_p[s, pi], mdp.R[s, pi]
-    S = pi.shape[0]
+    assert_policy(pi, S, A)
     w = pi[:, :, None].astype(mdp.R.dtype) * mdp.succ_p
     return mdp.succ.reshape(S, -1), w.reshape(S, -1), jnp.sum(pi * mdp.R, axis=-1)
 
@@ -284,6 +296,7 @@ def policy_gain(
         if not isinstance(model, MDP):
             raise ValueError("start must be given when the model is a dense kernel")
         start = model.P0
+    chex.assert_shape(start, (assert_model(model)[0],), custom_message="start: a distribution [S]")
     return start @ gain_vector(model, pi, rewards)
 
 
@@ -326,6 +339,9 @@ def optimal_gain(
     are left out of the stopping rule, as in :func:`~jaxmdp.dynamic_programming.relative_value_iteration`: their gain
     is 0, so with them the span would never fall below ``tol`` and a padded MDP would run all ``max_iter`` sweeps.
     """
+    S, _ = assert_model(model, rewards)
+    if start is not None:
+        chex.assert_shape(start, (S,), custom_message="start: a distribution [S]")
     R = _rewards(model, rewards)
     mask = _action_mask(model)
     state_mask, _ = _masks(model, R)

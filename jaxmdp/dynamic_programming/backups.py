@@ -12,9 +12,11 @@ import functools
 from collections.abc import Callable
 from typing import Any
 
+import chex
 import jax
 import jax.numpy as jnp
 
+from jaxmdp._asserts import assert_model, assert_policy
 from jaxmdp.mdp import MDP
 
 __all__ = [
@@ -83,6 +85,8 @@ def _masks(model: Model, R: jax.Array) -> tuple[jax.Array, jax.Array]:
 
 def expected_next_values(model: Model, V: jax.Array) -> jax.Array:
     """``E[V(s') | s, a] = sum_s' P(s'|s,a) V(s')`` for every ``(s, a)``: an ``[S, A]`` array."""
+    S, _ = assert_model(model)
+    chex.assert_shape(V, (S,), custom_message="V: values [S]")
     if isinstance(model, MDP):
         return jnp.sum(model.succ_p * V[model.succ], axis=-1)
     return jnp.einsum("sat,t->sa", model, V)
@@ -90,12 +94,16 @@ def expected_next_values(model: Model, V: jax.Array) -> jax.Array:
 
 def q_values(model: Model, V: jax.Array, gamma: float | jax.Array = 1.0, rewards: jax.Array | None = None) -> jax.Array:
     """One Bellman backup: ``Q = R + gamma * P V``."""
+    assert_model(model, rewards)
+    chex.assert_rank(gamma, 0, custom_message="gamma: a scalar discount")
     return _rewards(model, rewards) + gamma * expected_next_values(model, V)
 
 
 def greedy_actions(Q: jax.Array, action_mask: jax.Array | None = None, atol: float = 0.0) -> jax.Array:
     """The greedy action of every row of ``Q[..., A]`` as an ``int32`` index: the lowest index within ``atol`` of the
     row's maximum, padded actions (``action_mask``) excluded. :func:`greedy` is its one-hot form."""
+    if action_mask is not None:
+        chex.assert_shape(action_mask, (..., Q.shape[-1]), custom_message="action_mask: [..., A] as Q")
     if action_mask is not None:
         Q = jnp.where(action_mask, Q, -jnp.inf)
     A = Q.shape[-1]
@@ -124,6 +132,7 @@ def greedy(Q: jax.Array, action_mask: jax.Array | None = None, atol: float = 0.0
 
 def uniform_policy(model: Model, shape: tuple[int, ...] = ()) -> jax.Array:
     """The uniformly random policy ``pi(a|s) = 1/|A|`` over the valid actions, shape ``[*shape, S, A]``."""
+    assert_model(model)
     T = _dense(model)
     S, A = T.shape[0], T.shape[1]
     mask = _action_mask(model)
@@ -133,9 +142,11 @@ def uniform_policy(model: Model, shape: tuple[int, ...] = ()) -> jax.Array:
 
 def policy_matrix(model: Model, pi: jax.Array) -> jax.Array:
     """State-to-state kernel ``P_pi[s, s'] = sum_a pi(a|s) P(s'|s,a)`` of a stationary policy ``pi[S, A]``."""
+    assert_policy(pi, *assert_model(model))
     return jnp.einsum("sa,sat->st", pi, _dense(model))
 
 
 def policy_rewards(model: Model, pi: jax.Array, rewards: jax.Array | None = None) -> jax.Array:
-    """Expected one-step reward ``r_pi(s) = sum_a pi(a|s) R(s,a)``."""
+    """Expected one-step reward ``r_pi(s) = sum_a pi(a|s) R(s,a)`` (``pi[S, A]``, or ``[H, S, A]`` for each step)."""
+    assert_policy(pi, *assert_model(model, rewards), time_indexed=True)
     return jnp.sum(pi * _rewards(model, rewards), axis=-1)

@@ -10,9 +10,12 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+import chex
 import jax
 import jax.numpy as jnp
 from flax import struct
+
+from jaxmdp._asserts import assert_chain, assert_model, assert_policy
 
 from jaxmdp.dynamic_programming.backups import (
     Model,
@@ -69,6 +72,9 @@ def value_iteration(
     sweeps, reported by ``converged``; ``V`` is ``V_new = max_a Q`` and ``Q`` the backup of the previous iterate.
     Use :func:`solve_discounted` for values exact to floating-point precision.
     """
+    S, _ = assert_model(model, rewards)
+    if V0 is not None:
+        chex.assert_shape(V0, (S,), custom_message="V0: values [S]")
     R = _rewards(model, rewards)
     state_mask, action_mask = _masks(model, R)
     V0 = jnp.zeros(R.shape[:1], R.dtype) if V0 is None else V0
@@ -83,6 +89,7 @@ def value_iteration(
 def discounted_chain_values(P: jax.Array, r: jax.Array, gamma: float | jax.Array) -> jax.Array:
     """Discounted values ``V = (I - gamma P)^{-1} r`` of a Markov reward chain ``P[S, S]``, ``r[S]`` (Puterman 1994
     §6.1): one linear solve (:func:`jaxmdp.jaxlib_workarounds.linalg.solve`, one system at a time under ``vmap``)."""
+    _assert_rewards(r, assert_chain(P), gamma)
     return linear_solve(jnp.eye(P.shape[0], dtype=P.dtype) - gamma * P, r)
 
 
@@ -103,7 +110,9 @@ def discounted_chain_values_banded(
     V_j) / s_k`` substituted into the rows above), and back-substitution from position 0 gives ``V_k``. Every
     ``s_k >= 1 - gamma > 0``, and only non-negative numbers are added, as in the gain's elimination
     (:func:`~jaxmdp.dynamic_programming.chain_gain`)."""
-    S = P.shape[0]
+    S = assert_chain(P)
+    chex.assert_shape(deficit, (S,), custom_message="deficit: [S]")
+    _assert_rewards(r, S, gamma)
     W = min(max(bandwidth, 1), S)
     gamma = jnp.asarray(gamma, P.dtype)  # 1 - gamma from the discount that multiplies P (0.999 is no float32)
     out = (1.0 - gamma) + gamma * deficit.astype(P.dtype)
@@ -129,7 +138,12 @@ def discounted_jump_chain_values(
     the whole chain instead). Only the rows of ``K`` are read: ``P`` is the ``[S, S]`` chain or a function that
     returns its rows ``[n, S]`` at states ``[n]`` (so that a caller holding the chain in another form never builds
     it whole)."""
+    chex.assert_rank(r, 1, custom_message="r: rewards [S]")
     S = r.shape[0]
+    if not callable(P):
+        chex.assert_shape(P, (S, S), custom_message="P: a chain [S, S]")
+    chex.assert_shape(jump, (S,), custom_message="jump: [S]")
+    chex.assert_type(jump, int, custom_message="jump: state indices")
     jumps = jump >= 0
     in_k = ~jumps | jnp.zeros((S,), bool).at[jnp.where(jumps, jump, S)].set(True, mode="drop")
     (idx,) = jnp.nonzero(in_k, size=size, fill_value=S)  # K's states, then S (an empty slot)
@@ -147,6 +161,14 @@ def discounted_jump_chain_values(
     return jnp.where(in_k, V_k[pos], r + gamma * V_k[via]), jnp.sum(in_k) <= size
 
 
+def _assert_rewards(r: jax.Array, S: int, gamma: float | jax.Array) -> None:
+    """``r`` is ``[S]`` or ``[S, m]`` floating and ``gamma`` a scalar (the chain solves)."""
+    chex.assert_rank(r, {1, 2}, custom_message="r: rewards [S] or [S, m]")
+    chex.assert_axis_dimension(r, 0, S, custom_message="r: rewards [S] or [S, m] of the chain's S states")
+    chex.assert_type(r, float, custom_message="r: rewards")
+    chex.assert_rank(gamma, 0, custom_message="gamma: a scalar discount")
+
+
 def _policy_values(model: Model, pi: jax.Array, gamma: float | jax.Array, R: jax.Array) -> jax.Array:
     """``V = (I - gamma P_pi)^{-1} r_pi`` (the solve of :func:`policy_evaluation`)."""
     return discounted_chain_values(policy_matrix(model, pi), policy_rewards(model, pi, R), gamma)
@@ -159,6 +181,7 @@ def policy_evaluation(
 
     The solve is :func:`jaxmdp.jaxlib_workarounds.linalg.solve` (one system at a time under ``vmap``: jaxlib 0.10.2's
     batched CPU solve can deadlock)."""
+    assert_policy(pi, *assert_model(model, rewards))
     R = _rewards(model, rewards)
     V = _policy_values(model, pi, gamma, R)
     return q_values(model, V, gamma, R), V
@@ -182,6 +205,7 @@ def policy_iteration_by(
     (1 - gamma) <= V <= V*``) or after ``max_iter`` evaluations (``iterations`` counts them). :func:`policy_iteration`
     is this loop on a model's dense or successor-list backup; optimistic PSRL's extended MDP supplies a structured one
     (``agents.psrl_continuous``)."""
+    chex.assert_equal_shape_prefix(jax.tree.leaves(policy), 1, custom_message="policy: leaves with the states first")
 
     def cond(c):
         return c[3] & (c[4] < max_iter)
@@ -220,6 +244,9 @@ def policy_iteration(
     ``V* - eps / (1 - gamma) <= V <= V*`` (a bound met only when actions are nearly tied). ``Q``/``V`` are those of
     the final policy; ``iterations`` counts evaluations. (:func:`policy_iteration_by` with the model's backup.)
     """
+    S, A = assert_model(model, rewards)
+    if policy is not None:
+        assert_policy(policy, S, A, "policy")
     R = _rewards(model, rewards)
     mask = _action_mask(model)
     pi0 = greedy(R, mask) if policy is None else policy
@@ -243,6 +270,7 @@ def solve_discounted(
     A coarse value iteration (``vi_tol``) finds a near-optimal greedy policy, and policy iteration with exact
     evaluation finishes the job (usually in one or two linear solves).
     """
+    assert_model(model, rewards)
     R = _rewards(model, rewards)
     vi = value_iteration(model, gamma, rewards=R, tol=vi_tol, max_iter=10_000)
     return policy_iteration(model, gamma, rewards=R, policy=greedy(vi.Q, _action_mask(model)))

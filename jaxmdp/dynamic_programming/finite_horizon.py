@@ -12,9 +12,11 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+import chex
 import jax
 import jax.numpy as jnp
 
+from jaxmdp._asserts import assert_mdp, assert_model, assert_policy
 from jaxmdp.dynamic_programming.backups import Model, _rewards, compiled, q_values
 from jaxmdp.mdp import MDP
 
@@ -35,7 +37,14 @@ def _horizon_args(model: Model, H: int | None, horizon: Any) -> tuple[int, jax.A
         H = model.H
     if horizon is None:
         horizon = model.horizon if isinstance(model, MDP) and model.H is not None else H
+    chex.assert_rank(horizon, 0, custom_message="horizon: a scalar episode length")
     return H, jnp.asarray(horizon)
+
+
+def _assert_time_indexed(x: jax.Array, H: int, name: str) -> None:
+    """A time-indexed ``x`` (rank 3 for a policy, 2 for actions) has at least ``H`` time rows (``x[:H]`` is read)."""
+    if x.ndim == (3 if name == "pi" else 2):
+        chex.assert_axis_dimension_gteq(x, 0, H, custom_message=f"{name}: at least H = {H} time steps")
 
 
 @compiled("H")
@@ -46,6 +55,7 @@ def finite_horizon_value_iteration(
 
     Returns ``Q[H, S, A]`` and ``V[H + 1, S]`` with ``V[H] = 0``; time steps ``h >= horizon`` are worth zero.
     """
+    assert_model(model, rewards)
     R = _rewards(model, rewards)
     H, horizon = _horizon_args(model, H, horizon)
 
@@ -99,8 +109,10 @@ def finite_horizon_policy_evaluation(
 
     Returns ``Q[H, S, A]`` and ``V[H + 1, S]`` with ``V_h = sum_a pi_h(a|s) Q_h(s, a)``.
     """
+    assert_policy(pi, *assert_model(model, rewards), time_indexed=True)
     R = _rewards(model, rewards)
     H, horizon = _horizon_args(model, H, horizon)
+    _assert_time_indexed(pi, H, "pi")
     V_H = jnp.zeros(R.shape[:1], R.dtype)
     V, Q = _backward(_policy_backup(model, R, horizon), V_H, (jnp.arange(H), _time_indexed(pi, H, R.shape)), True)
     return Q, V
@@ -112,8 +124,10 @@ def finite_horizon_start_values(
 ) -> jax.Array:
     """``V_0[S]`` of :func:`finite_horizon_policy_evaluation` (the same numbers), without keeping the other steps'
     ``Q`` and ``V``: what an episodic regret indicator needs (``sum_s P0(s) V_0(s)``, paper App. A.1)."""
+    assert_policy(pi, *assert_model(model, rewards), time_indexed=True)
     R = _rewards(model, rewards)
     H, horizon = _horizon_args(model, H, horizon)
+    _assert_time_indexed(pi, H, "pi")
     V_H = jnp.zeros(R.shape[:1], R.dtype)
     return _backward(_policy_backup(model, R, horizon), V_H, (jnp.arange(H), _time_indexed(pi, H, R.shape)), False)
 
@@ -124,6 +138,8 @@ def successor_rows(mdp: MDP) -> jax.Array:
     (a leading MDP axis). What :func:`finite_horizon_deterministic_evaluation` reads: one gather of the chosen rows
     per step instead of three, which makes the evaluation markedly faster with the same numbers (docs/performance.md,
     Episodic evaluation)."""
+    chex.assert_equal_shape([mdp.succ, mdp.succ_p], custom_message="mdp: succ and succ_p [..., S, A, K]")
+    chex.assert_equal_shape_prefix([mdp.R, mdp.succ], mdp.R.ndim, custom_message="mdp: R [..., S, A] as succ")
     dtype = mdp.R.dtype
     succ = jax.lax.bitcast_convert_type(mdp.succ.astype(_same_width_int(dtype)), dtype)
     return jnp.concatenate([mdp.succ_p.astype(dtype), mdp.R[..., None], succ], axis=-1)
@@ -132,6 +148,15 @@ def successor_rows(mdp: MDP) -> jax.Array:
 def _same_width_int(dtype: Any) -> Any:
     """The integer dtype that a float ``dtype`` bit-casts to (the successor columns of :func:`successor_rows`)."""
     return {4: jnp.int32, 8: jnp.int64}[jnp.dtype(dtype).itemsize]
+
+
+def _assert_actions(mdp: MDP, actions: jax.Array) -> None:
+    """``mdp`` is one episodic MDP and ``actions`` its time-indexed action indices ``[H, S]``."""
+    S, _ = assert_mdp(mdp)
+    chex.assert_shape(actions, (None, S), custom_message="actions: action indices [H, S]")
+    chex.assert_type(actions, int, custom_message="actions: action indices")
+    if mdp.H is not None:
+        _assert_time_indexed(actions, mdp.H, "actions")
 
 
 def _deterministic_backup(mdp: MDP, rows: jax.Array | None, member: jax.Array | None) -> Callable:
@@ -164,6 +189,7 @@ def finite_horizon_deterministic_evaluation(mdp: MDP, actions: jax.Array) -> jax
     Q_h(s, a)`` adds exact zeros to the chosen action's ``Q``), at ``O(H S K)`` instead of ``O(H S A K)``: only the
     chosen action's successor list is read.
     """
+    _assert_actions(mdp, actions)
     V_H = jnp.zeros((mdp.n_states,), mdp.R.dtype)
     return _backward(_deterministic_backup(mdp, None, None), V_H, (jnp.arange(mdp.H), actions[: mdp.H]), True)[0]
 
@@ -182,6 +208,11 @@ def finite_horizon_deterministic_start_values(
     if (rows is None) != (member is None):
         raise ValueError("rows and member go together: a stacked MDP's successor_rows and this MDP's index in it; "
                          f"got rows={'None' if rows is None else rows.shape} and member={member!r}")
+    _assert_actions(mdp, actions)
+    if rows is not None:
+        S, A, K = mdp.n_states, mdp.n_actions, mdp.max_successors
+        chex.assert_shape(rows, (None, S, A, 2 * K + 1), custom_message="rows: successor_rows [M, S, A, 2K+1]")
+        chex.assert_rank(member, 0, custom_message="member: this MDP's index in the stack, a scalar")
     V_H = jnp.zeros((mdp.n_states,), mdp.R.dtype)
     backup = _deterministic_backup(mdp, rows, member)
     return _backward(backup, V_H, (jnp.arange(mdp.H), actions[: mdp.H]), False)

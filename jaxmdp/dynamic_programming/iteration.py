@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import chex
 import jax
 import jax.numpy as jnp
 from flax import struct
@@ -65,6 +66,11 @@ def relative_value_iteration(
     under ``vmap`` a batched ``while_loop`` runs until its last member stops, so members whose result will be
     discarded should not keep it going.
     """
+    chex.assert_rank(u0, 1, custom_message="u0: values [S]")
+    chex.assert_type(u0, float, custom_message="u0: values")
+    chex.assert_shape(state_mask, u0.shape, custom_message="state_mask: [S] as u0")
+    chex.assert_rank(action_mask, {1, 2}, custom_message="action_mask: [A] or [S, A]")
+    chex.assert_rank(discount, 0, custom_message="discount: a scalar")
     dtype = u0.dtype
     average = jnp.asarray(discount) >= 1.0
     step = jnp.where(average, jnp.asarray(aperiodicity, dtype), jnp.asarray(1.0, dtype))

@@ -12,9 +12,11 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import chex
 import jax
 import jax.numpy as jnp
 
+from jaxmdp._asserts import assert_chain
 from jaxmdp.dynamic_programming.backups import compiled
 from jaxmdp.gth import BAND_BLOCK, GTH_BLOCK, gth_eliminate, gth_eliminate_banded
 from jaxmdp.gth import bandwidth as gth_bandwidth
@@ -40,6 +42,10 @@ def recurrent_classes(P: jax.Array, reach: jax.Array | None = None) -> tuple[jax
     recurrent when every state it reaches reaches it back. Returns ``(recurrent[S], same_class[S, S])`` with
     ``same_class[s, t]`` true iff ``s`` and ``t`` are recurrent and in the same class.
     """
+    S = assert_chain(P)
+    if reach is not None:
+        chex.assert_shape(reach, (S, S), custom_message="reach: reachability [S, S]")
+        chex.assert_type(reach, bool, custom_message="reach: reachability")
     if reach is None:
         S = P.shape[0]
         reach = ((P > 0) | jnp.eye(S, dtype=bool)).astype(P.dtype)
@@ -57,6 +63,8 @@ def successor_reachability(succ: jax.Array, edge: jax.Array) -> jax.Array:
     until nothing changes: ``O(S^2 K / 32)`` word operations a sweep, and as many sweeps as the longest shortest path
     plus one (no dense ``S x S`` products; :func:`recurrent_classes` squares the dense adjacency instead).
     """
+    chex.assert_type([succ, edge], [int, bool], custom_message="succ: state indices, edge: boolean")
+    chex.assert_equal_shape([succ, edge], custom_message="succ and edge: [S, ...] slots")
     S = succ.shape[0]
     states = jnp.arange(S)
     nbr = jnp.where(edge, succ, states.reshape((S,) + (1,) * (succ.ndim - 1))).reshape(S, -1)
@@ -105,7 +113,10 @@ def chain_gain(
     """
     if (order is None) != (bandwidth is None):
         raise ValueError("order and bandwidth go together: give both (jaxmdp.gth.band_order) or neither")
-    S = P.shape[0]
+    S = assert_chain(P)
+    chex.assert_shape(r, (S,), custom_message="r: rewards [S]")
+    if order is not None:
+        chex.assert_shape(order, (S,), custom_message="order: a permutation of the states [S]")
     recurrent, same_class = recurrent_classes(P, reach)
     perm = _recurrent_first(jnp.arange(S) if order is None else order, recurrent)
     Pp, rec = P[perm][:, perm], recurrent[perm]
@@ -240,6 +251,7 @@ def chain_bias(P: jax.Array, r: jax.Array, n_squarings: int = 48) -> jax.Array:
     ``n_squarings`` squarings (48: ``2^48`` steps, each renormalised to stay stochastic); the bias then solves
     Puterman 1994 Thm. A.7. Dense ``O(S^3)``; :func:`chain_gain` is the accurate route to the gain ``P* r`` alone.
     """
+    chex.assert_shape(r, (assert_chain(P),), custom_message="r: rewards [S]")
     eye = jnp.eye(P.shape[0], dtype=P.dtype)
     Pstar = cesaro_limit(P, n_squarings)
     g = Pstar @ r
@@ -251,6 +263,7 @@ def cesaro_limit(P: jax.Array, n_squarings: int = 48) -> jax.Array:
     """``P* = lim_n (1/n) sum_{t<n} P^t``, taken as ``((I + P) / 2)^(2^n_squarings)`` (the lazy chain is aperiodic with
     the same limit; Puterman 1994 App. A.4), each square renormalised to stay stochastic. Dense ``O(S^3 n)``;
     periodic and multichain matrices alike."""
+    assert_chain(P)
     eye = jnp.eye(P.shape[0], dtype=P.dtype)
 
     def square(_, M):
