@@ -158,3 +158,18 @@ def _release_compiled_programs():
     if maps is None or maps > MAP_BUDGET:
         jax.clear_caches()
         gc.collect()
+
+
+@pytest.fixture
+def registry():
+    """The agent registry (``agents``) with its entries and search spaces restored after the test: registering an
+    agent changes them for the whole process."""
+    import agents
+    from agents import search_spaces
+
+    entries, ranges = dict(agents.AGENTS._entries), dict(search_spaces._RANGES)
+    yield agents
+    agents.AGENTS._entries.clear()
+    agents.AGENTS._entries.update(entries)
+    search_spaces._RANGES.clear()
+    search_spaces._RANGES.update(ranges)

@@ -18,18 +18,6 @@ from hardness.benchmark import hparams
 from jaxmdp.experiment.agent_interface import Agent
 
 
-@pytest.fixture
-def registry():
-    """The registry and the search spaces as they were, restored after the test (registering changes them for the
-    whole process)."""
-    entries, ranges = dict(agents.AGENTS._entries), dict(search_spaces._RANGES)
-    yield agents
-    agents.AGENTS._entries.clear()
-    agents.AGENTS._entries.update(entries)
-    search_spaces._RANGES.clear()
-    search_spaces._RANGES.update(ranges)
-
-
 def _fresh_modules(code: str) -> set[str]:
     """The modules loaded by ``code`` in a fresh interpreter."""
     script = textwrap.dedent(code) + "\nimport json, sys; print(json.dumps(sorted(sys.modules)))\n"

@@ -38,17 +38,6 @@ USER_MODULE = _user_module()
 
 
 @pytest.fixture
-def registry():
-    """The registry and search spaces restored after the test."""
-    entries, ranges = dict(agents.AGENTS._entries), dict(search_spaces._RANGES)
-    yield agents
-    agents.AGENTS._entries.clear()
-    agents.AGENTS._entries.update(entries)
-    search_spaces._RANGES.clear()
-    search_spaces._RANGES.update(ranges)
-
-
-@pytest.fixture
 def user_dir(tmp_path, monkeypatch, registry):
     """A folder outside the package holding the user's module, as the current directory (its module name is unique
     to the test, so that no earlier import of it is reused)."""

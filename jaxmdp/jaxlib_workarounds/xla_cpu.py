@@ -1,17 +1,13 @@
-"""Guard against a silent miscompilation of jaxlib 0.10.2's CPU backend.
+"""Guard against a silent miscompilation of jaxlib's CPU backend by its YNNPACK fusions (docs/performance.md,
+jaxlib workarounds): some elementwise-then-reduce fusions can return wrong numbers without an error.
 
-jaxlib 0.10.2 hands some elementwise-then-reduce fusions to its new YNNPACK path (``__ynn_fusion``), which can return
-wrong numbers without any error (jax-ml/jax#39103; crashes in jax-ml/jax#39257 and #40412). In jaxmdp it hit the
-episodic value norm under ``jit(vmap(...))`` of a transformed MDP (256 states, 19 steps): the one-step variances
-``sum_k p (V[succ] - E)^2`` of the later time steps came back wrong by up to ~10 and the value norm of a
-*deterministic* MDP read 12.99 instead of 0. Eager execution and jaxlib 0.10.1 are correct.
-
-Importing :mod:`jaxmdp` therefore adds ``--xla_cpu_experimental_ynn_fusion_type=`` (empty: no YNNPACK fusions) to
-``XLA_FLAGS`` when all of these hold: the installed jaxlib is one of the affected releases, 0.10.2 up to (not
-including) 0.12.0 (:func:`affected`: older versions have no YNNPACK fusions and would abort on the flag), the user has not set that flag themselves, ``JAXMDP_NO_XLA_GUARD`` is not set to a non-empty value
-other than ``0`` (the opt-out), and no JAX backend exists yet (XLA reads the flags once, when the first backend is
-created). When it adds the flag it says so on the ``jaxmdp`` logger (level INFO). If a backend already exists the
-flag cannot take effect any more and a ``RuntimeWarning`` says so: import jaxmdp before running any JAX computation.
+Importing :mod:`jaxmdp` adds ``--xla_cpu_experimental_ynn_fusion_type=`` (empty: no YNNPACK fusions) to
+``XLA_FLAGS`` when all of these hold: the installed jaxlib is an affected version (:func:`affected`; other versions
+either lack the fusions and would abort on the flag, or are outside the range that tests/test_xla_cpu.py keeps true),
+the user has not set that flag themselves, ``JAXMDP_NO_XLA_GUARD`` is not set to a non-empty value other than ``0``
+(the opt-out), and no JAX backend exists yet (XLA reads the flags once, when the first backend is created). When it
+adds the flag it says so on the ``jaxmdp`` logger (level INFO). If a backend already exists the flag cannot take
+effect any more and a ``RuntimeWarning`` says so: import jaxmdp before running any JAX computation.
 
 Whether a backend exists has no public JAX API; the check uses ``jax._src.xla_bridge.backends_are_initialized`` and,
 should that private function move, assumes no backend yet (the flag is then added, and at worst has no effect).
@@ -32,12 +28,8 @@ YNN_FLAG = "--xla_cpu_experimental_ynn_fusion_type"
 #: Set this environment variable (to anything but ``""`` or ``"0"``) to leave ``XLA_FLAGS`` alone.
 OPT_OUT_VARIABLE = "JAXMDP_NO_XLA_GUARD"
 
-# The affected jaxlib releases, [_FIRST_AFFECTED, _FIRST_UNAFFECTED). 0.10.2 introduced the YNNPACK fusions and the
-# flag. The reports name 0.10.2 (jax-ml/jax#39103, #40412) and 0.11.0 (#39257); the XNNPACK fix reached XLA's main
-# branch after 0.10.2 was cut, and no report states the first release that carries it, so the guard covers the
-# whole 0.11 series. tests/test_xla_cpu.py runs the #39103 reproducer without the guard on the installed jaxlib
-# and fails if this range and the jaxlib's behaviour disagree (a fixed release inside the range, a broken one
-# outside it): that test is how the range is kept honest.
+# The affected jaxlib versions, [_FIRST_AFFECTED, _FIRST_UNAFFECTED) (docs/performance.md, jaxlib workarounds);
+# tests/test_xla_cpu.py fails when the installed jaxlib's behaviour and this range disagree.
 _FIRST_AFFECTED = (0, 10, 2)
 _FIRST_UNAFFECTED = (0, 12, 0)
 
@@ -53,7 +45,7 @@ def _version_tuple(version: str) -> tuple[int, ...]:
 
 
 def affected(version: str) -> bool:
-    """Whether jaxlib ``version`` is one of the releases with the YNNPACK miscompilation (module docstring)."""
+    """Whether jaxlib ``version`` is one of the versions with the YNNPACK miscompilation (module docstring)."""
     return _FIRST_AFFECTED <= _version_tuple(version) < _FIRST_UNAFFECTED
 
 
