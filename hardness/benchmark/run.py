@@ -38,7 +38,8 @@ Resuming: a finished batch (its ``.json`` holds the same batch key: set, agent, 
 hyperparameters) is never run again; an interrupted one continues from its checkpoint. Results do not depend on where
 a run was interrupted (the runner's keys are folded with the step index). Processes sharing a folder claim each batch
 they run (``runs/<batch>.claim`` and ``.log``, :mod:`hardness.benchmark.claims`); ``shard`` runs a share of the
-batches, and folders are merged, by :mod:`hardness.benchmark.shards`.
+batches, and folders are merged, by :mod:`hardness.benchmark.shards`; ``ray`` hands the batches to Ray workers
+(:mod:`hardness.benchmark.distributed`).
 """
 
 from __future__ import annotations
@@ -78,20 +79,8 @@ from hardness.benchmark.emissions import (  # noqa: F401 (re-exported: the run's
 from hardness.benchmark.plans import Batch
 from hardness.benchmark.tables import BATCH_FIELDS, MEMBER_FIELDS, _finished, _write_atomic, write_tables  # noqa: F401
 
-__all__ = [
-    "MEMBER_FIELDS",
-    "BATCH_FIELDS",
-    "QUICK",
-    "PLANNING_BUCKETS",
-    "RunConfig",
-    "Batch",
-    "RunSummary",
-    "default_agents",
-    "quick_config",
-    "plan",
-    "batch_grid",
-    "run_benchmark",
-]
+__all__ = ["MEMBER_FIELDS", "BATCH_FIELDS", "QUICK", "PLANNING_BUCKETS", "RunConfig", "Batch", "RunSummary",
+           "default_agents", "quick_config", "plan", "batch_grid", "run_benchmark"]
 
 #: The reference's quick-test protocol (benchmark.md §2: 2 seeds, indicators every 1000 / 500 steps); the steps are
 #: fewer than its 50 000 so that ``--quick`` takes minutes on a CPU, and PSRL continuous is left out: its optimistic
@@ -497,6 +486,7 @@ def run_benchmark(
     poll_s: float = 2.0,
     heartbeat_s: float = claims.HEARTBEAT_S,
     stale_s: float = claims.STALE_S,
+    ray: Any = None,
 ) -> RunSummary:
     """Run every batch of ``config`` that is not finished in ``out`` (module docstring), then write the report.
 
@@ -510,6 +500,8 @@ def run_benchmark(
     naming what differs when none of them was made under this run's protocol.
     ``stop_at = (b, c)`` interrupts deterministically (for tests): after ``b`` batches of this call have finished, run
     ``c`` runner chunks of the next one and stop; the next call continues from there.
+    ``ray``: run the batches as Ray tasks (:mod:`hardness.benchmark.distributed`: ``True``, a local instance; a
+    cluster's address; or :class:`~hardness.benchmark.distributed.RayOptions`); ``None``: here, one after another.
     """
     out = Path(out)
     if shard is not None:
@@ -538,8 +530,13 @@ def run_benchmark(
     with Progress(total, "benchmark", quiet=not progress or not total) as bar, claims.Claims(
         out, heartbeat_s=heartbeat_s, stale_s=stale_s
     ) as held:
+        if ray is not None:  # the batches as Ray tasks
+            from hardness.benchmark import distributed
+
+            distributed.run_batches(config, settings, view, shard, bar, held, done, ran, others, ray, poll_s=poll_s,
+                                    stop_at=stop_at)
         k = 0
-        while True:
+        while ray is None:
             mine = view.share(shard)
             for b in mine:  # batches that other processes finished
                 if b.id not in done and _finished(run_dir, b) is not None:

@@ -27,6 +27,8 @@ differs); ``--baseline DIR`` does so with another run folder.
     jaxmdp-benchmark report results/benchmark_quick
     jaxmdp-benchmark run --quick --shard 0/2 --out DIR0; jaxmdp-benchmark run --quick --shard 1/2 --out DIR1
     jaxmdp-benchmark report DIR0 DIR1 --out DIR                            # the shards merged, the single run's
+    jaxmdp-benchmark run --quick --ray --out DIR                            # batches as tasks of a local Ray
+    jaxmdp-benchmark run --settings episodic_ergodic --ray auto --gpus-per-batch 0.25 --out DIR   # a Ray cluster
     jaxmdp-benchmark report DIR --baseline committed
     jaxmdp-benchmark tune --out results/tuning                            # every tabular agent, full budget
     jaxmdp-benchmark tune --agents ucrl2 --steps 20000 --candidates 8 --mdps-per-family 1 --seeds 1
@@ -53,7 +55,8 @@ if TYPE_CHECKING:  # imported on use: hardness.benchmark starts JAX's backend, a
     from hardness.benchmark.run import RunConfig, RunSummary
     from hardness.benchmark.search import Budget
 
-__all__ = ["build_parser", "config_from_args", "main", "report_command", "run_command", "tune_command"]
+__all__ = ["build_parser", "config_from_args", "ray_from_args", "main", "report_command", "run_command",
+           "tune_command"]
 
 _RAW = argparse.RawDescriptionHelpFormatter
 
@@ -129,6 +132,17 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="run only shard i of N (counted from 0) of the batches, a deterministic share, e.g. one job "
                         "of an array each (--shard $SLURM_ARRAY_TASK_ID/$SLURM_ARRAY_TASK_COUNT); merge the shards' "
                         "folders with: report DIR1 DIR2 ... --out DIR (default: every batch)")
+    p.add_argument("--ray", nargs="?", const=True, default=None, metavar="ADDRESS",
+                   help="run the batches as Ray tasks (needs the [distributed] extra): alone, on a local Ray instance "
+                        "of this machine's cores and GPUs; with an address, on that cluster (auto: the cluster this "
+                        "machine joined with ray start); the driver writes every table (default: one batch after "
+                        "another in this process)")
+    p.add_argument("--gpus-per-batch", type=_fraction, default=None, metavar="F",
+                   help="with --ray: GPUs each batch declares; a fraction packs several batches on one GPU, e.g. "
+                        "0.25 runs four at once (default: 1 where the cluster has GPUs, else 0)")
+    p.add_argument("--cpus-per-batch", type=_fraction, default=1, metavar="N",
+                   help="with --ray: CPU cores each batch declares, and the host devices its members are sharded "
+                        "over (default %(default)s)")
     add_baseline_argument(p)
     p.add_argument("--out", type=Path, required=True,
                    help="output folder (reused to resume; several processes may share it, each batch runs once)")
@@ -145,6 +159,31 @@ def _shard(text: str) -> tuple[int, int]:
         return shards.parse_shard(text)
     except ValueError as err:
         raise argparse.ArgumentTypeError(str(err).removeprefix("--shard ")) from None
+
+
+def _fraction(text: str) -> float:
+    """A number >= 0 (``--gpus-per-batch``, ``--cpus-per-batch``)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not value >= 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a number >= 0; got {text!r}")
+    return value
+
+
+def ray_from_args(args: argparse.Namespace) -> object:
+    """``run_benchmark``'s ``ray`` of ``--ray``, ``--gpus-per-batch`` and ``--cpus-per-batch`` (``None`` without
+    ``--ray``; Ray itself is imported only when the batches are handed out)."""
+    if args.ray is None:
+        if args.gpus_per_batch is not None or args.cpus_per_batch != 1:
+            raise ValueError("--gpus-per-batch and --cpus-per-batch are for --ray runs")
+        return None
+    from hardness.benchmark.distributed import RayOptions, ray_options
+
+    address = None if args.ray is True else args.ray
+    return ray_options(RayOptions(address=address, cpus_per_batch=args.cpus_per_batch,
+                                  gpus_per_batch=args.gpus_per_batch))
 
 
 def add_baseline_argument(p: argparse.ArgumentParser) -> None:
@@ -248,8 +287,8 @@ def run_command(args: argparse.Namespace) -> RunSummary:
     try:
         config = config_from_args(args)
         return run.run_benchmark(config, args.out, progress=not args.quiet, baseline=args.baseline,
-                                 shard=args.shard)
-    except ValueError as err:
+                                 shard=args.shard, ray=ray_from_args(args))
+    except (ValueError, ImportError) as err:
         raise SystemExit(f"jaxmdp-benchmark run: {err}") from None
 
 
