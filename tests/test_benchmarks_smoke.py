@@ -9,8 +9,11 @@ import math
 import pytest
 from benchmark_loader import load_benchmark
 
+# bench_plans and bench_indicators compile the largest buckets' plan and gain programs even at smoke size (minutes):
+# nightly. bench_ray starts a Ray instance and has no --update-docs (it prints its ratio).
 BENCHMARKS = ("bench_env", "bench_agents", "bench_hardness", "bench_sampling", "bench_compile", "bench_family_build",
-              "benchmark_wall_time")
+              "benchmark_wall_time", pytest.param("bench_plans", marks=pytest.mark.nightly),
+              pytest.param("bench_indicators", marks=pytest.mark.nightly))
 
 
 @pytest.mark.parametrize("name", BENCHMARKS)
