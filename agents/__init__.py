@@ -43,7 +43,13 @@ class _Deferred:
     observation: str = "emission"
 
     def load(self) -> Agent:
-        return getattr(importlib.import_module(self.module), self.attribute)
+        try:
+            module = importlib.import_module(self.module)
+        except ModuleNotFoundError as e:  # flax, optax, distrax or flashbax: the [deep] extra
+            raise ModuleNotFoundError(
+                f"the deep agents need the optional dependencies of the [deep] extra ({e.name} is missing): "
+                "pip install 'jaxmdp-hardness[deep]'", name=e.name) from e
+        return getattr(module, self.attribute)
 
 
 def _deep(module: str, constant: str) -> dict[str, _Deferred]:

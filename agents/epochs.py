@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-from flax import struct
+
+from jaxmdp import struct
 
 __all__ = ["EpochSchedule", "epoch_schedule", "record_visit", "start_epoch"]
 

@@ -27,10 +27,10 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
-from flax import struct
 
 from agents.tabular_common import copy_action_zero, only_if
 from jaxmdp import dynamic_programming as dp
+from jaxmdp import struct
 
 __all__ = [
     "SuccessorCounts",

@@ -30,7 +30,6 @@ from typing import TYPE_CHECKING
 
 import jax
 import jax.numpy as jnp
-from flax import struct
 
 from agents import estimated_model as em
 from agents.posteriors import (
@@ -41,6 +40,7 @@ from agents.posteriors import (
 )
 from agents.tabular_common import copy_action_zero, only_if
 from jaxmdp import dynamic_programming as dp
+from jaxmdp import struct
 from jaxmdp._checks import Variant
 from jaxmdp.sampling import fused_random
 

@@ -18,8 +18,8 @@ from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
-from flax import struct
 
+from jaxmdp import struct
 from jaxmdp.sampling.beta_sampling import sample_log_gamma
 
 __all__ = [

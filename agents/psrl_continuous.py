@@ -71,7 +71,6 @@ import functools
 import jax
 import jax.numpy as jnp
 import numpy as np
-from flax import struct
 
 from agents import estimated_model as em
 from agents.epochs import EpochSchedule, epoch_schedule, record_visit, start_epoch
@@ -97,6 +96,7 @@ from agents.extended_policy_iteration import (  # noqa: F401 (re-exported: the p
 )
 from agents.tabular_common import copy_action_zero, discounted_greedy_policy, greedy_action, only_if
 from jaxmdp import dynamic_programming as dp
+from jaxmdp import struct
 from jaxmdp._asserts import assert_observation, assert_transition
 from jaxmdp._checks import VARIANTS, Variant, check_int, check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, RunnerHints, Transition, where_due

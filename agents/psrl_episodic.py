@@ -37,7 +37,6 @@ import functools
 
 import jax
 import jax.numpy as jnp
-from flax import struct
 
 from agents.posteriors import (
     COLOSSEUM_DIRICHLET_OFFSET,
@@ -54,6 +53,7 @@ from agents.posteriors import (
 )
 from agents.tabular_common import copy_action_zero, greedy_action
 from jaxmdp import dynamic_programming as dp
+from jaxmdp import struct
 from jaxmdp._asserts import assert_observation, assert_transition
 from jaxmdp._checks import Variant, check_range, did_you_mean
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, RunnerHints, Transition, where_due

@@ -46,10 +46,10 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
-from flax import struct
 
 from agents.tabular_common import greedy_action_single_draw, row_max, valid_counts
 from jaxmdp import dynamic_programming as dp
+from jaxmdp import struct
 from jaxmdp._asserts import assert_observation, assert_transition
 from jaxmdp._checks import Variant, check_range
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, RunnerHints, Transition

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-from flax import struct
 
+from jaxmdp import struct
 from jaxmdp._asserts import assert_observation, assert_transition
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, RunnerHints, Transition
 from jaxmdp.sampling import fused_random

@@ -104,7 +104,8 @@ def check_space(agent: Agent, space: Mapping[str, Any]) -> Mapping[str, tuple[fl
                          f"{space!r}")
     default = agent.default_hparams
     if not dataclasses.is_dataclass(default):
-        raise ValueError(f"search_space of {agent.name!r}: its default_hparams must be a flax.struct dataclass")
+        raise ValueError(f"search_space of {agent.name!r}: its default_hparams must be a jaxmdp.struct (or flax.struct) "
+                         "dataclass")
     fields = {f.name for f in dataclasses.fields(default)}
     static = _static_fields(default)
     out = {}

@@ -53,7 +53,6 @@ import dataclasses
 
 import jax
 import jax.numpy as jnp
-from flax import struct
 
 from agents import estimated_model as em
 from agents.epochs import EpochSchedule, epoch_schedule, record_visit, start_epoch
@@ -63,6 +62,7 @@ from agents.extended_value_iteration import (
     sparse_extended_value_iteration,
 )
 from agents.tabular_common import discounted_greedy_policy, greedy_action, valid_counts
+from jaxmdp import struct
 from jaxmdp._asserts import assert_observation, assert_transition
 from jaxmdp._checks import check_int, check_range
 from jaxmdp.dynamic_programming import PlanResult

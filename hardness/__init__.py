@@ -1,6 +1,8 @@
 """Hardness measures of MDPs (paper §2.2): diameter, environmental value norm, sum of reciprocal sub-optimality gaps;
 and two that the paper's Table 1 marks as not known to be computable: the mixing time of a policy's chain
-(:func:`mixing_time`) and the distribution mismatch coefficient (:func:`distribution_mismatch`).
+(:func:`mixing_time`) and the distribution mismatch coefficient (:func:`distribution_mismatch`); and two from regret
+bounds of the average-reward literature: the span of the optimal bias (:func:`bias_span`, Bartlett & Tewari 2009) and
+the gap constant of Burnetas & Katehakis's lower bound (:func:`gap_constant`).
 
 Every measure takes one :class:`jaxmdp.MDP` and returns a :class:`MeasureResult` (``value``, ``converged``,
 ``finite``); ``jax.vmap`` runs it over a stacked batch (:func:`jaxmdp.stack`), and padding changes nothing;
@@ -12,7 +14,9 @@ reference package's procedures and numbers (docs/measures.md). :func:`normalize`
 """
 
 from hardness.batched import measures_many
+from hardness.bias_span import bias_span
 from hardness.diameter import diameter, strongly_connected
+from hardness.gap_constant import gap_constant
 from hardness.gaps import suboptimality_gaps, sum_reciprocal_gaps
 from hardness.measures import HardnessMeasures, measures, normalize
 from hardness.mismatch import distribution_mismatch
@@ -34,4 +38,6 @@ __all__ = [
     "deterministic_base",
     "mixing_time",
     "distribution_mismatch",
+    "bias_span",
+    "gap_constant",
 ]

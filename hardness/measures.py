@@ -6,12 +6,12 @@ import functools
 
 import jax
 import jax.numpy as jnp
-from flax import struct
 
 from hardness.diameter import diameter
 from hardness.gaps import sum_reciprocal_gaps_from
 from hardness.result import MeasureResult
 from hardness.value_norm import _host_continuous_form, optimal_values, value_norm_from
+from jaxmdp import struct
 from jaxmdp._checks import Variant, check_range, check_variant
 from jaxmdp.episodic import ContinuousForm
 from jaxmdp.mdp import MDP

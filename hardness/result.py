@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-from flax import struct
+
+from jaxmdp import struct
 
 __all__ = ["MeasureResult"]
 

@@ -28,8 +28,8 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
-from flax import struct
 
+from jaxmdp import struct
 from jaxmdp.blockmdp.block_mdp import BlockMDP, noise_key, observe
 from jaxmdp.mdp import MDP
 from jaxmdp.sampling import fused_random

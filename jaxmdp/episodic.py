@@ -26,8 +26,8 @@ from collections.abc import Iterator, Sequence
 import jax
 import jax.numpy as jnp
 import numpy as np
-from flax import struct
 
+from jaxmdp import struct
 from jaxmdp.dynamic_programming import compiled
 from jaxmdp.mdp import MDP
 

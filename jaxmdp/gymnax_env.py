@@ -28,8 +28,8 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
-from flax import struct
 
+from jaxmdp import struct
 from jaxmdp._checks import check_int, did_you_mean
 from jaxmdp.blockmdp.block_mdp import BlockMDP
 from jaxmdp.env import EnvState

@@ -41,9 +41,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxmdp import struct
 from jaxmdp._checks import check_int
 from jaxmdp._memory import check_memory
-from flax import struct
 
 __all__ = [
     "MDP",

@@ -20,9 +20,9 @@ Everything is jittable (``variant`` is static) and vmaps over a stacked batch.
 from __future__ import annotations
 
 import jax
-from flax import struct
 
 from jaxmdp import dynamic_programming as dp
+from jaxmdp import struct
 from jaxmdp._checks import Variant, check_variant
 from jaxmdp.mdp import MDP
 

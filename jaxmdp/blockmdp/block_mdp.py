@@ -18,8 +18,8 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
-from flax import struct
 
+from jaxmdp import struct
 from jaxmdp.blockmdp.emission_maps import check_emission_kind, emission_table
 from jaxmdp.blockmdp.noise import (
     CORRELATED_NOISE_KINDS,

@@ -13,8 +13,8 @@ from __future__ import annotations
 import chex
 import jax
 import jax.numpy as jnp
-from flax import struct
 
+from jaxmdp import struct
 from jaxmdp._asserts import assert_mdp, assert_model, assert_policy
 
 from jaxmdp.dynamic_programming.backups import (

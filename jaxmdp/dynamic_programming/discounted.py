@@ -13,8 +13,8 @@ from typing import Any
 import chex
 import jax
 import jax.numpy as jnp
-from flax import struct
 
+from jaxmdp import struct
 from jaxmdp._asserts import assert_chain, assert_model, assert_policy
 
 from jaxmdp.dynamic_programming.backups import (

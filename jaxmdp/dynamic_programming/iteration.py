@@ -24,7 +24,8 @@ from collections.abc import Callable
 import chex
 import jax
 import jax.numpy as jnp
-from flax import struct
+
+from jaxmdp import struct
 
 __all__ = ["PlanResult", "relative_value_iteration"]
 

@@ -50,8 +50,9 @@ What an agent observes is declared by ``Agent.observation``:
 ``Transition.obs`` and ``Transition.next_obs`` are then observations of the same kind; ``next_obs`` is the very
 sample the agent acts on next (unless the episode ended), not a second noise draw.
 
-Hyperparameters are a ``flax.struct`` pytree whose numeric fields are leaves, so a grid can vmap over them; sizes
-are static. Agents must never choose an action outside ``spec.action_mask`` (padded actions of a stacked batch).
+Hyperparameters are a :mod:`jaxmdp.struct` pytree (or a ``flax.struct`` one) whose numeric fields are leaves, so a
+grid can vmap over them; sizes are static. Agents must never choose an action outside ``spec.action_mask`` (padded
+actions of a stacked batch).
 """
 
 from __future__ import annotations
@@ -63,8 +64,8 @@ from typing import Any, Literal
 import jax
 import jax.numpy as jnp
 import numpy as np
-from flax import struct
 
+from jaxmdp import struct
 from jaxmdp.mdp import MDP
 
 __all__ = ["MDPSpec", "Transition", "Agent", "RunnerHints", "spec_of", "plans_whole", "where_due"]

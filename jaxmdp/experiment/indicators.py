@@ -32,9 +32,9 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
-from flax import struct
 
 from jaxmdp import dynamic_programming as dp
+from jaxmdp import struct
 from jaxmdp._checks import Variant, check_variant
 from jaxmdp.mdp import MDP
 from jaxmdp.values import reference_values

@@ -22,10 +22,10 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
-from flax import struct
 
 from jaxmdp import dynamic_programming as dp
 from jaxmdp import env
+from jaxmdp import struct
 from jaxmdp._checks import Variant
 from jaxmdp.blockmdp.block_mdp import BlockMDP
 from jaxmdp.experiment import indicators

@@ -31,9 +31,9 @@ from hardness.benchmark import report, run
 # %%
 MODULE = """import jax
 import jax.numpy as jnp
-from flax import struct
 
 import agents
+from jaxmdp import struct
 from jaxmdp.agent_interface import Agent
 
 
