@@ -102,12 +102,34 @@ def build_reference_mdp(entry: dict) -> jaxmdp.MDP:
     return jaxmdp.make(entry["family"], episodic=entry["setting"] == "episodic", seed=seed, **params)
 
 
-def reference_params():
-    """``pytest.param`` per reference entry, or one skipped param when ``../shared`` is absent."""
+def reference_params(every: bool = True):
+    """``pytest.param`` per reference entry, or one skipped param when ``../shared`` is absent. ``every=False``: the
+    default profile runs the first entry of each family and setting, the others are nightly (docs/testing.md,
+    "Profiles")."""
     entries = reference_index()
     if not entries:
         return [pytest.param(None, marks=pytest.mark.skip(reason="../shared/reference is not available"))]
-    return [pytest.param(e, id=e["id"]) for e in entries]
+    seen: set[tuple[str, str]] = set()
+    params = []
+    for e in entries:
+        first = (e["family"], e["setting"]) not in seen
+        seen.add((e["family"], e["setting"]))
+        params.append(pytest.param(e, id=e["id"], marks=() if every or first else pytest.mark.nightly))
+    return params
+
+
+def nightly_beyond(params, keep, ids=None) -> list:
+    """``params`` (values, tuples of values or ``pytest.param``) with every set for which ``keep(values)`` is false
+    marked nightly: the default profile runs a representative share of a long parametrisation, the nightly profile
+    all of it (docs/testing.md, "Profiles"). ``ids(values)`` names a set (default: pytest's)."""
+    out = []
+    for p in params:
+        if not hasattr(p, "values"):
+            p = pytest.param(*(p if isinstance(p, tuple) else (p,)))
+        values = p.values if len(p.values) > 1 else p.values[0]
+        marks = list(p.marks) + ([] if keep(values) else [pytest.mark.nightly])
+        out.append(pytest.param(*p.values, id=p.id if ids is None else ids(values), marks=marks))
+    return out
 
 
 def compilations(caplog: pytest.LogCaptureFixture, calls) -> list[str]:

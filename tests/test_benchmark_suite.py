@@ -5,6 +5,8 @@ import collections
 
 import pytest
 
+from conftest import nightly_beyond
+
 import jaxmdp
 from benchmark_cached import cached_entries, check_setting
 from hardness.benchmark import suite as bs
@@ -57,9 +59,11 @@ def test_built_entry_structure(entry):
     assert jaxmdp.communication_class(m).name == entry.communication_class
 
 
-# Cached-value checks (tests/benchmark_cached.py): the small entries here, the larger ones in
-# test_benchmark_suite_large_episodic.py and test_benchmark_suite_large_continuous.py (slow; CI runs them too).
-@pytest.mark.parametrize("setting", bs.SETTINGS)
+# Cached-value checks (tests/benchmark_cached.py): the small entries here (the default profile: one episodic and one
+# continuous setting, of each communication class one), the larger ones in test_benchmark_suite_large_episodic.py and
+# test_benchmark_suite_large_continuous.py (nightly).
+@pytest.mark.parametrize("setting", nightly_beyond(bs.SETTINGS, lambda s: s in ("episodic ergodic",
+                                                                             "continuous communicating")))
 def test_cached_seed0_diameter_and_value_norm(setting):
     check_setting(setting, large=False)
 

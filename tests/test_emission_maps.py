@@ -14,6 +14,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from conftest import nightly_beyond
+
 import jaxmdp
 from jaxmdp.blockmdp.emission_maps import GENERIC_KINDS, family_symbols
 from jaxmdp.blockmdp.linear_features import linear_value_features, n_linear_features
@@ -49,8 +51,11 @@ def decoded_rendering(mdp, s):
     return np.array([[symbols.index(c) for c in line] for line in jaxmdp.render(mdp, s).split("\n")], np.float32)
 
 
-@pytest.mark.parametrize("episodic", [False, True], ids=["continuous", "episodic"])
-@pytest.mark.parametrize("name, params, rows, cols, n_symbols", FAMILIES, ids=[f[0] for f in FAMILIES])
+# The default profile: every family in one setting (continuous and episodic alternating), the other nightly.
+@pytest.mark.parametrize("name, params, rows, cols, n_symbols, episodic", nightly_beyond(
+    [(*f, episodic) for f in FAMILIES for episodic in (False, True)],
+    lambda c: c[-1] == bool([f[0] for f in FAMILIES].index(c[0]) % 2),
+    ids=lambda c: f"{c[0]}-{'episodic' if c[-1] else 'continuous'}"))
 def test_shapes_and_values_of_every_family(name, params, rows, cols, n_symbols, episodic):
     m = make(name, params, episodic)
     S, F = m.n_states, len(m.info.node_fields)
