@@ -26,6 +26,10 @@ without, the four runs interleaved ``--repeats`` times after a compiling run, be
 and the wall ns per agent-step of environment, agent and indicators (``results/benchmarks/bench_agents_ratio.md``,
 ``.csv``).
 
+With ``--ratio``, each deep agent other than DQN is measured the same way against DQN of its setting, on the deep
+agents' BlockMDP at the largest ``--deep-seeds`` count: the two runs (indicators every 100 steps) interleaved
+``--repeats`` times after a compiling run each, best of each (``results/benchmarks/bench_agents_deep_ratio.md``).
+
 ``--mdps N`` spreads the tabular agents' members over N MDPs of each benchmark MDP's family and parameters (seeds
 ``0 .. N-1``): a stack of MDPs, as every batch of the benchmark is (one per size bucket), where one MDP (the default)
 lets every member read the same tables.
@@ -34,6 +38,8 @@ lets every member read the same tables.
         [--agents a,b] [--mdps N] [--repeats R] [--ratio] [--update-docs]
     python benchmarks/bench_agents.py --quick --ratio --seeds 1024 --repeats 3 \
         --agents q_learning_episodic,q_learning_continuous         # each agent's cost against the random agent's
+    python benchmarks/bench_agents.py --ratio --quick --steps 1000 --deep-seeds 16 --repeats 3 \
+        --agents boot_dqn_continuous                                   # BootDQN's cost against DQN's
     python benchmarks/bench_agents.py --smoke
 """
 
@@ -210,14 +216,14 @@ def bsuite_dqn_steps_per_s(mdp, table, hparams, steps: int, seed: int = 0) -> di
     return {"steps_per_s": steps / (time.perf_counter() - t0)}
 
 
-def measure_ratio(agent, random_agent, mdps: list, seeds: int, steps: int, repeats: int) -> dict:
-    """The agent's and the random agent's wall seconds per agent-step, with indicators every 100 steps and without,
-    measured back to back in one process: the four runs interleaved ``repeats`` times after a compiling run each,
-    best of each (a shared machine's load then weighs on all four alike)."""
-    runs = {
-        "random_env": (random_agent, NO_INDICATORS), "random": (random_agent, 100),
-        "agent_bare": (agent, NO_INDICATORS), "agent": (agent, 100),
-    }
+def deep_mdp(episodic: bool):
+    """The deep agents' benchmark MDP: RiverSwim of :data:`BENCH_MDPS` through the ``state_info`` emission."""
+    return jaxmdp.block_mdp(bench_mdps("RiverSwim", episodic, 1)[0], "state_info")
+
+
+def interleaved_ns(runs: dict, mdps: list, seeds: int, steps: int, repeats: int) -> dict:
+    """Best wall ns per agent-step of each run ``name -> (agent, log_period)``, the runs interleaved ``repeats`` times
+    after a compiling run each, so that a shared machine's load weighs on all of them alike."""
     grids = {k: grid_of(a, mdps, seeds) for k, (a, _) in runs.items()}
     go = lambda k: runner.run(runs[k][0], grids[k], steps, log_period=runs[k][1], n_records=10).run_s  # noqa: E731
     for k in runs:
@@ -226,7 +232,18 @@ def measure_ratio(agent, random_agent, mdps: list, seeds: int, steps: int, repea
     for _ in range(repeats):
         for k in runs:
             best[k] = min(best[k], go(k))
-    ns = {k: 1e9 * v / (steps * seeds) for k, v in best.items()}
+    return {k: 1e9 * v / (steps * seeds) for k, v in best.items()}
+
+
+def measure_ratio(agent, random_agent, mdps: list, seeds: int, steps: int, repeats: int) -> dict:
+    """The agent's and the random agent's wall seconds per agent-step, with indicators every 100 steps and without,
+    measured back to back in one process: the four runs interleaved ``repeats`` times after a compiling run each,
+    best of each (a shared machine's load then weighs on all four alike)."""
+    runs = {
+        "random_env": (random_agent, NO_INDICATORS), "random": (random_agent, 100),
+        "agent_bare": (agent, NO_INDICATORS), "agent": (agent, 100),
+    }
+    ns = interleaved_ns(runs, mdps, seeds, steps, repeats)
     return dict(
         random_steps_per_s=1e9 / ns["random"], agent_steps_per_s=1e9 / ns["agent"], ratio=ns["agent"] / ns["random"],
         env_ns=ns["random_env"], agent_ns=ns["agent_bare"] - ns["random_env"],
@@ -273,6 +290,40 @@ def main_ratio(args, names: list[str], families: list[str], argv: Sequence[str] 
                      f"{r['agent_ns']:.0f} / {r['indicators_ns']:.0f} ({r['random_indicators_ns']:.0f}) |")
     args.update_docs = False  # docs/performance.md has the throughput table; this one stays in results/benchmarks
     _common.publish("bench_agents_ratio", "Cost per step against the random agent (same process)", lines, args,
+                    sys.argv[1:] if argv is None else argv)
+    main_deep_ratio(args, names, argv)
+
+
+def main_deep_ratio(args, names: list[str], argv: Sequence[str] | None = None) -> None:
+    """``--ratio``, deep agents: each against DQN of its setting on :func:`deep_mdp`, at the largest deep seed count."""
+    seeds = [int(s) for s in args.deep_seeds.split(",")][-1]
+    load0 = os.getloadavg()
+    rows = []
+    for name in names:
+        agent = agents.get(name)
+        if agent.observation != "emission" or name.startswith("dqn"):
+            continue
+        dqn = agents.get("dqn_episodic" if agent.episodic else "dqn_continuous")
+        ns = interleaved_ns({"dqn": (dqn, 100), "agent": (agent, 100)}, [deep_mdp(agent.episodic)], seeds, args.steps,
+                            max(args.repeats, 1))
+        ratio = ns["agent"] / ns["dqn"]
+        rows.append(dict(agent=name, seeds=seeds, dqn_ns=ns["dqn"], agent_ns=ns["agent"], ratio=ratio))
+        print(f"{name:28s} seeds={seeds}: DQN {ns['dqn']:.0f} ns, agent {ns['agent']:.0f} ns per agent-step, cost "
+              f"ratio {rows[-1]['ratio']:.2f}x", flush=True)
+    if not rows:
+        return
+    lines = [
+        f"{args.steps} steps per seed, {seeds} seeds on RiverSwim through `state_info`, indicators every 100 steps, "
+        f"{jax.local_device_count()} host devices; DQN and the agent interleaved {max(args.repeats, 1)} times, best of "
+        f"each. Load average before/after: {load0[0]:.1f} / {os.getloadavg()[0]:.1f}.",
+        "",
+        "| agent | seeds | DQN ns per agent-step | agent ns per agent-step | cost ratio |",
+        "|---|---|---|---|---|",
+        *(f"| {r['agent']} | {r['seeds']} | {r['dqn_ns']:.0f} | {r['agent_ns']:.0f} | {r['ratio']:.2f}x |"
+          for r in rows),
+    ]
+    args.update_docs = False
+    _common.publish("bench_agents_deep_ratio", "Deep agents' cost per step against DQN's (same process)", lines, args,
                     sys.argv[1:] if argv is None else argv)
 
 
@@ -333,7 +384,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             mdps = bench_mdps(family, agent.episodic, 1 if deep else args.mdps)
             mdp = mdps[0]
             if deep:
-                mdp = jaxmdp.block_mdp(mdp, "state_info")
+                mdp = deep_mdp(agent.episodic)
                 mdps = [mdp]
                 if name.startswith("dqn"):
                     base = bsuite_dqn_steps_per_s(mdp.mdp, mdp.emissions, agent.default_hparams, args.bsuite_steps)

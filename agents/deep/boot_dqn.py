@@ -7,13 +7,17 @@ the same shape scaled by ``prior_scale`` (3):
 
     ``Q_k(o, .) = f(theta_k, o) + prior_scale * f(phi_k, o)``.
 
-The ensemble is one network with a leading head axis on its parameters (``theta, phi: [K, ...]``), evaluated with
-``jax.vmap`` over heads and trained by one gradient of the summed loss (one call for every head). Per step:
+The ensemble is one network with a leading head axis on its parameters (``theta, phi: [K, ...]``), each layer one
+matrix product batched over the heads (:func:`agents.deep.networks.ensemble_apply`), trained by one gradient of the
+summed loss with one Adam state over the stacked parameters (one call for every head). The priors are never trained,
+so their outputs on a transition's two observations are computed once, when it is stored, and read back with the
+batch. Per step:
 
 * act greedily (epsilon-greedy with ``epsilon``, 0 in the reference) in the *active* head's ``Q_k(o, .)``, exact ties
   broken uniformly at random;
-* store ``(o, a, r, c, o', m, z)`` with the bootstrap mask ``m_k ~ Bernoulli(mask_prob)`` and the target noise
-  ``z_k ~ N(0, 1)``, both drawn once per head per transition (``c`` as in DQN: 0 on an episode's last step);
+* store ``(o, a, r, c, o', m, z)`` (and ``f(phi_k, o)``, ``f(phi_k, o')``) with the bootstrap mask
+  ``m_k ~ Bernoulli(mask_prob)`` and the target noise ``z_k ~ N(0, 1)``, both drawn once per head per transition
+  (``c`` as in DQN: 0 on an episode's last step);
 * resample the active head uniformly at every episode end (episodic, as bsuite does) or with probability
   ``switch_prob`` (0.1) at every step (continuous, as the reference's wrapper does);
 * every ``sgd_period`` steps once the buffer holds ``batch_size`` items (the reference's minimum), one Adam step on a
@@ -63,6 +67,7 @@ from agents.deep.common import (
     observation_table,
     on_table,
 )
+from agents.deep.networks import ensemble_apply
 from agents.deep.dqn import (
     QHParams,
     QState,
@@ -113,10 +118,19 @@ class BootDQNContinuousHParams(BootDQNHParams):
 
 
 class BootReplayItem(ReplayItem):
-    """A stored transition with its bootstrap mask ``[K]`` (0/1) and unit target noise ``[K]``."""
+    """A stored transition with its bootstrap mask ``[K]`` (0/1), unit target noise ``[K]`` and the prior networks'
+    outputs ``f(phi_k, o)`` and ``f(phi_k, o')``, ``[K, A]`` each (unscaled).
+
+    The priors are never trained, so their outputs on a stored observation are fixed: computed once when the
+    transition is stored (two observations), they spare every SGD step two of the six ensemble-wide matrix products
+    per layer (the priors' forward passes on the batch; docs/performance.md, Deep agents). A batch without them
+    (``None``, e.g. built by hand) has them computed from ``prior_params`` in :func:`loss`.
+    """
 
     mask: jax.Array
     noise: jax.Array
+    prior_q: jax.Array | None = None
+    next_prior_q: jax.Array | None = None
 
 
 class BootDQNState(QState):
@@ -131,9 +145,8 @@ class BootDQNState(QState):
 
 def ensemble_q(state: BootDQNState, params: Any, obs: jax.Array) -> jax.Array:
     """``Q_k(obs, .)`` of every head, ``[K, A]``: ``params`` (online or target, ``[K, ...]``) plus the scaled prior."""
-    net = q_network(state.hparams, state.n_actions)
-    head = lambda p, phi: net.apply(p, obs) + state.hparams.prior_scale * net.apply(phi, obs)  # noqa: E731
-    return jax.vmap(head)(params, state.prior_params)
+    q = ensemble_apply(params, obs[None]) + state.hparams.prior_scale * ensemble_apply(state.prior_params, obs[None])
+    return q[:, 0]
 
 
 def check_hparams(hparams: BootDQNHParams) -> None:
@@ -158,7 +171,8 @@ def init(key: jax.Array, spec: MDPSpec, hparams: BootDQNHParams) -> BootDQNState
     params = jax.vmap(lambda k: net.init(k, obs))(jax.random.split(k_params, K))
     prior = jax.vmap(lambda k: net.init(k, obs))(jax.random.split(k_prior, K))
     item = empty_item(table, episodic)
-    item = BootReplayItem(**vars(item), mask=jnp.zeros((K,)), noise=jnp.zeros((K,)))
+    zeros = jnp.zeros((K, spec.n_actions))
+    item = BootReplayItem(**vars(item), mask=jnp.zeros((K,)), noise=jnp.zeros((K,)), prior_q=zeros, next_prior_q=zeros)
     buffer = replay.make(hparams.replay_capacity, hparams.batch_size)
     hparams = cast_hparams(hparams)
     return BootDQNState(
@@ -193,18 +207,21 @@ def act(key: jax.Array, state: BootDQNState, obs: jax.Array, h: jax.Array) -> ja
 
 
 def update(state: BootDQNState, tr: Transition) -> BootDQNState:
-    """Store the transition with fresh masks and noise; resample the active head at an episode end (episodic) or
-    with probability ``switch_prob`` (continuous)."""
+    """Store the transition with fresh masks and noise and the priors' outputs on its two observations; resample the
+    active head at an episode end (episodic) or with probability ``switch_prob`` (continuous)."""
     assert_update(state, tr)
     hp = state.hparams
     K = hp.n_ensemble
     key = jax.random.fold_in(jax.random.wrap_key_data(state.key_data), state.steps)
     k_mask, k_noise, k_switch, k_head = jax.random.split(key, 4)
     item = item_of(tr, state.observations, state.episodic)
+    prior_q = ensemble_apply(state.prior_params, jnp.stack([item.obs, item.next_obs]))  # [K, 2, A]
     item = BootReplayItem(
         **vars(item),
         mask=jax.random.bernoulli(k_mask, hp.mask_prob, (K,)).astype(jnp.float32),
         noise=jax.random.normal(k_noise, (K,)),
+        prior_q=prior_q[:, 0],
+        next_prior_q=prior_q[:, 1],
     )
     switch = tr.terminated if state.episodic else jax.random.uniform(k_switch) < hp.switch_prob
     head = jnp.where(switch, jax.random.randint(k_head, (), 0, K), state.active_head)
@@ -217,10 +234,15 @@ def needs_plan(state: BootDQNState) -> jax.Array:
 
 
 def loss(params: Any, target_params: Any, batch: BootReplayItem, state: BootDQNState) -> jax.Array:
-    """``sum_k 1/2 mean_i m_ik delta_ik^2`` (module docstring), all heads in one vmapped evaluation."""
+    """``sum_k 1/2 mean_i m_ik delta_ik^2`` (module docstring), every head's layers one batched matrix product
+    (:func:`agents.deep.networks.ensemble_apply`)."""
     hp = state.hparams
-    q_tm1 = jax.vmap(lambda o: ensemble_q(state, params, o), out_axes=1)(batch.obs)  # [K, B, A]
-    q_t = jax.vmap(lambda o: ensemble_q(state, target_params, o), out_axes=1)(batch.next_obs)
+    if batch.prior_q is None:  # a batch built by hand: the priors' outputs from the parameters
+        prior_tm1, prior_t = (ensemble_apply(state.prior_params, o) for o in (batch.obs, batch.next_obs))
+    else:  # stored with the transitions (BootReplayItem): [B, K, A] -> [K, B, A]
+        prior_tm1, prior_t = (jnp.swapaxes(p, 0, 1) for p in (batch.prior_q, batch.next_prior_q))
+    q_tm1 = ensemble_apply(params, batch.obs) + hp.prior_scale * prior_tm1  # [K, B, A]
+    q_t = ensemble_apply(target_params, batch.next_obs) + hp.prior_scale * prior_t
     target = batch.reward + hp.noise_scale * batch.noise.T  # [K, B]
     delta = jax.vmap(td_errors, (0, None, 0, None, 0, None))(
         q_tm1, batch.action, target, hp.discount * batch.continuation, q_t, state.action_mask

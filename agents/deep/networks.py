@@ -1,5 +1,6 @@
 """The multilayer perceptrons shared by the deep agents (bsuite's baselines: ReLU hidden layers; docs/agents.md §7),
-and an orthogonal initialiser that is safe to ``vmap`` on jaxlib 0.10.2's CPU backend."""
+an ensemble of them evaluated as batched matrix products over its heads, and an orthogonal initialiser that is safe
+to ``vmap`` on jaxlib 0.10.2's CPU backend."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import jax.numpy as jnp
 
 from jaxmdp.jaxlib_workarounds.linalg import one_at_a_time
 
-__all__ = ["MLP", "orthogonal"]
+__all__ = ["MLP", "ensemble_apply", "orthogonal"]
 
 
 class MLP(nn.Module):
@@ -38,6 +39,27 @@ class MLP(nn.Module):
         if self.n_outputs is not None:
             x = nn.Dense(self.n_outputs)(x)
         return x
+
+
+def ensemble_apply(params: Any, x: jax.Array) -> jax.Array:
+    """``K`` heads of an :class:`MLP` with a linear output layer (``n_outputs`` set), all on the same batch:
+    ``out[k, i] = MLP(params[k])(x[i])``, ``[K, B, n_outputs]`` for ``params`` with a leading head axis ``K`` on every
+    leaf (a ``vmap`` of ``MLP.init``) and ``x`` of shape ``[B, *obs]``.
+
+    Each layer is one matrix product batched over the heads, ``h_k <- relu(h_k W_k + b_k)``, laid out ``[K, B, width]``
+    from the first layer on (which reads the shared ``x`` once for all heads). ``jax.vmap`` of ``MLP.apply`` over
+    heads and over the batch computes the same numbers, but its activations come out batch-major and XLA's CPU
+    backend then copies them into the head-major layout of its batched products at every layer, forward and backward
+    (docs/performance.md, Deep agents).
+    """
+    layers = params["params"]
+    names = sorted(layers, key=lambda name: int(name.rsplit("_", 1)[1]))  # Dense_0, Dense_1, ... (Dense_10 after 9)
+    h = jnp.reshape(x, (x.shape[0], -1)).astype(jnp.float32)
+    first = layers[names[0]]
+    h = jnp.einsum("bi,kio->kbo", h, first["kernel"]) + first["bias"][:, None, :]
+    for name in names[1:]:
+        h = jnp.einsum("kbi,kio->kbo", nn.relu(h), layers[name]["kernel"]) + layers[name]["bias"][:, None, :]
+    return h
 
 
 def orthogonal(scale: float = 1.0, column_axis: int = -1) -> Callable[..., jax.Array]:
