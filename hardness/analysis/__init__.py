@@ -6,7 +6,11 @@
 * :mod:`~hardness.analysis.sweep_cli`: the sweep command line, ``jaxmdp-sweep`` (CSV/JSON/PNG, resumable);
 * :mod:`~hardness.analysis.regret_table`: every tabular agent against the random agent on small instances;
 * :mod:`~hardness.analysis.measure_evaluation`: rank correlations of the measures with the near-optimal agent's
-  regret (paper §2.3's completeness).
+  regret (paper §2.3's completeness);
+* :mod:`~hardness.analysis.completeness`: rank correlations with a two-stage bootstrap (seeds within MDPs, MDPs) and
+  the leave-one-MDP-out pair of measures; :mod:`~hardness.analysis.completeness_benchmark`: that test on benchmark
+  run folders;
+* :mod:`~hardness.analysis.statements`: the paper's scenario statements checked under both variants.
 
 This sub-package and :mod:`hardness.benchmark` are the only places that import :mod:`agents`; :mod:`hardness`
 itself (the measures) imports :mod:`jaxmdp` only, and does not import this sub-package.
