@@ -43,6 +43,23 @@ _CACHE_KEY = "jaxmdp_test_compilation_cache"
 _STASH = pytest.StashKey[str]()
 
 
+#: Parameter sets of the longest parametrisations that the default profile leaves to the nightly one
+#: (.ci/nightly_params.py writes it; docs/testing.md, "Profiles"). ``JAXMDP_NIGHTLY_PARAMS=off`` ignores it.
+NIGHTLY_PARAMS = Path(__file__).parent / "nightly_params.txt"
+
+
+@pytest.hookimpl(tryfirst=True)  # before -m deselects by marker
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Mark the parameter sets listed in :data:`NIGHTLY_PARAMS` nightly."""
+    if os.environ.get("JAXMDP_NIGHTLY_PARAMS") == "off" or not NIGHTLY_PARAMS.exists():
+        return
+    listed = {line.strip() for line in NIGHTLY_PARAMS.read_text().splitlines()
+              if line.strip() and not line.startswith("#")}
+    for item in items:
+        if item.nodeid in listed:
+            item.add_marker(pytest.mark.nightly)
+
+
 def pytest_configure(config: pytest.Config) -> None:
     """One persistent JAX compilation cache for the session, in a fresh temporary folder shared by the xdist workers: a
     program that another test (or the other worker) already compiled with the same HLO is loaded instead of compiled
