@@ -1,6 +1,6 @@
 """What the standing benchmarks share: their common options, the machine and commit they ran on, writing their one
 table to ``results/benchmarks/<name>.md`` and (``--update-docs``) into its section of ``docs/performance.md``, and the
-best-of-``n`` wall time of a call or of several calls taken in turn.
+best-of-``n`` wall time of a call or of several calls taken in turn, and a tabular agent's state after random play.
 
 A benchmark's section of ``docs/performance.md`` lies between the markers ``<!-- bench:<name> -->`` and
 ``<!-- /bench:<name> -->`` (``<name>``: the benchmark file's stem); ``--update-docs`` replaces what is between them and
@@ -131,3 +131,33 @@ def interleaved_best(fns: dict[str, Callable[..., object]], args: Sequence[objec
             jax.block_until_ready(fn(*args))
             best[name] = min(best[name], time.perf_counter() - start)
     return best
+
+
+def random_play(agent, mdp, spec, hp, n_steps: int, key):
+    """The (jitted) tabular agent's state after ``n_steps`` uniformly random actions on ``mdp`` (``update`` only, from
+    ``agent.init(key, spec, hp)``): counts as early or late in a run as asked, without the agent's own policy."""
+    import jax
+    import numpy as np
+
+    import jaxmdp
+    from jaxmdp.experiment.agent_interface import Transition
+
+    A = int(np.sum(np.asarray(mdp.action_mask)))
+
+    @jax.jit
+    def run(key):
+        def body(c, k):
+            obs, env_state, st = c
+            k_a, k_s = jax.random.split(k)
+            a = jax.random.randint(k_a, (), 0, A)
+            obs2, env_state2, r, term, _, info = jaxmdp.step(k_s, env_state, a, mdp)
+            tr = Transition(obs=obs, action=a, reward=r, next_obs=info["final_observation"], h=env_state.h,
+                            terminated=term)
+            return (obs2, env_state2, agent.update(st, tr)), None
+
+        obs, env_state = jaxmdp.reset(jax.random.fold_in(key, 1), mdp)
+        carry = (obs, env_state, agent.init(key, spec, hp))
+        (_, _, state), _ = jax.lax.scan(body, carry, jax.random.split(key, n_steps))
+        return state
+
+    return run(key)

@@ -37,7 +37,7 @@ from agents import ucrl2
 from hardness.benchmark import sets
 from jaxmdp import dynamic_programming as dp
 from jaxmdp.experiment import compilation, indicators
-from jaxmdp.experiment.agent_interface import Transition, spec_of
+from jaxmdp.experiment.agent_interface import spec_of
 from jaxmdp.gth import band_order
 
 import _common
@@ -56,26 +56,9 @@ def build_mdp(set_name: str, label: str, smoke: bool) -> jaxmdp.MDP:
 def ucrl2_greedy(mdp: jaxmdp.MDP, steps: int, order, width: int) -> jax.Array:
     """The action indices of UCRL2's policy estimate after ``steps`` uniformly random steps (``update`` only)."""
     agent = agents.get("ucrl2")
-    A = int(np.sum(np.asarray(mdp.action_mask)))
-
-    @jax.jit
-    def run(key):
-        state = agent.init(key, spec_of(mdp, 500_000, order, width), agent.default_hparams)
-
-        def body(c, k):
-            obs, env_state, st = c
-            k_a, k_s = jax.random.split(k)
-            a = jax.random.randint(k_a, (), 0, A)
-            obs2, env_state2, r, term, _, info = jaxmdp.step(k_s, env_state, a, mdp)
-            tr = Transition(obs=obs, action=a, reward=r, next_obs=info["final_observation"], h=env_state.h,
-                            terminated=term)
-            return (obs2, env_state2, agent.update(st, tr)), None
-
-        obs, env_state = jaxmdp.reset(jax.random.fold_in(key, 1), mdp)
-        (_, _, state), _ = jax.lax.scan(body, (obs, env_state, state), jax.random.split(key, steps))
-        return jnp.argmax(ucrl2.warm_policy(state, None)[0], axis=-1).astype(jnp.int32)
-
-    return run(jax.random.key(0))
+    state = _common.random_play(agent, mdp, spec_of(mdp, 500_000, order, width), agent.default_hparams, steps,
+                                jax.random.key(0))
+    return jnp.argmax(ucrl2.warm_policy(state, None)[0], axis=-1).astype(jnp.int32)
 
 
 def optimal_actions(mdp: jaxmdp.MDP) -> jax.Array:

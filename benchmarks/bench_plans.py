@@ -41,7 +41,7 @@ from agents.posteriors import dirichlet_sample, normal_gamma_mean, normal_gamma_
 from hardness.benchmark import sets
 from jaxmdp import dynamic_programming as dp
 from jaxmdp.experiment import compilation
-from jaxmdp.experiment.agent_interface import Transition, spec_of
+from jaxmdp.experiment.agent_interface import spec_of
 from jaxmdp.gth import band_order
 
 import _common
@@ -67,26 +67,8 @@ def spec(mdp: jaxmdp.MDP):
 
 def played(agent, mdp, hp, n_steps: int, key):
     """The agent's state after ``n_steps`` uniformly random actions (``update`` only), with a plan due."""
-    A = int(np.sum(np.asarray(mdp.action_mask)))
-
-    @jax.jit
-    def run(key):
-        state = agent.init(key, spec(mdp), hp)
-
-        def body(c, k):
-            obs, env_state, st = c
-            k_a, k_s = jax.random.split(k)
-            a = jax.random.randint(k_a, (), 0, A)
-            obs2, env_state2, r, term, _, info = jaxmdp.step(k_s, env_state, a, mdp)
-            tr = Transition(obs=obs, action=a, reward=r, next_obs=info["final_observation"], h=env_state.h,
-                            terminated=term)
-            return (obs2, env_state2, agent.update(st, tr)), None
-
-        obs, env_state = jaxmdp.reset(jax.random.fold_in(key, 1), mdp)
-        (_, _, state), _ = jax.lax.scan(body, (obs, env_state, state), jax.random.split(key, n_steps))
-        return state.replace(plan_due=jnp.ones((), bool))
-
-    return run(key)
+    state = _common.random_play(agent, mdp, spec(mdp), hp, n_steps, key)
+    return state.replace(plan_due=jnp.ones((), bool))
 
 
 @jax.jit

@@ -27,7 +27,6 @@ import importlib.metadata
 from typing import Any
 
 import jax
-import jax.numpy as jnp
 
 from jaxmdp import struct
 from jaxmdp._checks import check_int, did_you_mean

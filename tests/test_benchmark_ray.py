@@ -7,6 +7,7 @@ agents, two seeds, 200 steps in four runner chunks) on a local Ray instance of t
 """
 
 import csv
+import json
 import os
 import shutil
 import subprocess
@@ -142,3 +143,29 @@ def test_cli_ray_arguments():
         cli.ray_from_args(p.parse_args(["run", "--quick", "--gpus-per-batch", "0.5", "--out", "x"]))
     with pytest.raises(SystemExit):
         p.parse_args(["run", "--quick", "--ray", "--gpus-per-batch", "-1", "--out", "x"])
+
+
+def test_tune_through_ray_writes_the_plain_tuner_s_winners(local_ray, tmp_path):
+    # One agent's search as a Ray task (hardness.benchmark.distributed_tune): the same tuned-file entry as the
+    # search in this process, timings and date aside; the runner's checkpoints in the agent's work folder beside the file.
+    from hardness.cli import benchmark as cli
+
+    argv = ["--agents", "q_learning_episodic", "--steps", "100", "--candidates", "1", "--mdps-per-family", "1",
+            "--seeds", "1", "--max-states", "30", "--buckets", "1", "--quiet"]
+
+    def tune(out, *extra):
+        return cli.tune_command(cli.build_parser().parse_args(["tune", *argv, "--out", str(out), *extra]))
+
+    def without_timings(entries):
+        return {n: {k: v for k, v in e.items() if k not in ("wall_s", "run_s", "compile_s", "date")}
+                for n, e in entries.items()}
+
+    plain = tune(tmp_path / "plain")
+    through_ray = tune(tmp_path / "ray", "--ray")
+    assert set(through_ray) == {"q_learning_episodic"}
+    assert without_timings(through_ray) == without_timings(plain)
+    written = json.loads((tmp_path / "ray" / "tuned_hparams.json").read_text())["agents"]
+    assert without_timings({"q_learning_episodic": written["q_learning_episodic"]}) == without_timings(plain)
+    # The worker saw the driver's folder: the runner's files are in the agent's work folder there.
+    assert any(p.is_file() for p in (tmp_path / "ray" / "runs" / "q_learning_episodic").rglob("*"))
+    assert tune(tmp_path / "ray", "--ray") == {}  # already tuned with this budget: skipped, Ray not started

@@ -259,13 +259,18 @@ def _own_agents(ray: Any, config: Any, settings: dict) -> dict:
 
     names = {a for s in settings["sets"] for a in settings["agents"][s]} - set(agent_registry.SHIPPED)
     own = {n: agent_registry.get(n) for n in sorted(names)}
-    for agent in own.values():
+    _pickle_modules_by_value(ray, own.values())
+    return own
+
+
+def _pickle_modules_by_value(ray: Any, own_agents: Any) -> None:
+    """Send the modules that define ``own_agents``' functions to the workers by value (not by import path)."""
+    for agent in own_agents:
         for f in dataclasses.fields(agent):
             module = sys.modules.get(getattr(getattr(agent, f.name), "__module__", None) or "")
             if module is not None and module.__name__.split(".")[0] not in ("agents", "jaxmdp", "hardness", "jax"):
                 with contextlib.suppress(Exception):
                     ray.cloudpickle.register_pickle_by_value(module)
-    return own
 
 
 def _cache() -> tuple[str, float] | None:

@@ -32,6 +32,7 @@ differs); ``--baseline DIR`` does so with another run folder.
     jaxmdp-benchmark report DIR --baseline committed
     jaxmdp-benchmark tune --out results/tuning                            # every tabular agent, full budget
     jaxmdp-benchmark tune --agents ucrl2 --steps 20000 --candidates 8 --mdps-per-family 1 --seeds 1
+    jaxmdp-benchmark tune --ray --out results/tuning                      # each agent's search a Ray task
     jaxmdp-benchmark tune --agents my_agents:MY_AGENT --out DIR; jaxmdp-benchmark run --hparams DIR/tuned_hparams.json ...
 
 ``run`` and ``tune`` shard the members over one host device per core (set here, before JAX starts its backend, unless
@@ -132,17 +133,8 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="run only shard i of N (counted from 0) of the batches, a deterministic share, e.g. one job "
                         "of an array each (--shard $SLURM_ARRAY_TASK_ID/$SLURM_ARRAY_TASK_COUNT); merge the shards' "
                         "folders with: report DIR1 DIR2 ... --out DIR (default: every batch)")
-    p.add_argument("--ray", nargs="?", const=True, default=None, metavar="ADDRESS",
-                   help="run the batches as Ray tasks (needs the [distributed] extra): alone, on a local Ray instance "
-                        "of this machine's cores and GPUs; with an address, on that cluster (auto: the cluster this "
-                        "machine joined with ray start); the driver writes every table (default: one batch after "
-                        "another in this process)")
-    p.add_argument("--gpus-per-batch", type=_fraction, default=None, metavar="F",
-                   help="with --ray: GPUs each batch declares; a fraction packs several batches on one GPU, e.g. "
-                        "0.25 runs four at once (default: 1 where the cluster has GPUs, else 0)")
-    p.add_argument("--cpus-per-batch", type=_fraction, default=1, metavar="N",
-                   help="with --ray: CPU cores each batch declares, and the host devices its members are sharded "
-                        "over (default %(default)s)")
+    add_ray_arguments(p, "batches", "the driver writes every table (default: one batch after another in this "
+                      "process)")
     add_baseline_argument(p)
     p.add_argument("--out", type=Path, required=True,
                    help="output folder (reused to resume; several processes may share it, each batch runs once)")
@@ -209,6 +201,21 @@ def add_report_arguments(p: argparse.ArgumentParser) -> None:
     p.set_defaults(func=report_command)
 
 
+def add_ray_arguments(p: argparse.ArgumentParser, what: str, default: str) -> None:
+    """``--ray [ADDRESS]``, ``--gpus-per-batch`` and ``--cpus-per-batch`` of ``run`` (its batches) and ``tune`` (its
+    agents' searches)."""
+    p.add_argument("--ray", nargs="?", const=True, default=None, metavar="ADDRESS",
+                   help=f"run the {what} as Ray tasks (needs the [distributed] extra): alone, on a local Ray instance "
+                        "of this machine's cores and GPUs; with an address, on that cluster (auto: the cluster this "
+                        f"machine joined with ray start); {default}")
+    p.add_argument("--gpus-per-batch", type=_fraction, default=None, metavar="F",
+                   help=f"with --ray: GPUs each of the {what} declares; a fraction packs several on one GPU, e.g. "
+                        "0.25 runs four at once (default: 1 where the cluster has GPUs, else 0)")
+    p.add_argument("--cpus-per-batch", type=_fraction, default=1, metavar="N",
+                   help=f"with --ray: CPU cores each of the {what} declares, and the host devices its members are "
+                        "sharded over (default %(default)s)")
+
+
 def add_tune_arguments(p: argparse.ArgumentParser) -> None:
     """The options of ``tune``."""
     from agents.search_spaces import SEARCH_SPACES
@@ -238,6 +245,8 @@ def add_tune_arguments(p: argparse.ArgumentParser) -> None:
                    help="runner CSVs and checkpoints, one folder per agent, to resume from (default: runs/ beside "
                         "the tuned file)")
     p.add_argument("--redo", action="store_true", help="rerun agents already tuned with this budget in the file")
+    add_ray_arguments(p, "agents' searches", "the winners are written as each search ends (default: one agent after "
+                      "another in this process)")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     add_cache_flag(p)
     p.set_defaults(func=tune_command)
@@ -324,6 +333,7 @@ def tune_command(args: argparse.Namespace) -> dict:
         names = load_agents(args.agents)
         for name in names:
             search.check_tunable(name)
+        ray = ray_from_args(args)
     except ValueError as err:
         raise SystemExit(f"jaxmdp-benchmark tune: {err}") from None
     path, work_dir = tuned_paths(args.out, args.work_dir)
@@ -333,12 +343,27 @@ def tune_command(args: argparse.Namespace) -> dict:
     if not path.exists():
         search.start_tuned_file(path)
     done = json.loads(path.read_text()).get("agents", {}) if not args.redo else {}
-    entries = {}
+    todo = []
     for name in names:
         if name in done and _same_budget(done[name], budget):
             print(f"{name}: already tuned with this budget in {path}; skipped (--redo reruns it)",
                   file=sys.stderr, flush=True)
-            continue
+        else:
+            todo.append(name)
+    if ray is not None and todo:  # one Ray task per agent's search
+        from hardness.benchmark import distributed_tune
+
+        def write(name: str, entry: dict) -> None:
+            search.write_tuned(path, {name: entry})
+            _print_winner(name, entry)
+
+        try:
+            return distributed_tune.tune_agents(todo, budget, {n: work_dir / n / _slug(budget) for n in todo}, ray,
+                                                n_buckets=args.buckets, note=args.note, on_entry=write)
+        except ValueError as err:
+            raise SystemExit(f"jaxmdp-benchmark tune: {err}") from None
+    entries = {}
+    for name in todo:
         if not args.quiet:
             print(f"tuning {name}: {budget}", file=sys.stderr, flush=True)
         start = time.perf_counter()
@@ -350,10 +375,13 @@ def tune_command(args: argparse.Namespace) -> dict:
         entries[name] = search.provenance(result, budget, note=args.note)
         entries[name]["wall_s"] = round(time.perf_counter() - start, 1)
         search.write_tuned(path, {name: entries[name]})  # after every agent, so an interruption keeps it
-        e = entries[name]
-        print(f"  {name}: winner {e['winner']} {e['values']}, objective per step {e['objective_per_step']:.4f} "
-              f"(run {e['run_s']} s, compile {e['compile_s']} s, wall {e['wall_s']} s)", file=sys.stderr, flush=True)
+        _print_winner(name, entries[name])
     return entries
+
+
+def _print_winner(name: str, e: dict) -> None:
+    print(f"  {name}: winner {e['winner']} {e['values']}, objective per step {e['objective_per_step']:.4f} "
+          f"(run {e['run_s']} s, compile {e['compile_s']} s, wall {e['wall_s']} s)", file=sys.stderr, flush=True)
 
 
 def tuned_paths(out: Path, work_dir: Path | None) -> tuple[Path, Path]:
