@@ -38,19 +38,19 @@ def _events(out, batch_id):
     return [line.split()[1] for line in (out / "runs" / f"{batch_id}.log").read_text().splitlines()]
 
 
-def test_a_claim_is_exclusive_logged_and_released(tmp_path):
+def test_a_claim_is_exclusive_logged_and_dropped(tmp_path):
     with claims.Claims(tmp_path) as a, _elsewhere(claims.Claims(tmp_path)) as b:
         assert a.take("x") and a.take("x")  # taking again what it holds
         assert not b.take("x")
         held = json.loads((tmp_path / "runs" / "x.claim").read_text())
         assert (held["host"], held["pid"], held["beat"]) == (a.host, a.pid, 0) and held["machine"] == claims.machine()
         assert b.take("y") and not a.take("y")
-        a.release("x", "finished")
+        a.drop("x", "finished")
         assert not (tmp_path / "runs" / "x.claim").exists()
         assert b.take("x")
-    # leaving the context releases what is still held
+    # leaving the context drops what is still held
     assert not list((tmp_path / "runs").glob("*.claim"))
-    assert _events(tmp_path, "x") == ["claimed", "finished", "claimed", "released"]
+    assert _events(tmp_path, "x") == ["claimed", "finished", "claimed", "dropped"]
 
 
 def test_another_machine_s_claim_is_taken_over_only_after_its_heartbeat_stopped_for_stale_s(tmp_path):
@@ -71,7 +71,7 @@ def test_another_machine_s_claim_is_taken_over_only_after_its_heartbeat_stopped_
         holder.beat()  # the old holder finds its claim gone and does not overwrite the new one
         assert holder.lost == ["x"] and "x" not in holder.held
         assert json.loads((tmp_path / "runs" / "x.claim").read_text())["pid"] == taker.pid
-    assert _events(tmp_path, "x") == ["claimed", "took", "released"]
+    assert _events(tmp_path, "x") == ["claimed", "took", "dropped"]
 
 
 def test_a_claim_of_a_process_gone_from_this_machine_is_taken_over_at_once(tmp_path):

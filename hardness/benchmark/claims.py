@@ -3,7 +3,7 @@
 A process that starts a batch claims it: ``runs/<batch>.claim``, next to the batch's checkpoint, holds the claimant's
 host, pid, a token of the claim, when it started (the claimant's clock, for people to read) and a heartbeat count that
 a thread of the claimant raises every ``heartbeat_s`` seconds while it holds the claim. The claim goes when the batch
-stops (finished, interrupted or failed). Every claim, heartbeat, takeover and release is made under the folder's lock
+stops (finished, interrupted or failed). Every claim, heartbeat, takeover and drop is made under the folder's lock
 (:func:`folder_lock`: ``benchmark.lock``, a :class:`filelock.FileLock`, which the operating system drops when its
 process dies; where the file system has no such locks filelock uses an exclusive-create lock file), so two processes
 never claim one batch, and each is logged in ``runs/<batch>.log`` (the writer's time, host and pid).
@@ -96,7 +96,7 @@ class _Seen:
 
 class Claims:
     """The claims of this process on the batches of folder ``out`` (module docstring); a context manager, inside
-    which a thread beats for the claims held and on leaving which every claim still held is released."""
+    which a thread beats for the claims held and on leaving which every claim still held is dropped."""
 
     def __init__(
         self,
@@ -131,7 +131,7 @@ class Claims:
         if self._thread is not None:
             self._thread.join()
         for batch_id in list(self.held):
-            self.release(batch_id, "released")
+            self.drop(batch_id, "dropped")
 
     def _path(self, batch_id: str) -> Path:
         return self.run_dir / f"{batch_id}.claim"
@@ -184,7 +184,7 @@ class Claims:
                       f"took over (from host={claim.get('host')} pid={claim.get('pid')})")
         return True
 
-    def release(self, batch_id: str, event: str = "released") -> None:
+    def drop(self, batch_id: str, event: str = "dropped") -> None:
         """Give up the claim on ``batch_id`` (``event``: what the log says, e.g. ``"finished"``)."""
         ours = self.held.pop(batch_id, None)
         if ours is None:

@@ -354,11 +354,11 @@ class _Driver:
                 self.advance(by_id[batch_id], done, resumed)
 
     def stop(self) -> None:
-        """Cancel the tasks in flight (their checkpoints stay) and release their claims."""
+        """Cancel the tasks in flight (their checkpoints stay) and drop their claims."""
         for ref, batch in list(self.pending.items()):
             with contextlib.suppress(Exception):
                 self.ray.cancel(ref, force=True)
-            self.held.release(batch.id, "stopped: the Ray run stopped")
+            self.held.drop(batch.id, "stopped: the Ray run stopped")
         self.pending.clear()
 
     def finish(self, batch: Batch, result: dict) -> None:
@@ -368,7 +368,7 @@ class _Driver:
         with (self.run_dir / f"{batch.id}.log").open("a") as f:
             f.write(f"{claims._now()} ran-on-ray host={result['host']} pid={result['pid']} "
                     f"resumed_at_step={result['resumed_at']}\n")
-        self.held.release(batch.id, "finished")
+        self.held.drop(batch.id, "finished")
         total = len(batch.members) * self.config.n_steps
         self.advance(batch, total, self.counted.get(batch.id, (0, 0))[1])
 
@@ -380,9 +380,9 @@ class _Driver:
         if self.config.memory_limit is None and self.share is not None and self.memory.get(batch.id, 0) < needed \
                 <= self.node_memory:
             self.memory[batch.id] = needed
-            self.held.release(batch.id, "retry: declaring the memory the runner needs")
+            self.held.drop(batch.id, "retry: declaring the memory the runner needs")
             return
-        self.held.release(batch.id, "split: does not fit in memory")
+        self.held.drop(batch.id, "split: does not fit in memory")
         if self.config.max_members is not None or len(batch.members) < 2:
             from jaxmdp import runner
 
@@ -413,7 +413,7 @@ class _Driver:
                 if not self.held.take(b.id):
                     continue
                 if _finished(self.run_dir, b) is not None:  # finished between the look and the claim
-                    self.held.release(b.id)
+                    self.held.drop(b.id)
                     continue
                 self.submit(b)
             if not self.pending:  # every batch left is another process's
@@ -429,13 +429,13 @@ class _Driver:
                 try:
                     result = self.ray.get(ref)
                 except Exception as err:  # the task itself failed (its worker died more than max_retries times)
-                    self.held.release(batch.id, f"failed: {type(err).__name__}")
+                    self.held.drop(batch.id, f"failed: {type(err).__name__}")
                     raise RuntimeError(f"batch {batch.id} failed on Ray: {err}") from err
                 if result["status"] == "too_large":
                     self.too_large(batch, result, settings)
                     continue
                 if result["status"] == "error":
-                    self.held.release(batch.id, f"failed: {result['type']}")
+                    self.held.drop(batch.id, f"failed: {result['type']}")
                     message = f"batch {batch.id} failed: {result['type']}: {result['message']}"
                     if result["value_error"]:
                         raise ValueError(message)

@@ -552,14 +552,14 @@ def run_benchmark(
                 time.sleep(poll_s)
                 continue
             if _finished(run_dir, batch) is not None:  # finished between the look and the claim
-                held.release(batch.id)
+                held.drop(batch.id)
                 continue
             bar.set_postfix(f"{batch.id}: {len(batch.members)} members")
             chunks = stop_at[1] if stop_at is not None and k == stop_at[0] else None
             try:
                 complete = _run_batch(batch, config, run_dir, chunks, bar)
             except runner.ProgramTooLarge as err:
-                held.release(batch.id, "split: does not fit in memory")
+                held.drop(batch.id, "split: does not fit in memory")
                 if config.max_members is not None or len(batch.members) < 2:
                     raise
                 halves = split_batch(batch, settings)
@@ -567,9 +567,9 @@ def run_benchmark(
                 plans.replace(out, dataclasses.asdict(batch), [dataclasses.asdict(h) for h in halves])
                 continue
             except BaseException as err:
-                held.release(batch.id, f"failed: {type(err).__name__}")
+                held.drop(batch.id, f"failed: {type(err).__name__}")
                 raise
-            held.release(batch.id, "finished" if complete else "stopped")
+            held.drop(batch.id, "finished" if complete else "stopped")
             ran.append(batch.id)
             if not complete:
                 finished = False
