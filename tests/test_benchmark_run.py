@@ -346,6 +346,7 @@ def test_run_benchmark_buckets_option_applies_to_every_agent():
 ONE_BUCKET = {**TINY, "agents": ("q_learning_episodic",), "n_buckets": 1}
 
 
+@pytest.mark.nightly  # by default: test_runner_planning.py (results independent of the slots)
 def test_a_batch_too_large_for_memory_is_split_with_the_same_results(tmp_path):
     # One bucket: RiverSwim 5 (5 states) and DeepSea 10 (55) in one batch of 4 members. Its chunk program needs about
     # 490 KiB, a member padded to DeepSea's shape about 125 KiB: a 195 KiB limit forces one split into halves of 2.
@@ -441,6 +442,7 @@ def test_reference_mode_runs_the_colosseum_agents_in_their_own_batches(full_run,
         run.plan(run.RunConfig(**{**TINY, "agent_variant": "reference"}))
 
 
+@pytest.mark.nightly  # by default: test_reference_mode.py
 def test_the_reference_indicators_are_an_option_of_the_run(tmp_path):
     # --indicators colosseum: the runner's colosseum indicators (docs/measures.md §6) for every batch, recorded in the
     # plan and in the batch keys; the members' scores are those of a direct runner call with them, and differ from the

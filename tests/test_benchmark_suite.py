@@ -62,6 +62,7 @@ def test_built_entry_structure(entry):
 # Cached-value checks (tests/benchmark_cached.py): the small entries here (the default profile: one episodic and one
 # continuous setting, of each communication class one), the larger ones in test_benchmark_suite_large_episodic.py and
 # test_benchmark_suite_large_continuous.py (nightly).
+@pytest.mark.nightly  # the committed cache; by default: the measures' reference parity
 @pytest.mark.parametrize("setting", nightly_beyond(bs.SETTINGS, lambda s: s in ("episodic ergodic",
                                                                              "continuous communicating")))
 def test_cached_seed0_diameter_and_value_norm(setting):

@@ -108,6 +108,7 @@ def test_draws_are_independent_of_the_key_own_stream():
     checks.independent_signs(np.asarray(k1, np.float64), cdf, 0.5, 0.5, "uniform(split(key)[0]) against the draw")
 
 
+@pytest.mark.nightly  # another key implementation and dtype of the default threefry float32 tests
 @pytest.mark.statistical(p=4e-7)
 def test_rbg_keys_and_float64():
     # Keys of another implementation take their words from jax.random.bits; float64 draws take 64-bit words. Mean and
@@ -178,6 +179,7 @@ def test_shared_sampler_batch_member_equals_single_call_bitwise(size):
         np.testing.assert_array_equal(eager.view(np.uint32), single_draws(8))
 
 
+@pytest.mark.nightly  # by default: test_shared_sampler_batch_member_equals_single_call_bitwise
 def test_shared_sampler_nested_and_partial_batches_equal_single_calls_bitwise():
     # Nested vmaps (both layouts), a shape or key shared by the batch (in_axes None: broadcast inside the rule), and
     # lax.map (the unbatched call inside a loop) give every member its single call's value bit for bit.
@@ -221,6 +223,7 @@ def test_step_batch_member_equals_single_step_bitwise(size):
 
 
 # 2 trials: about 9% of the rounds fail, so rounds 1-3 decide many draws
+@pytest.mark.nightly  # by default: the sampler's draws against single calls
 @pytest.mark.parametrize("trials", [pytest.param(4, marks=pytest.mark.nightly), 2])
 def test_rounds_before_the_loop_change_no_value(trials):
     # unrolled_rounds moves rounds out of the loop, never the round a member's value comes from: the same bits for

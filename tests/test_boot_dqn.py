@@ -276,6 +276,7 @@ def test_every_head_learns_the_probe_values(name, probe):
     mostly(probe_passes(name, probe, learned(name, probe, seed(0))), Q_LEARN, f"{name} on {probe}")
 
 
+@pytest.mark.nightly  # by default: test_runner.py's same-key test, test_boot_dqn_ensemble.py
 def test_same_key_same_result():
     out = learned("boot_dqn_continuous", "arms", 0)
     again = run_probe("boot_dqn_continuous", "arms")

@@ -14,6 +14,10 @@ import jaxmdp
 from hardness.analysis import deep_regret
 from jaxmdp.experiment import runner
 
+# Nightly: the deep table's command; by default, test_regret_table.py runs the tabular one and the runner's tests the
+# deep agents.
+pytestmark = pytest.mark.nightly
+
 STEPS, SEEDS = 300, 2
 ARGS = ["--steps", str(STEPS), "--seeds", str(SEEDS), "--instances", "RiverSwim-3-continuous",
         "--agents", "dqn_continuous", "random_continuous", "--log-period", "50", "--quiet"]

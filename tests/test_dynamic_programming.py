@@ -353,6 +353,7 @@ def test_successor_reachability_matches_warshall():
         np.testing.assert_array_equal(got, np_closure(adj))
 
 
+@pytest.mark.nightly  # by default: test_gth_banded.py's gain vectors against float64
 def test_gain_vector_from_successor_reachability_equals_the_dense_route():
     # gain_vector on an MDP takes the recurrent classes from the successor lists; chain_gain on the dense policy
     # matrix squares the adjacency instead. Same edges, so the same classes and bitwise the same gains, on random

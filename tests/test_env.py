@@ -115,6 +115,7 @@ def test_batched_trajectories_equal_single_runs(episodic):
         assert int(jnp.max(out[0][i])) < m.n_states and int(jnp.max(out[1][i])) < m.n_actions
 
 
+@pytest.mark.nightly  # by default: test_properties_step.py
 @pytest.mark.parametrize("episodic", [False, True])
 def test_step_member_reads_the_stack_with_the_results_of_step(episodic):
     # step_member on a stack of MDPs of different sizes (padded states and actions, several start states, Beta

@@ -97,6 +97,7 @@ def test_epoch_agent_states_hold_no_dense_table_and_rebuild_the_counts_from_the_
     np.testing.assert_array_equal(em.dense_counts(table), want)
 
 
+@pytest.mark.nightly  # by default: test_psrl_continuous.py's p^- slots test reports overflow
 def test_overflow_is_flagged_and_reported_by_the_agents_diagnostics():
     S, A = 4, 1
     table = _record_all(em.empty_counts(S, A, 2), [0, 0, 0, 0], [0, 0, 0, 0], [1, 2, 1, 3])
@@ -255,6 +256,7 @@ def _dense_boxes(states, filled, lo, hi, room_other, state_mask):
     return dense_lo, dense_hi
 
 
+@pytest.mark.nightly  # by default: test_ucrl2_policy_estimate_equals_the_dense_route
 def test_ucrl2_plans_on_the_same_boxes_as_the_dense_counts():
     """UCRL2's slot boxes are :func:`confidence_box` of its dense widths, entry for entry, and its plan matches the
     dense planner's (same sweeps, optimistic ``Q`` within rounding)."""
@@ -298,6 +300,7 @@ def _near_tie(state: psrl_continuous.PSRLContinuousState) -> jax.Array:
     pytest.param("MiniGridEmpty", dict(size=5, p_lazy=0.3, n_starting_states=2, make_reward_stochastic=True),
                  marks=pytest.mark.nightly),
 ])
+@pytest.mark.nightly  # by default: test_psrl_continuous.py's p^- slots against the dense rows
 def test_psrl_continuous_policy_estimate_equals_the_dense_posterior_mean(family, params):
     """PSRL continuous's policy estimate on its slots (the posterior mean as counts plus a uniform prior part) is the
     dense posterior mean's after lockstep runs wherever no near-tie lets rounding decide (the two kernels differ in
@@ -397,6 +400,7 @@ def test_discounted_greedy_policy_on_a_band_order_is_optimal(seed):
     np.testing.assert_array_equal(pi, np.eye(A)[np.argmax(Q, -1)])
 
 
+@pytest.mark.nightly  # by default: test_gth_banded.py's wrong-band-order fallback
 def test_a_kernel_outside_its_band_order_is_solved_densely():
     # A hint too narrow for the kernel: the check sees it and the policy is the dense route's, member by member
     # under vmap; trusting the hint would have dropped transitions and chosen differently.
@@ -479,6 +483,7 @@ def test_a_warm_start_gives_the_cold_estimate_and_the_exact_values_of_its_policy
     assert int(phases(None)[1].iterations) > 50  # from zeros: log(1e-3) / log(0.95) sweeps at least, about 135
 
 
+@pytest.mark.nightly  # by default: test_runner.py's warm-start test
 @pytest.mark.parametrize("agent", [ucrl2.UCRL2, psrl_continuous.PSRL_CONTINUOUS], ids=lambda a: a.name)
 def test_agents_warm_policy_from_the_previous_log_is_their_policy(agent, monkeypatch):
     # Along a random-play stream, each log's estimate started from the previous log's values is the agent's cold

@@ -105,6 +105,7 @@ def test_log_gamma_exact_on_large_arrays(buffers):
         checks.independent_signs(ys[0:-1:2], ys[1::2], median, median, f"neighbours, shape {shape}")
 
 
+@pytest.mark.nightly  # a corner of the buffer; by default: test_log_gamma_exact_on_large_arrays
 @pytest.mark.parametrize("which", ["first", "second"])
 def test_an_overflowing_buffer_sends_its_entries_to_another_pass(which):
     # The compacted pass reports an overflow from the compactions' counts; then further passes finish the entries

@@ -186,6 +186,7 @@ def test_gain_vector_with_band_order_matches_float64(family, kw):
         np.testing.assert_allclose(g, _gain64(mdp, pi), rtol=TOL, atol=1e-7, err_msg=name)
 
 
+@pytest.mark.nightly  # by default: test_runner_records_are_those_of_the_dense_elimination (unchecked)
 def test_gain_vector_checked_and_unchecked_band_agree_bit_for_bit():
     # Transient states and several classes: the checked route takes its banded branch, the same numbers.
     mdp = jaxmdp.make("SimpleGrid", episodic=False, seed=0, size=7, p_rand=0.0).strip()
@@ -201,6 +202,7 @@ def test_gain_vector_checked_and_unchecked_band_agree_bit_for_bit():
         np.testing.assert_array_equal(unchecked, checked)
 
 
+@pytest.mark.nightly  # by default: test_gain_vector_with_band_order_matches_float64
 def test_gain_vector_with_band_order_on_a_padded_stack_member():
     # Padding states are absorbing with reward 0: they form classes of their own and the real states' class stays
     # irreducible.
@@ -267,6 +269,7 @@ def test_irreducible_matches_the_closure():
 # ---------------------------------------------------------------------------------------------------------------
 
 
+@pytest.mark.nightly  # by default: test_runner_records_are_those_of_the_dense_elimination
 def test_runner_evaluates_changed_members_on_their_band_orders(monkeypatch):
     # Stacked MDPs of different sizes (padding), the certified bounds switched off so that every changed member takes
     # the exact elimination: banded gains equal float64 ones, unchanged members keep their cache.

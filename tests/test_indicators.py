@@ -183,6 +183,7 @@ def test_stacked_constants_match_each_mdp_alone(variant):
         assert int(sweeps(jax.tree.map(lambda x: x[0], jaxmdp.stack(mdps).strip()))) == int(sweeps(mdps[0]))
 
 
+@pytest.mark.nightly  # by default: test_indicators_banded.py's runner gains against dense float64 ones
 def test_successor_gain_bounds_match_the_dense_gain():
     # Random sparse MDPs (many multichain and transient-heavy policy chains), deterministic and stochastic policies:
     # the certified bounds contain the dense gain (GTH elimination) and their midpoint agrees with it to 1e-6.
@@ -216,6 +217,7 @@ def test_successor_gain_bounds_match_the_dense_gain():
     np.testing.assert_allclose(b.upper, [0.0, 0.5, 1.0], atol=1e-6)
 
 
+@pytest.mark.nightly  # by default: test_runner.py's action indices against the one-hot policy
 def test_gain_bounds_of_action_indices_are_those_of_the_one_hot_policy():
     # A deterministic policy given by its action indices is swept on the chosen actions' K successor slots only:
     # the same bounds (to float32 rounding of the reordered sums), certificate and sweeps as its one-hot [S, A]

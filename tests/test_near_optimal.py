@@ -141,6 +141,7 @@ def test_a_single_mdp_is_refused():
 # ---------------------------------------------------------------------------------------------------------------
 
 
+@pytest.mark.nightly  # by default: test_benchmark_search.py's known best candidate
 def test_real_episodic_run_equals_the_winner_run_by_hand():
     # DeepSea 5: PSRL still has regret after 300 steps (on DeepSea 3 and RiverSwim 3 it has none, and a comparison of
     # zeros would prove nothing).

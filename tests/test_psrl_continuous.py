@@ -240,6 +240,7 @@ def _documented_unconverged(state, new):
 optimal_gain_jit = jax.jit(lambda T, R: dp.optimal_gain(T, rewards=R, tol=2e-6, max_iter=1_000_000))
 
 
+@pytest.mark.nightly  # by default: test_psrl_sparse_plans.py's optimum of the dense extended MDP
 @pytest.mark.statistical(p=0.0)
 def test_plan_is_gain_optimal_in_the_explicit_extended_mdp():
     state, plans = planned("gain")
@@ -311,6 +312,7 @@ def test_unused_candidate_slots_do_not_change_the_plan():
         np.testing.assert_allclose(tight.Q, wide.Q, rtol=1e-6)
 
 
+@pytest.mark.nightly  # by default: test_properties_runner.py (a member alone and in a batch)
 @pytest.mark.statistical(p=0.0)
 def test_a_grid_mixing_both_criteria_plans_each_member_like_alone():
     # vmap over [discounted, average-reward] members: the cond becomes a select, each member keeps its own branch.
@@ -389,6 +391,7 @@ def test_padded_states_and_actions_are_never_used(probes):
     assert int(bandits[:, 1:].sum()) == 0 and int(bandits[:, :, :, 1:].sum()) == 0
 
 
+@pytest.mark.nightly  # by default: test_runner.py's same-key test, test_properties_runner.py
 def test_same_key_same_result_and_vmapped_equals_single(probes):
     batch, run, res = probes
     jax.tree.map(np.testing.assert_array_equal, run(seeds(4 * COPIES), batch, HP), res)
@@ -450,6 +453,7 @@ def test_only_if_skips_under_vmap_and_keeps_each_members_result():
     np.testing.assert_array_equal(jax.jit(lambda x: only_if(True, work, x, x))(x), 2 * x + 1)
 
 
+@pytest.mark.nightly  # by default: test_unused_candidate_slots_do_not_change_the_plan
 @pytest.mark.parametrize("variant", ["paper", "colosseum"])
 def test_candidates_skipping_unused_draws_are_the_same_bits(monkeypatch, caplog, variant):
     """Members with no pair at ``eta`` (no posterior row), some, and all pairs (no optimistic row), alone and

@@ -182,6 +182,8 @@ def test_chosen_rows_and_expectations_agree_at_any_states(keep_limit):
     np.testing.assert_allclose(np.asarray(whole).sum(-1)[STATE_MASK], 1.0, atol=1e-5)
 
 
+# Nightly; a corner (one kept pair) of test_discounted_plan_equals_policy_iteration_on_the_dense_extended_mdp.
+@pytest.mark.nightly
 @pytest.mark.statistical(p=0.0)
 @pytest.mark.parametrize("variant", ["paper", pytest.param("colosseum", marks=pytest.mark.nightly)])
 def test_more_pairs_at_eta_than_kept(variant):

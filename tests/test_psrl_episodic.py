@@ -77,6 +77,7 @@ def test_padded_states_and_actions_are_never_used(probes):
     np.testing.assert_array_equal(res.n_plans, np.where(river, 400, 1000))
 
 
+@pytest.mark.nightly  # by default: test_runner.py's same-key test, test_properties_runner.py
 def test_same_key_same_result_and_vmapped_equals_single(probes):
     batch, run, res = probes
     jax.tree.map(np.testing.assert_array_equal, run(seeds(4 * COPIES), batch, AGENT.default_hparams), res)

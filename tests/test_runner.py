@@ -521,6 +521,7 @@ def test_record_visits_counts_the_states_acted_in(episodic, tmp_path):
     np.testing.assert_array_equal(plain.values, res.values)
 
 
+@pytest.mark.nightly  # by default: test_record_visits_counts_the_states_acted_in
 def test_record_visits_random_agent_sums_to_steps():
     agent = agents.RANDOM_CONTINUOUS
     mdp = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=5, p_rand=0.2)
@@ -564,6 +565,7 @@ def test_greedy_action_indices_give_the_same_records_as_the_one_hot_policy(name)
     assert np.all(indices.values[-1, :, 0] > 0)  # some regret: the policies were evaluated, not all optimal
 
 
+@pytest.mark.nightly  # by default: test_a_policy_declared_fixed_is_evaluated_at_the_first_log_only
 @pytest.mark.parametrize("name", ["random_episodic", pytest.param("random_continuous", marks=pytest.mark.nightly)])
 def test_a_fixed_policy_gives_the_same_records_evaluated_once(name, tmp_path):
     # The random agent declares its policy fixed: the runner evaluates it at the first log and never extracts or

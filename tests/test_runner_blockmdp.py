@@ -30,6 +30,7 @@ def mdps():
     return {False: continuous, True: episodic}
 
 
+@pytest.mark.nightly  # by default: test_agents_act_on_the_sample_they_were_handed
 @pytest.mark.parametrize("episodic", [False, True])
 def test_random_agent_records_equal_the_plain_mdp(mdps, episodic):
     mdp = mdps[episodic]

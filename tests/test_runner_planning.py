@@ -106,6 +106,7 @@ def test_plan_slots_for_caps_by_one_member_s_state_on_a_cpu():
     assert runner.plan_slots_for(agents.get("ucrl2"), states) == 3
 
 
+@pytest.mark.nightly  # by default: test_results_do_not_depend_on_the_slots
 def test_the_runner_picks_the_slots_by_the_agent_s_state_bytes(monkeypatch):
     # The runner's default slots come from the shard's agent states (their shapes) and the agent's plan_slot_bytes,
     # and give the results of planning the whole batch.
@@ -196,6 +197,7 @@ SHARDED = textwrap.dedent(
 )
 
 
+@pytest.mark.nightly  # by default: test_runner_sharding.py's two shards, test_properties_runner.py on 2 devices
 def test_two_shards_with_one_slot_equal_the_whole_batch():
     # The two shards run in a subprocess (the host device count is fixed when JAX starts); the whole batch on one
     # device is this process's run, shared with test_results_do_not_depend_on_the_slots.
