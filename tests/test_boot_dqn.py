@@ -266,6 +266,7 @@ def probe_passes(name: str, probe: str, out) -> np.ndarray:
 Q_LEARN = failure_rate_bound_per_key(0, 128)
 
 
+@pytest.mark.nightly  # by default: DQN's learning test, test_boot_dqn_ensemble.py's exact per-head updates
 @pytest.mark.statistical(p=1e-7)
 @pytest.mark.parametrize("name", ["boot_dqn_episodic", "boot_dqn_continuous"])
 @pytest.mark.parametrize("probe", q_probes.PROBES)

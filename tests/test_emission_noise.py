@@ -248,6 +248,7 @@ def test_correlated_student_t_is_multivariate_t(df):
     assert checks.false_failure_bound() < 1e-6
 
 
+@pytest.mark.nightly  # by default: each kind's distribution test
 def test_draws_are_reproducible_and_keep_the_dtype():
     for noise in jaxmdp.NOISE_KINDS:
         chol = wishart_cholesky(jax.random.key(0), 6, 6, 0.1) if noise.startswith("correlated") else None

@@ -92,6 +92,7 @@ def test_continuous_never_terminates():
     assert not bool(jnp.any(term))
 
 
+@pytest.mark.nightly  # by default: test_properties_step.py, test_properties_runner.py
 @pytest.mark.parametrize("episodic", [False, True])
 def test_batched_trajectories_equal_single_runs(episodic):
     rng = np.random.default_rng(7)

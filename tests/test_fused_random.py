@@ -53,6 +53,7 @@ def test_uniform_equals_jax_random(seed, shape):
     assert same_bits(jax.vmap(lambda k: fr.uniform(k, shape))(keys), expected)
 
 
+@pytest.mark.nightly  # float64; by default: the float32 uniform test
 def test_uniform_in_float64_equals_jax_random():
     with jax.enable_x64(True):
         key = jax.random.key(5)
@@ -98,6 +99,7 @@ def test_randint_equals_jax_random(seed):
             assert same_bits(draw(key, shape, jnp.int32(lo), jnp.int32(hi)), expected), (lo, hi, shape)
 
 
+@pytest.mark.nightly  # by default: test_randint_equals_jax_random
 def test_randint_with_array_bounds_and_a_batch_of_keys_equals_jax_random():
     key = jax.random.key(11)
     lo, hi = jnp.array([0, -3, 7], jnp.int32), jnp.array([[5], [1000]], jnp.int32)  # broadcast to (2, 3)

@@ -146,6 +146,7 @@ def small_array_draws(k, candidates):
     return f(jax.random.split(k, 20_000), jnp.array(SHAPES))
 
 
+@pytest.mark.nightly  # other dtypes of the default float32 tests
 @pytest.mark.statistical(p=3.6e-6)
 def test_float64_and_bfloat16():
     # float64: 4 shapes, 34 checks; bfloat16: 2 binomial counts. False-failure probability <= 3.6e-6 (1e-7 each).
@@ -250,6 +251,7 @@ def test_eager_call_equals_jitted_bitwise():
     np.testing.assert_array_equal(batched[1], sample_log_gamma(keys[1], alpha))
 
 
+@pytest.mark.nightly  # by default: test_vmap_member_equals_single_call_bitwise
 def test_small_arrays_and_beta_vmap_equal_single_calls_bitwise():
     keys = jax.random.split(jax.random.key(15), 64)
     a = jax.random.uniform(jax.random.key(16), (64,), minval=0.005, maxval=6.0)
