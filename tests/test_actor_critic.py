@@ -21,7 +21,7 @@ from agents.deep import policy_gradient as pg
 from agents.search_spaces import CHOICE_SPACES, sample_candidate_groups
 from jaxmdp.experiment.agent_interface import Transition
 from conftest import compilations
-from stat_checks import Checks, failure_rate_bound_per_key, key
+from stat_checks import Checks, failure_rate_bound, key
 
 AC_NAMES = ("actor_critic_episodic", "actor_critic_continuous")
 ALL_NAMES = AC_NAMES + ("actor_critic_rnn_episodic", "actor_critic_rnn_continuous")
@@ -337,16 +337,15 @@ class TestProbeLearning(probes.ProbeLearning):
     grid independent, same key same result."""
 
     atol = 0.02
-    # Measured per-member failures of `passes` on 256 members per agent and probe (128 seeds x 2 learning rates):
-    # constant and chain on seeds from 10**6 (`PYTHONPATH=$PWD python tests/probe_failure_rates.py actor_critic
-    # --seeds 128 --chunk 128`), the bandit from 2 * 10**6 after its tolerance was widened (`... --only bandit
-    # --first 2000000`; actor_critic_probes.BANDIT_OFF), 25 Nov 2026. q_u: Clopper-Pearson bounds at miss
-    # probability 1e-3 (tests/stat_checks.py); stat_checks.allowed_failures(16, q_u) of the 16 members may fail. The
-    # two learning rates shared each seed's key then, so the bounds count the 128 keys
-    # (stat_checks.failure_rate_bound_per_key); the tests' members are independent (every member its own key).
+    # Measured per-member failures of `passes` on 1024 independent members per agent and probe (512 seeds x 2 learning
+    # rates from 10**6, every member its own key; `PYTHONPATH=$PWD python tests/probe_failure_rates.py actor_critic
+    # --only actor_critic_e --seeds 512 --chunk 256`, likewise `actor_critic_c`). The bandit's errors are heavy-tailed
+    # (median 0.002 tolerances, 99% quantile 1.6-1.9, worst 5-16). q_u: Clopper-Pearson bounds at miss
+    # probability 1e-3 (tests/stat_checks.py); stat_checks.allowed_failures(16, q_u) of the 16 members may fail: 4 for
+    # the constant and chain probes, 7 and 8 for the bandit.
     measured = {(name, kind): 0 for name in AC_NAMES for kind in ("constant", "chain")} | {
-        ("actor_critic_episodic", "bandit"): 1, ("actor_critic_continuous", "bandit"): 9}
-    q_learn = {pair: failure_rate_bound_per_key(failures, 128) for pair, failures in measured.items()}
+        ("actor_critic_episodic", "bandit"): 17, ("actor_critic_continuous", "bandit"): 27}
+    q_learn = {pair: failure_rate_bound(failures, 1024) for pair, failures in measured.items()}
 
     @staticmethod
     def outputs(state, kind, episodic):
