@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import os
 import re
 import subprocess
 import sys
@@ -36,7 +37,7 @@ def collected() -> list[str]:
     """The default profile's node ids, in collection order, with no nightly list applied."""
     listing = subprocess.run([sys.executable, "-m", "pytest", "--collect-only", "-q", "-n", "0", "-p",
                               "no:cacheprovider"], cwd=REPO, capture_output=True, text=True, check=True,
-                             env={**__import__("os").environ, "JAXMDP_NIGHTLY_PARAMS": "off"}).stdout
+                             env={**os.environ, "JAXMDP_NIGHTLY_PARAMS": "off"}).stdout
     return [line.strip() for line in listing.splitlines() if "::" in line and not line.startswith(" ")]
 
 

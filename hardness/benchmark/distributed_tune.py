@@ -17,7 +17,6 @@ the agent; the winners already written stay.
 from __future__ import annotations
 
 import tempfile
-import time
 import traceback
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -42,14 +41,11 @@ def _search_task(name: str, budget: Any, n_buckets: int, work_dir: str, note: st
     work = Path(work_dir)
     if not work.exists():  # the driver's folder (made before submitting) is not visible here: one of this machine
         work = Path(tempfile.gettempdir()) / "jaxmdp-ray-tune" / name / work.name
-    start = time.perf_counter()
     try:
-        result = search.search(name, budget, n_buckets=n_buckets, progress=False, work_dir=work)
+        entry = search.tuned_entry(name, budget, n_buckets=n_buckets, work_dir=work, note=note)
     except Exception as err:  # noqa: BLE001 (every error of a search goes back to the driver)
         return dict(status="error", type=type(err).__name__, value_error=isinstance(err, ValueError),
                     message=str(err), traceback=traceback.format_exc())
-    entry = search.provenance(result, budget, note=note)
-    entry["wall_s"] = round(time.perf_counter() - start, 1)
     return dict(status="finished", entry=entry)
 
 

@@ -26,6 +26,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -42,7 +43,7 @@ from jaxmdp import runner
 from jaxmdp.agent_interface import Agent
 from jaxmdp.mdp import MDP
 
-__all__ = ["Budget", "SearchResult", "check_tunable", "evaluate", "select", "search", "provenance", "write_tuned",
+__all__ = ["Budget", "SearchResult", "check_tunable", "evaluate", "select", "search", "tuned_entry", "provenance", "write_tuned",
            "start_tuned_file"]
 
 #: The reference's code-default budget for tabular agents (benchmark.md §7).
@@ -219,6 +220,17 @@ def _commit() -> str:
         return out.stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
+
+
+def tuned_entry(name: str, budget: Budget, *, n_buckets: int, work_dir: Path, note: str = "",
+                progress: bool = False) -> dict[str, Any]:
+    """:func:`search` of one agent and its tuned-file entry (:func:`provenance`) with the search's wall seconds
+    (``wall_s``): one agent's tuning, as the tuner runs it in its own process or as a Ray task."""
+    start = time.perf_counter()
+    result = search(name, budget, n_buckets=n_buckets, progress=progress, work_dir=work_dir)
+    entry = provenance(result, budget, note=note)
+    entry["wall_s"] = round(time.perf_counter() - start, 1)
+    return entry
 
 
 def provenance(result: SearchResult, budget: Budget, note: str = "") -> dict[str, Any]:

@@ -45,7 +45,6 @@ import argparse
 import dataclasses
 import json
 import sys
-import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -366,14 +365,11 @@ def tune_command(args: argparse.Namespace) -> dict:
     for name in todo:
         if not args.quiet:
             print(f"tuning {name}: {budget}", file=sys.stderr, flush=True)
-        start = time.perf_counter()
         try:
-            result = search.search(name, budget, n_buckets=args.buckets, progress=not args.quiet,
-                                   work_dir=work_dir / name / _slug(budget))
+            entries[name] = search.tuned_entry(name, budget, n_buckets=args.buckets, work_dir=work_dir / name /
+                                               _slug(budget), note=args.note, progress=not args.quiet)
         except ValueError as err:
             raise SystemExit(f"jaxmdp-benchmark tune: {err}") from None
-        entries[name] = search.provenance(result, budget, note=args.note)
-        entries[name]["wall_s"] = round(time.perf_counter() - start, 1)
         search.write_tuned(path, {name: entries[name]})  # after every agent, so an interruption keeps it
         _print_winner(name, entries[name])
     return entries
