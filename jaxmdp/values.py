@@ -20,6 +20,7 @@ Everything is jittable (``variant`` is static) and vmaps over a stacked batch.
 from __future__ import annotations
 
 import jax
+import jax.numpy as jnp
 
 from jaxmdp import dynamic_programming as dp
 from jaxmdp import struct
@@ -82,7 +83,10 @@ def _continuous(mdp: MDP, variant: Variant, gamma: float) -> ReferenceValues:
         pi_opt = dp.greedy(dp.solve_discounted(mdp, gamma).Q, mask)
         pi_worst = dp.greedy(dp.solve_discounted(mdp, gamma, rewards=-mdp.R).Q, mask)
     pi_rand = dp.uniform_policy(mdp)
-    g_opt, g_worst, g_rand = (dp.gain_vector(mdp, pi) for pi in (pi_opt, pi_worst, pi_rand))
+    # One traced gain evaluation looped over the three policies (lax.map), not three inlined copies: the same
+    # numbers, a third of the program to compile (docs/performance.md, Compilation).
+    pis = jnp.stack([pi.astype(mdp.dtype) for pi in (pi_opt, pi_worst, pi_rand)])
+    g_opt, g_worst, g_rand = jax.lax.map(lambda pi: dp.gain_vector(mdp, pi), pis)
     return ReferenceValues(
         optimal=mdp.P0 @ g_opt,
         worst=mdp.P0 @ g_worst,

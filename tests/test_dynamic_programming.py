@@ -404,6 +404,7 @@ def _eager_calls(mdp: jaxmdp.MDP, episodic: jaxmdp.MDP) -> list:
     ]
 
 
+@pytest.mark.nightly  # by default: test_hardness_diameter.py's eager-compile test (the same dp.compiled)
 def test_eager_calls_compile_once_per_shape(caplog):
     """The routines with loops are jitted with their MDPs' labels stripped (dynamic_programming.compiled): a second
     eager call with the same shapes compiles nothing, also on another MDP of those shapes with other labels (without

@@ -244,6 +244,7 @@ def test_vmap_member_equals_single_call_bitwise(in_axes, buffers):
         np.testing.assert_array_equal(batched[i], single(keys[i], alpha))
 
 
+@pytest.mark.nightly  # by default: test_vmap_member_equals_single_call_bitwise (a vmapped batch against single calls)
 def test_eager_call_equals_jitted_bitwise():
     alpha = posterior_like(20, 3, 2)
     keys = jax.random.split(jax.random.key(21), 2)

@@ -300,6 +300,7 @@ def test_runner_evaluates_changed_members_on_their_band_orders(monkeypatch):
     assert np.all(np.isnan(np.asarray(narrow(stacked, jnp.asarray(index), actions, changed, cache))[[0, 1, 3]]))
 
 
+@pytest.mark.nightly  # by default: test_indicators_banded.py's runner gains against the dense float64 gains
 def test_runner_records_are_those_of_the_dense_elimination(monkeypatch):
     from jaxmdp.experiment import runner
     import agents

@@ -353,7 +353,7 @@ def _notebook_definitions(monkeypatch: pytest.MonkeyPatch) -> dict:
     raise AssertionError(f"{NOTEBOOK.relative_to(REPO)} defines no make_train")
 
 
-@pytest.mark.slow
+@pytest.mark.nightly  # by default: test_transitions_and_rewards_are_jaxmdp_steps (every step exactly jaxmdp's)
 @pytest.mark.statistical(p=1.5e-7)
 def test_ppo_learns_through_the_adapter(monkeypatch):
     # Each seed's learned policy is evaluated exactly (finite-horizon policy evaluation on the MDP): it succeeds when

@@ -18,7 +18,7 @@ from flax import struct
 
 import agents
 import jaxmdp
-from jaxmdp.experiment import runner
+from jaxmdp.experiment import lockstep, runner
 from jaxmdp.experiment.agent_interface import Agent, plans_whole, spec_of
 from jaxmdp.experiment.indicators import CSV_COLUMNS
 from conftest import random_mdp
@@ -181,6 +181,37 @@ def test_a_shard_above_the_agents_whole_batch_limits_compiles_one_copy_of_plan_w
         np.testing.assert_array_equal(res.agent_state.plans, whole.agent_state.plans)
     # The first plan, then one before every step at which c is a positive multiple (c = 60 is after the last step).
     np.testing.assert_array_equal(whole.agent_state.plans, 1 + 59 // np.array([3, 3, 4, 4, 6, 6]))
+
+
+def test_a_small_batch_plans_whole_with_one_copy_of_plan_and_the_same_results():
+    # Four members (at most lockstep.SMALL_BATCH) asking every 3 or 4 updates: by default a slot per member, so every
+    # plan is the whole batch's and plan is traced once per chunk program; with one slot (rounds, and the whole batch
+    # when more than half ask) it is traced twice. The records and plan counts are the same.
+    traced = []
+
+    def counting(tag):
+        def plan(key, state):
+            traced.append(tag)
+            return SCRIPTED[False].plan(key, state)
+
+        return dataclasses.replace(SCRIPTED[False], name=f"scripted_small_{tag}", plan=plan)
+
+    g = runner.product([river_swim(False)], [ScriptedHParams(3), ScriptedHParams(4)], seeds=[0, 1])
+    assert g.n_members <= lockstep.SMALL_BATCH
+    default = runner.run(counting("default"), g, 60, log_period=10, n_records=2, shards=1)
+    one_slot = runner.run(counting("one slot"), g, 60, log_period=10, n_records=2, shards=1, plan_slots=1)
+    once = traced.count("default")
+    assert once >= 1 and traced.count("one slot") == 2 * once
+    np.testing.assert_array_equal(one_slot.values, default.values)
+    np.testing.assert_array_equal(one_slot.agent_state.plans, default.agent_state.plans)
+    np.testing.assert_array_equal(default.agent_state.plans, 1 + 59 // np.array([3, 3, 4, 4]))
+    # Above SMALL_BATCH, or for an agent that may not plan whole, the default stays ceil(B / 16) slots.
+    states = jax.vmap(lambda k: SCRIPTED[False].init(k, spec_of(river_swim(False), 10), ScriptedHParams()))(
+        jax.random.split(jax.random.key(0), lockstep.SMALL_BATCH + 1))
+    assert lockstep.plan_slots_for(SCRIPTED[False], states) == 1
+    small = jax.tree.map(lambda x: x[:lockstep.SMALL_BATCH], states)
+    assert lockstep.plan_slots_for(SCRIPTED[False], small) == lockstep.SMALL_BATCH
+    assert lockstep.plan_slots_for(SCRIPTED[False].with_hints(whole_batch_plans=0), small) == 1
 
 
 def test_the_whole_batch_bytes_bound_the_agent_states_of_a_shard():

@@ -229,11 +229,21 @@ def init_carry(
 # ---------------------------------------------------------------------------------------------------------------
 
 
+#: A batch of at most this many members that the agent lets plan whole (:func:`plans_whole`) gets a slot per member
+#: by default, so it always plans whole and its chunk program holds one copy of ``plan``, not two (whole batch and
+#: rounds). The price, at most this many plans where fewer members ask, only small runs pay; the second copy cost
+#: them about half their compile time (docs/performance.md, Compilation).
+SMALL_BATCH = 4
+
+
 def plan_slots_for(agent: Agent, states: Any) -> int:
     """Planning slots of a lockstep loop (paper App. A.1) over ``states`` (member axis first; arrays, tracers or
     shapes): ``ceil(B / 16)`` for ``B`` members, on a CPU at most ``agent.hints.plan_slot_bytes // m`` (at least
-    one), ``m`` one member's state bytes (:func:`~jaxmdp.experiment.planning.default_plan_slots`)."""
+    one), ``m`` one member's state bytes (:func:`~jaxmdp.experiment.planning.default_plan_slots`); ``B`` slots for a
+    batch of at most :data:`SMALL_BATCH` members that may plan whole."""
     members, nbytes = batch_bytes(states)
+    if members <= SMALL_BATCH and plans_whole(agent, states):
+        return members
     cap = agent.hints.plan_slot_bytes if jax.default_backend() == "cpu" else None
     return default_plan_slots(members, nbytes // max(members, 1), cap)
 

@@ -525,8 +525,9 @@ def run(
       plan_slots: members planned at once when some members of a lockstep loop (a shard) need a plan
         (:mod:`jaxmdp.experiment.planning`): rounds of this many until all are served, so planning costs in
         proportion to the members that asked; default ``ceil(members / 16)`` per shard, on a CPU at most
-        ``agent.hints.plan_slot_bytes`` of agent state a round (:func:`plan_slots_for`). A value at least a shard's
-        members plans the whole shard whenever one member asks (the earlier scheme). The results do not depend on it.
+        ``agent.hints.plan_slot_bytes`` of agent state a round, and a slot per member for a shard of at most
+        :data:`~jaxmdp.experiment.lockstep.SMALL_BATCH` members that may plan whole (:func:`plan_slots_for`). A value
+        at least a shard's members plans the whole shard whenever one member asks. The results do not depend on it.
       memory_limit: bytes the compiled programs may need (all shards together on a CPU, per device on an
         accelerator); default what the devices have available (:mod:`jaxmdp.experiment.memory`).
       stop_when_converged: the reference's convergence stop (docs/measures.md §6.4, [quirk]): a member stops learning
