@@ -131,16 +131,7 @@ MEASURE_MISS = 1e-3
 # member of a grid has its own key (tests/agent_loop.grid_seeds). Members may differ in their failure rates (two
 # epsilons or learning rates): a sum of independent Bernoulli(q_i) exceeds m >= n q with at most the probability of
 # Binomial(n, mean q_i) (Hoeffding 1956), and the measurement, on equally many members of each grid value, bounds that
-# mean rate. Measurements made when the members of a grid shared their keys (two members per key) bound it through
-# the keys instead (``failure_rate_bound_per_key``).
-
-
-def failure_rate_bound_per_key(failures: int, n_keys: int, miss: float = MEASURE_MISS) -> float:
-    """An upper bound (miss probability ``miss``) on the mean per-member failure rate from ``failures`` failing
-    members of a measurement whose members shared keys, ``n_keys`` independent keys: the count of keys with a failing
-    member is Binomial(n_keys, p) with ``p >= max_i q_i >= mean q_i`` and is at most ``failures``, so the
-    Clopper-Pearson bound of ``failures`` of ``n_keys`` bounds the mean rate (conservatively)."""
-    return failure_rate_bound(min(failures, n_keys), n_keys, miss)
+# mean rate.
 
 
 def failure_rate_bound(failures: int, n: int, miss: float = MEASURE_MISS) -> float:

@@ -16,7 +16,7 @@ import agents
 from agents.deep import boot_dqn
 from jaxmdp import dynamic_programming as dp
 from tests import q_probes
-from tests.stat_checks import Checks, failure_rate_bound_per_key, key, mostly, seed
+from tests.stat_checks import Checks, failure_rate_bound, key, mostly, seed
 from tests.test_dqn import make_spec, np_q, transition
 from tests.jaxpr_eqns import equations
 
@@ -257,13 +257,16 @@ def probe_passes(name: str, probe: str, out) -> np.ndarray:
     return probe_margins(name, probe, out) <= 1.0
 
 
-# Measured: 0 of 256 members missed probe_passes for each agent and probe (128 seeds x 2 epsilons from 10**6, the two
-# epsilons sharing each seed's key; `PYTHONPATH=$PWD python tests/probe_failure_rates.py boot_dqn --seeds 128 --chunk
-# 128`; the largest margin, error / tolerance, was 0.88). The members shared keys, so the bound counts keys
-# (stat_checks.failure_rate_bound_per_key): q_u = 0.053 at miss probability 1e-3; the tests allow
-# stat_checks.allowed_failures(16, q_u) = 8 failures of their 16 independent members. Measuring on independent
-# members (the command above now gives every member its own key) tightens it: 0 of 1024 would allow 4.
-Q_LEARN = failure_rate_bound_per_key(0, 128)
+# Measured per-member failures of probe_passes on independent members (every member its own key), 512 per criterion
+# (256 seeds x 2 epsilons from 10**6, in two runs of `PYTHONPATH=$PWD python tests/probe_failure_rates.py boot_dqn
+# --seeds 128 --chunk 128`, the second with `--first 1000128`). The 99% quantile of the largest error is at most 0.6
+# tolerances; one member (of seed 1000128) fails five of the six criteria. q_u: Clopper-Pearson bounds at miss
+# probability 1e-3; the tests allow stat_checks.allowed_failures(16, q_u) = 6 failures of their 16 members (for 1 or 2
+# failures of 512; 8 before, from a measurement whose members shared keys).
+MEASURED = {("boot_dqn_episodic", "constant"): 1, ("boot_dqn_episodic", "arms"): 2,
+            ("boot_dqn_episodic", "discounting"): 1, ("boot_dqn_continuous", "constant"): 1,
+            ("boot_dqn_continuous", "arms"): 1, ("boot_dqn_continuous", "discounting"): 1}
+Q_LEARN = {pair: failure_rate_bound(failures, 512) for pair, failures in MEASURED.items()}
 
 
 @pytest.mark.nightly  # by default: DQN's learning test, test_boot_dqn_ensemble.py's exact per-head updates
@@ -272,9 +275,9 @@ Q_LEARN = failure_rate_bound_per_key(0, 128)
 @pytest.mark.parametrize("probe", q_probes.PROBES)
 def test_every_head_learns_the_probe_values(name, probe):
     # The [2 epsilons x 8 seeds] grid from stat_checks.seed(0), 16 independent members: at most
-    # stat_checks.allowed_failures(16, Q_LEARN) = 8 may miss probe_passes; false-failure probability <= 1e-7 (given
-    # the measured mean rate q <= q_u).
-    mostly(probe_passes(name, probe, learned(name, probe, seed(0))), Q_LEARN, f"{name} on {probe}")
+    # stat_checks.allowed_failures(16, q_u) = 6 may miss probe_passes; false-failure probability <= 1e-7 (given the
+    # measured mean rate q <= q_u).
+    mostly(probe_passes(name, probe, learned(name, probe, seed(0))), Q_LEARN[name, probe], f"{name} on {probe}")
 
 
 @pytest.mark.nightly  # by default: test_runner.py's same-key test, test_boot_dqn_ensemble.py
