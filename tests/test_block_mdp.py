@@ -226,6 +226,7 @@ def test_observe_errors():
         jaxmdp.observe(jax.random.key(0), jaxmdp.stack([noisy, noisy]), 0, 0)
 
 
+@pytest.mark.nightly  # by default: test_vmap_over_a_stacked_batch_matches_each_member (values, not only shapes)
 def test_jit_of_reset_and_step():
     block = jaxmdp.block_mdp(simple_grid(False), "tensor", "correlated_gaussian", key=jax.random.key(0))
     obs, st = jax.jit(jaxmdp.reset)(jax.random.key(1), block)

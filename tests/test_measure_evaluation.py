@@ -141,6 +141,22 @@ def test_extra_measures_rebuild_the_sweep_mdps():
         assert extra["mixing_time"][k] == float(hardness.mixing_time(m, lazy=True).value)
         np.testing.assert_allclose(extra["distribution_mismatch"][k],
                                    float(hardness.distribution_mismatch(m, None, uniform).value), rtol=1e-4)
+        np.testing.assert_allclose(extra["bias_span"][k], float(hardness.bias_span(m).value), rtol=1e-5)
+        np.testing.assert_allclose(extra["gap_constant"][k], float(hardness.gap_constant(m).value), rtol=1e-5)
+    assert all(np.all(np.isfinite(extra[name])) for name in me.EXTRA_MEASURES)
+
+
+def test_extra_measures_of_an_episodic_sweep_are_the_mismatch_and_nan():
+    spec = scenarios.scenario_spec(1, "RiverSwim", episodic=True, seeds=[0], values=[0.0, 0.2], params=dict(size=5))
+    rows = [dict(seed=0, value=v) for v in (0.2, 0.0)]
+    extra = me.extra_measures(rows, sweep_cli.config_of(spec))
+    for k, row in enumerate(rows):
+        m = jaxmdp.make("RiverSwim", episodic=True, seed=0, **{**dict(spec.params), "p_rand": row["value"]})
+        uniform = np.full((m.H, m.n_states, m.n_actions), 0.5, np.float32)
+        np.testing.assert_allclose(extra["distribution_mismatch"][k],
+                                   float(hardness.distribution_mismatch(m, None, uniform).value), rtol=1e-4)
+    for name in me.CONTINUOUS_ONLY:
+        assert np.all(np.isnan(extra[name])), name
 
 
 def test_script_writes_table_csv_and_figure(tmp_path):
@@ -162,4 +178,4 @@ def test_script_writes_table_csv_and_figure(tmp_path):
         assert f"| {m} |" in md
     assert (tmp_path / "out" / "measure_evaluation.png").stat().st_size > 10_000
     lines = (tmp_path / "out" / "measure_evaluation.csv").read_text().splitlines()
-    assert len(lines) == 1 + 5
+    assert len(lines) == 1 + len(scenarios.MEASURES) + len(me.EXTRA_MEASURES)

@@ -83,6 +83,7 @@ def test_same_key_same_result_and_vmapped_equals_single(probes):
     np.testing.assert_allclose(single.state.Q[0], res.state.Q[i], rtol=1e-6, atol=1e-6)
 
 
+@pytest.mark.nightly  # by default: test_runner_planning.py (the runner's rounds give the same results)
 def test_planning_only_the_members_that_ask_gives_the_same_run(probes):
     # The test loop's plan_chunk gathers the members that need a plan into sub-batches (here one at a time).
     _, batch, _, res = probes

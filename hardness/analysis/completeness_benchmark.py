@@ -20,16 +20,15 @@ average seeds 0-4).
 from __future__ import annotations
 
 import csv
-import functools
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import jax
 import numpy as np
 
 from hardness.analysis import completeness as cp
+from hardness.analysis import measure_evaluation
 
 __all__ = [
     "MEASURES",
@@ -52,7 +51,7 @@ MEASURES: tuple[str, ...] = (
     "distribution_mismatch", "mixing_time", "bias_span", "gap_constant",
 )
 #: Measures defined for continuous MDPs only.
-CONTINUOUS_ONLY: tuple[str, ...] = ("mixing_time", "bias_span", "gap_constant")
+CONTINUOUS_ONLY: tuple[str, ...] = measure_evaluation.CONTINUOUS_ONLY
 #: The paper's pair (§3.3, Figure 2: the MDPs placed by diameter and value norm), under each variant.
 PAIR: tuple[tuple[str, str], ...] = (("diameter", "value_norm"), ("diameter_colosseum", "value_norm_colosseum"))
 
@@ -89,24 +88,6 @@ def read_regrets(
     return best
 
 
-@functools.partial(jax.jit, static_argnames=("continuous",))
-def _extra(batch, continuous: bool):
-    from hardness.bias_span import bias_span
-    from hardness.gap_constant import gap_constant
-    from hardness.mismatch import distribution_mismatch
-    from hardness.mixing import mixing_time
-    from jaxmdp import dynamic_programming as dp
-
-    def one(m):
-        out = {"distribution_mismatch": distribution_mismatch(m, None, dp.uniform_policy(m)).value}
-        if continuous:
-            out.update(mixing_time=mixing_time(m, lazy=True).value, bias_span=bias_span(m).value,
-                       gap_constant=gap_constant(m).value)
-        return out
-
-    return jax.lax.map(one, batch)
-
-
 def benchmark_measures(
     set_name: str, seeds: Sequence[int], *, variants: Sequence[str] = ("paper", "colosseum"), n_buckets: int = 6
 ) -> list[dict[str, Any]]:
@@ -132,7 +113,7 @@ def benchmark_measures(
                 row[name + suffix] = float(v)
     continuous = not mdps[0].episodic
     for group in size_buckets(mdps, n_buckets):
-        out = _extra(stack([mdps[g] for g in group]).strip(), continuous)
+        out = measure_evaluation.extra_of_batch(stack([mdps[g] for g in group]).strip(), continuous)
         for name, values in out.items():
             for g, v in zip(group, np.asarray(values, np.float64)):
                 rows[g][name] = float(v)

@@ -18,10 +18,11 @@ independent unit, as in the scenario figures; ``scipy.stats.bootstrap`` resample
 clusters, hence the numpy draw). Rows where a measure is not finite (an infinite diameter, a chain that never mixes) are left out of that
 measure's correlation. A constant input has no ranking: its correlation is NaN.
 
-Beside the sweep's three measures, :func:`extra_measures` computes the two measures of Table 1 that the paper could
-not (:func:`hardness.mixing_time` of the optimal policy's lazy chain, continuous setting only, and
-:func:`hardness.distribution_mismatch` of the optimal policy against the uniformly random one) on the same MDPs,
-rebuilt from the sweep's settings (its JSON).
+Beside the sweep's three measures, :func:`extra_measures` computes on the same MDPs, rebuilt from the sweep's
+settings (its JSON), the two measures of Table 1 that the paper could not (:func:`hardness.mixing_time` of the optimal
+policy's lazy chain, and :func:`hardness.distribution_mismatch` of the optimal policy against the uniformly random
+one) and two from the regret bounds (:func:`hardness.bias_span`, :func:`hardness.gap_constant`); all but the mismatch
+are defined for continuous MDPs only (NaN in the episodic setting).
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from __future__ import annotations
 import ast
 import csv
 import dataclasses
+import functools
 import json
 import warnings
 from collections.abc import Mapping, Sequence
@@ -36,16 +38,18 @@ from pathlib import Path
 from typing import Any
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 from matplotlib.figure import Figure
 from scipy import stats
 
 from hardness.analysis import scenarios
+from hardness.bias_span import bias_span
+from hardness.gap_constant import gap_constant
 from hardness.mismatch import distribution_mismatch
 from hardness.mixing import mixing_time
 from jaxmdp import dynamic_programming as dp
 from jaxmdp._checks import check_int
+from jaxmdp.mdp import MDP
 
 __all__ = [
     "REGRET_COLUMN",
@@ -53,6 +57,7 @@ __all__ = [
     "Correlation",
     "read_sweep",
     "extra_measures",
+    "extra_of_batch",
     "correlations",
     "markdown_table",
     "evaluation_figure",
@@ -61,8 +66,10 @@ __all__ = [
 #: The regret the measures are compared with: the tuned agent's per-step normalised cumulative regret (App. E; the
 #: curve of the scenario figures before their min-max scaling).
 REGRET_COLUMN = "agent_normalized_cumulative_regret"
-#: Names of the measures :func:`extra_measures` adds.
-EXTRA_MEASURES = ("mixing_time", "distribution_mismatch")
+#: Names of the measures :func:`extra_measures` adds (:func:`extra_of_batch`).
+EXTRA_MEASURES = ("mixing_time", "distribution_mismatch", "bias_span", "gap_constant")
+#: Those of them defined for continuous MDPs only.
+CONTINUOUS_ONLY = ("mixing_time", "bias_span", "gap_constant")
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -189,26 +196,32 @@ def _spec_of(rows: Sequence[Mapping[str, Any]], config: Mapping[str, Any]) -> sc
 
 def extra_measures(rows: Sequence[Mapping[str, Any]], config: Mapping[str, Any]) -> dict[str, np.ndarray]:
     """:data:`EXTRA_MEASURES` of every row's MDP (rebuilt with :func:`hardness.analysis.scenarios.prepare` from the
-    sweep's settings), in the order of ``rows``: the mixing time (``eps = 1/4``) of the optimal policy's lazy chain
-    (NaN in the episodic setting, where it is not defined) and the distribution mismatch coefficient of the optimal
-    policy against the uniformly random policy."""
+    sweep's settings), in the order of ``rows`` (:func:`extra_of_batch`; NaN where not defined)."""
     spec = _spec_of(rows, config)
     grid = scenarios.prepare(spec)
     batch = scenarios.grid_mdps(grid)
-    mix, mismatch = _extra(batch)
+    out = extra_of_batch(batch, not spec.episodic)
     V = len(spec.values)
     pos = {(s, v): i * V + j for i, s in enumerate(grid.seeds) for j, v in enumerate(spec.values)}
     idx = np.asarray([pos[(int(r["seed"]), r["value"])] for r in rows])
-    return {"mixing_time": np.asarray(mix, np.float64)[idx], "distribution_mismatch": np.asarray(mismatch)[idx]}
+    return {name: np.asarray(out.get(name, np.full(len(pos), np.nan)), np.float64)[idx] for name in EXTRA_MEASURES}
 
 
-@jax.jit
-def _extra(batch):
+@functools.partial(jax.jit, static_argnames=("continuous",))
+def extra_of_batch(batch: MDP, continuous: bool) -> dict[str, jax.Array]:
+    """The measures of :data:`EXTRA_MEASURES` of every member of a stacked ``batch`` (one setting; ``continuous``
+    static), mapped with ``lax.map`` so that each member's solvers stop at its own convergence: the distribution
+    mismatch coefficient of the optimal policy against the uniformly random one (Table 1), and for continuous MDPs
+    the mixing time (``eps = 1/4``) of the optimal policy's lazy chain (Table 1), the span of the optimal bias
+    ``sp(h*)`` (Bartlett & Tewari 2009) and Burnetas & Katehakis's gap constant (docs/measures.md §7.3-7.4).
+    Returns ``{name: [M]}``, the continuous-only names absent for an episodic batch."""
+
     def one(m):
-        uniform = dp.uniform_policy(m)
-        dmc = distribution_mismatch(m, None, uniform).value
-        mix = jnp.nan if m.episodic else mixing_time(m, lazy=True).value
-        return mix, dmc
+        out = {"distribution_mismatch": distribution_mismatch(m, None, dp.uniform_policy(m)).value}
+        if continuous:
+            out.update(mixing_time=mixing_time(m, lazy=True).value, bias_span=bias_span(m).value,
+                       gap_constant=gap_constant(m).value)
+        return out
 
     return jax.lax.map(one, batch)
 
