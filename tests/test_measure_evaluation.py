@@ -179,3 +179,14 @@ def test_script_writes_table_csv_and_figure(tmp_path):
     assert (tmp_path / "out" / "measure_evaluation.png").stat().st_size > 10_000
     lines = (tmp_path / "out" / "measure_evaluation.csv").read_text().splitlines()
     assert len(lines) == 1 + len(scenarios.MEASURES) + len(me.EXTRA_MEASURES)
+
+
+def test_figure_wraps_the_scenarios_into_rows_of_at_most_columns_panels():
+    corr = [me.Correlation("diameter", 0.5, (0.2, 0.8), 0.4, (0.1, 0.7), 10),
+            me.Correlation("value_norm", math.nan, (math.nan, math.nan), math.nan, (math.nan, math.nan), 10)]
+    fig = me.evaluation_figure({f"{k}: RiverSwim": corr for k in range(1, 5)}, columns=3)
+    shown = [ax for ax in fig.axes if ax.get_visible()]
+    assert len(fig.axes) == 6 and [ax.get_title() for ax in shown] == [f"{k}: RiverSwim" for k in range(1, 5)]
+    assert {ax.get_subplotspec().rowspan.start for ax in shown} == {0, 1}
+    with pytest.raises(ValueError, match="columns"):
+        me.evaluation_figure({"1: RiverSwim": corr}, columns=0)

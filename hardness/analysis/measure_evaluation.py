@@ -250,12 +250,19 @@ def markdown_table(results: Mapping[str, Sequence[Correlation]]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def evaluation_figure(results: Mapping[str, Sequence[Correlation]], path: str | Path | None = None) -> Figure:
-    """Dot-and-interval chart: one panel per scenario, Spearman and Kendall of every measure with their 95%
-    intervals; written to ``path`` when given."""
+def evaluation_figure(
+    results: Mapping[str, Sequence[Correlation]], path: str | Path | None = None, columns: int = 3
+) -> Figure:
+    """Dot-and-interval chart: one panel per scenario (at most ``columns`` to a row), Spearman and Kendall of every
+    measure with their 95% intervals; written to ``path`` when given."""
     names = list(results)
-    fig = Figure(figsize=(4.2 * max(len(names), 1), 3.6), layout="constrained")
-    axes = np.atleast_1d(fig.subplots(1, max(len(names), 1), sharey=True))
+    columns = check_int("columns", columns)
+    n_cols = min(max(len(names), 1), columns)
+    n_rows = -(-max(len(names), 1) // n_cols)
+    fig = Figure(figsize=(4.2 * n_cols, 3.0 * n_rows + 0.6), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(n_rows, n_cols, sharey=True)).ravel()
+    for ax in axes[len(names):]:
+        ax.set_visible(False)
     for ax, name in zip(axes, names):
         corrs = list(results[name])
         ypos = np.arange(len(corrs))
