@@ -92,11 +92,11 @@ def _programs_call(name: str) -> None:
                 seconds[m.group(1)] = seconds.get(m.group(1), 0.0) + float(m.group(2))
 
     logging.getLogger("jax").addHandler(Log(logging.DEBUG))
-    jax.config.update("jax_log_compiles", True)
     agent = agents.get(name)
     mdp = jaxmdp.make("RiverSwim", episodic=agent.episodic, seed=0, size=5)
     grid = runner.product([mdp], [agent.default_hparams], seeds=[0, 1])
-    res = runner.run(agent, grid, 200, log_period=20, n_records=4)
+    with jax.log_compiles(True):
+        res = runner.run(agent, grid, 200, log_period=20, n_records=4)
     print(_RESULT + json.dumps({"agent": name, "compile_s": res.compile_s,
                                 **{k: seconds.get(k, 0.0) for k in ("constants", "init_carry", "chunk")}}),
           flush=True)

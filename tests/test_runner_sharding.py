@@ -1,7 +1,8 @@
-"""Members split over several host devices (shard_map) plan by their own shard's predicate.
+"""A planning agent's members split over several host devices (shard_map): each shard plans its members exactly
+when they ask (every member's plan count is its own period's), and the records equal one device's.
 
-That a member's records are the same on one device and on two is tests/test_properties_runner.py's property (on
-random MDPs). The device count of the CPU backend is fixed when JAX starts, so the check runs in a subprocess started
+That a Q-learning member's records are the same alone and in a batch on two devices is
+tests/test_properties_runner.py's property (on random MDPs). The device count of the CPU backend is fixed when JAX starts, so the check runs in a subprocess started
 with ``XLA_FLAGS=--xla_force_host_platform_device_count=2``.
 """
 
@@ -21,8 +22,8 @@ SCRIPT = textwrap.dedent(
 
     assert jax.local_device_count() == 2
     out = {}
-    # Planning predicates are per shard: members 0-1 and 2-3 plan at different periods, on different shards; the
-    # default shards are every device that divides the batch.
+    # Members 0-1 and 2-3 plan at different periods, on different shards (the default: every device that divides
+    # the batch).
     hps = [ScriptedHParams(plan_every=5), ScriptedHParams(plan_every=7)]
     g = runner.product([jaxmdp.make("RiverSwim", episodic=True, seed=0, size=5, randomize_actions=False)], hps,
                        seeds=[0, 1])

@@ -43,8 +43,8 @@ from jaxmdp import runner
 from jaxmdp.agent_interface import Agent
 from jaxmdp.mdp import MDP
 
-__all__ = ["Budget", "SearchResult", "check_tunable", "evaluate", "select", "search", "tuned_entry", "provenance", "write_tuned",
-           "start_tuned_file"]
+__all__ = ["Budget", "SearchResult", "check_tunable", "evaluate", "select", "search", "tuned_entry", "provenance",
+           "write_tuned", "start_tuned_file"]
 
 #: The reference's code-default budget for tabular agents (benchmark.md §7).
 REFERENCE_BUDGET = dict(n_steps=250_000, n_candidates=50, n_per_family=5, n_seeds=3)
