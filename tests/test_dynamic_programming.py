@@ -222,6 +222,33 @@ def test_optimal_gain_of_deterministic_river_swim():
     np.testing.assert_array_equal(jnp.argmax(res.policy, -1)[:4], [1, 1, 1, 1])
 
 
+def test_optimal_gain_stops_at_the_round_off_floor_with_the_policy_of_the_full_run():
+    # Two states that swap with probability 1e-3 (action 1 of state 1 with 2e-3), reward 1 in state 0: the bias gap
+    # is about 500, whose float32 spacing (6e-5) keeps the span of T h - h above tol (1e-6 (1 + rho)). Without the
+    # stall rule the iteration runs all max_iter sweeps; with it, it stops after `patience` sweeps without a smaller
+    # span, with the same policy, gain and bounds.
+    eps = 1e-3
+    T = np.zeros((2, 2, 2))
+    T[0, :] = [1 - eps, eps]
+    T[1, 0], T[1, 1] = [eps, 1 - eps], [2 * eps, 1 - 2 * eps]
+    mean = np.zeros((2, 2, 2))
+    mean[0] = 1.0
+    m = jaxmdp.custom_mdp(T, P0=np.array([0.5, 0.5]), reward_mean=mean)
+    full = dp.optimal_gain(m, max_iter=50_000, patience=50_000)
+    early = dp.optimal_gain(m, max_iter=50_000)
+    assert int(full.iterations) == 50_000 and not bool(full.converged)
+    assert int(early.iterations) < 10_000 and not bool(early.converged)
+    np.testing.assert_array_equal(early.policy, full.policy)
+    np.testing.assert_array_equal(early.policy, [[1.0, 0.0], [0.0, 1.0]])  # state 1 leaves faster
+    np.testing.assert_allclose(early.gain, 2.0 / 3.0, rtol=1e-6)  # stationary mass of state 0: 2 eps / (3 eps)
+    np.testing.assert_allclose([early.lower, early.upper], [full.lower, full.upper], atol=2e-5)
+    # A span that shrinks to tol stops as before: same sweeps, same numbers.
+    river = jaxmdp.make("RiverSwim", episodic=False, seed=0, size=5)
+    a, b = dp.optimal_gain(river), dp.optimal_gain(river, patience=200_000)
+    assert bool(a.converged) and int(a.iterations) == int(b.iterations)
+    np.testing.assert_array_equal(a.bias, b.bias)
+
+
 def test_dp_vmaps_over_mdps_and_policies(mdps):
     batch = jaxmdp.stack(mdps)
     Vb = jax.vmap(lambda m: dp.solve_discounted(m, GAMMA).V)(batch.strip())
