@@ -12,7 +12,15 @@ _xla_cpu.disable_ynn_fusion()
 
 from jaxmdp import dynamic_programming  # noqa: E402
 from jaxmdp._memory import NotEnoughMemory
-from jaxmdp.blockmdp import EMISSION_KINDS, NOISE_KINDS, BlockMDP, block_mdp, emission_table, observe
+from jaxmdp.blockmdp import (
+    EMISSION_KINDS,
+    NOISE_KINDS,
+    BlockMDP,
+    block_mdp,
+    emission_table,
+    observe,
+    pad_observations,
+)
 from jaxmdp.batching import pad, permute_states, size_buckets, stack, state_permutation, unstack
 from jaxmdp.communication import CommunicationClass, communication_class
 from jaxmdp.env import EnvState, reset, sample_action, step
@@ -58,6 +66,7 @@ __all__ = [
     "PointMass",
     "BlockMDP",
     "block_mdp",
+    "pad_observations",
     "emission_table",
     "observe",
     "EMISSION_KINDS",

@@ -21,7 +21,7 @@ import pytest
 
 import jaxmdp
 from conftest import REPO
-from hardness.benchmark import claims, published, report, run, sets
+from hardness.benchmark import claims, plans, published, report, run, sets
 from jaxmdp import runner
 
 TINY = dict(sets=("episodic quick test",), agents=("q_learning_episodic", "random_episodic"), seeds=(0, 1),
@@ -401,6 +401,31 @@ def test_deep_agents_run_on_the_state_info_block_mdps(full_run, tmp_path):
     again = run.run_benchmark(run.RunConfig(**{**DEEP, "emission": "state_info"}), tmp_path, progress=False,
                               report=False)
     assert again.ran == [] and len(again.reused) == 2
+
+
+def test_an_emission_run_pads_each_bucket_s_observations_into_one_batch():
+    # The episodic quick set through state_info: observation widths 2 (RiverSwim) to 7 (Taxi). The deep agents run on
+    # DEEP_BUCKETS' two buckets, each one batch, its members' observations zero-padded to the bucket's widest.
+    config = run.RunConfig(sets=("episodic quick test",), agents=("dqn_episodic",), seeds=(0,), n_steps=100,
+                           emission="state_info")
+    settings, batches = run.plan(config)
+    assert settings["observations"] == "padded" and config.buckets("dqn_episodic") == run.DEEP_BUCKETS[
+        "dqn_episodic"] == 2
+    assert [b.id for b in batches] == ["episodic_quick_test.dqn_episodic.b0", "episodic_quick_test.dqn_episodic.b1"]
+    first = batches[0]
+    grid = run.batch_grid(first, config)
+    by_label = {i.label: i for i in sets.instances(first.set_name)}
+    own = [run.to_block_mdp(by_label[label].build(seed), "state_info", seed) for label, seed in first.members]
+    assert grid.mdps.obs_shape == (7,) and {b.obs_shape for b in own} == {(2,), (3,), (7,)}
+    for i, block in enumerate(own):
+        width = block.obs_shape[0]
+        np.testing.assert_array_equal(grid.mdps.obs_mask[i], np.arange(7) < width)
+        np.testing.assert_array_equal(grid.mdps.emissions[i, : block.H, : block.n_states, :width], block.emissions)
+        np.testing.assert_array_equal(grid.mdps.emissions[i, ..., width:], 0.0)
+    # A folder of an emission run from before the padding (no "observations" setting) holds another protocol.
+    old = {k: v for k, v in settings.items() if k != "observations"}
+    with pytest.raises(ValueError, match="another protocol .*observations: None there, 'padded' here"):
+        plans.merge_settings(old, settings)
 
 
 def test_emission_names_and_keys():

@@ -42,7 +42,7 @@ from agents.deep.common import (
     observation_shape,
     observation_table,
 )
-from agents.deep.networks import MLP
+from agents.deep.networks import MLP, mask_input_layer
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
 
 __all__ = [
@@ -112,7 +112,8 @@ def initial_state(
     shape), Adam state, an empty buffer, the emission table; ``extra`` fields as given."""
     table = observation_table(spec, name, episodic)
     obs_shape = observation_shape(table, episodic)
-    params = init_params(key, jnp.zeros(obs_shape, table.dtype))
+    params = mask_input_layer(init_params(key, jnp.zeros(obs_shape, table.dtype)), spec.observation_mask,
+                              ("params", "MLP_0", "Dense_0"))
     length = pg.buffer_length(hparams.max_sequence_length, spec, episodic)
     hparams = cast_hparams(hparams)
     return cls(

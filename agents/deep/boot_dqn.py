@@ -67,8 +67,9 @@ from agents.deep.common import (
     observation_table,
     on_table,
 )
-from agents.deep.networks import ensemble_apply
+from agents.deep.networks import ensemble_apply, mask_input_layer
 from agents.deep.dqn import (
+    INPUT_LAYER,
     QHParams,
     QState,
     ReplayItem,
@@ -170,6 +171,7 @@ def init(key: jax.Array, spec: MDPSpec, hparams: BootDQNHParams) -> BootDQNState
     k_params, k_prior, k_head, k_draws = jax.random.split(key, 4)
     params = jax.vmap(lambda k: net.init(k, obs))(jax.random.split(k_params, K))
     prior = jax.vmap(lambda k: net.init(k, obs))(jax.random.split(k_prior, K))
+    params, prior = (mask_input_layer(p, spec.observation_mask, INPUT_LAYER) for p in (params, prior))
     item = empty_item(table, episodic)
     zeros = jnp.zeros((K, spec.n_actions))
     item = BootReplayItem(**vars(item), mask=jnp.zeros((K,)), noise=jnp.zeros((K,)), prior_q=zeros, next_prior_q=zeros)

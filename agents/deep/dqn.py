@@ -58,7 +58,7 @@ from agents.deep.common import (
     on_table,
     optimizer_step,
 )
-from agents.deep.networks import MLP
+from agents.deep.networks import MLP, mask_input_layer
 from jaxmdp._checks import check_int, check_range
 from jaxmdp import dynamic_programming as dp
 from jaxmdp.experiment.agent_interface import Agent, MDPSpec, Transition
@@ -127,6 +127,10 @@ class QState(struct.PyTreeNode):
 
 class DQNState(QState):
     """DQN's state (:class:`QState` with :class:`DQNHParams`)."""
+
+
+#: Where the Q-network's input layer sits in its parameters (:func:`agents.deep.networks.mask_input_layer`).
+INPUT_LAYER = ("params", "Dense_0")
 
 
 def q_network(hparams: Any, n_actions: int) -> MLP:
@@ -213,6 +217,7 @@ def init(key: jax.Array, spec: MDPSpec, hparams: DQNHParams) -> DQNState:
     episodic = spec.episodic
     net = q_network(hparams, spec.n_actions)
     params = net.init(key, jnp.zeros(observation_shape(table, episodic), table.dtype))
+    params = mask_input_layer(params, spec.observation_mask, INPUT_LAYER)
     buffer = replay.make(hparams.replay_capacity, hparams.batch_size)
     hparams = cast_hparams(hparams)
     return DQNState(

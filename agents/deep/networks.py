@@ -13,7 +13,7 @@ import jax.numpy as jnp
 
 from jaxmdp.jaxlib_workarounds.linalg import one_at_a_time
 
-__all__ = ["MLP", "ensemble_apply", "orthogonal"]
+__all__ = ["MLP", "ensemble_apply", "mask_input_layer", "orthogonal"]
 
 
 class MLP(nn.Module):
@@ -60,6 +60,31 @@ def ensemble_apply(params: Any, x: jax.Array) -> jax.Array:
     for name in names[1:]:
         h = jnp.einsum("kbi,kio->kbo", nn.relu(h), layers[name]["kernel"]) + layers[name]["bias"][:, None, :]
     return h
+
+
+def mask_input_layer(params: Any, mask: jax.Array | None, path: Sequence[str]) -> Any:
+    """``params`` with the input layer at ``path`` (its ``kernel``, ``[..., d, width]`` with any leading head axes)
+    initialised as for the observation's unpadded components: ``kernel * m[:, None] * sqrt(d / sum(m))`` for the
+    flattened 0/1 ``mask`` ``m`` of :attr:`jaxmdp.BlockMDP.obs_mask` (``None``: ``params`` unchanged).
+
+    Why this is exact: flax's default ``lecun_normal`` kernel is ``sqrt(1 / fan_in) / c`` times a standard normal
+    truncated to ``[-2, 2]``, each entry independent, so the kept rows of a draw at fan-in ``d``, scaled by
+    ``sqrt(d / n)``, are distributed as a draw at the true fan-in ``n``. The padded rows are zeroed; they meet only
+    zero inputs, so they get no gradient (Adam moves nothing without one) and the network computes, and learns, what
+    it would on the unpadded observations (a padded member's initialisation has the unpadded one's distribution; from
+    the same parameters the same updates, up to rounding).
+    """
+    if mask is None:
+        return params
+    m = jnp.reshape(mask, (-1,)).astype(jnp.float32)
+    scale = m * jnp.sqrt(m.shape[0] / jnp.maximum(jnp.sum(m), 1.0))
+
+    def rescale(node: Any, keys: Sequence[str]) -> Any:
+        if not keys:
+            return {**node, "kernel": node["kernel"] * scale[:, None].astype(node["kernel"].dtype)}
+        return {**node, keys[0]: rescale(node[keys[0]], keys[1:])}
+
+    return rescale(params, tuple(path))
 
 
 def orthogonal(scale: float = 1.0, column_axis: int = -1) -> Callable[..., jax.Array]:

@@ -40,7 +40,7 @@ __all__ = ["PROTOCOL", "load", "save", "merge_settings", "merge", "commit", "com
 
 #: Settings that every call on one folder shares (``plan.json`` ``settings`` keys).
 PROTOCOL = ("seeds", "n_steps", "hparams_source", "agent_variant", "n_buckets", "max_members", "n_records",
-            "emission", "variant", "only", "stop_when_converged")
+            "emission", "observations", "variant", "only", "stop_when_converged")
 
 Plan = dict[str, Any]
 

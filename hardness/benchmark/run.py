@@ -7,7 +7,8 @@ completes its ``n_steps`` and the time it took is recorded (the reference stops 
 clock).
 
 Batches: the MDPs of a set are split into size buckets (:func:`jaxmdp.size_buckets` on each MDP's seed-0 instance, all
-seeds of an MDP in its bucket; ``n_buckets`` of them, more for the agents named in :data:`PLANNING_BUCKETS`), and
+seeds of an MDP in its bucket; ``n_buckets`` of them, another count for the agents named in
+:data:`PLANNING_BUCKETS` and :data:`DEEP_BUCKETS`), and
 one batch is one agent on one bucket, at most ``max_members`` members (the
 buckets' members split in order otherwise): one lockstep runner call (:func:`jaxmdp.runner.run`) in which no member
 pays for a larger bucket's padding. Identical instances (seed-independent families) are stored once per batch. A
@@ -17,9 +18,11 @@ given), each half padded like the whole batch so that its members' results are t
 
 Deep agents (paper §3.1, App. G): with ``emission`` every MDP is wrapped as a noiseless BlockMDP
 (:func:`to_block_mdp`; the non-tabular benchmark's choice is ``StateInfo``), the default agents are the deep agents
-of each set's type and the random agent (the baseline), and a bucket whose MDPs emit observations of different shapes
-(``state_info`` of RiverSwim has one field, of DeepSea two) is split into one batch per shape. The linear emissions'
-random features come from :func:`emission_key` of the member's seed.
+of each set's type and the random agent (the baseline). A batch whose MDPs emit observations of different shapes
+(``state_info`` of RiverSwim has one field, of DeepSea two) runs them zero-padded to one shape
+(:func:`jaxmdp.pad_observations`; the deep agents initialise their input layers for the unpadded observations), so a
+bucket is one batch and one compiled program per agent; only observations of different ranks go to separate batches.
+The linear emissions' random features come from :func:`emission_key` of the member's seed.
 
 Output folder:
 
@@ -79,8 +82,8 @@ from hardness.benchmark.emissions import (  # noqa: F401 (re-exported: the run's
 from hardness.benchmark.plans import Batch
 from hardness.benchmark.tables import BATCH_FIELDS, MEMBER_FIELDS, _finished, _write_atomic, write_tables  # noqa: F401
 
-__all__ = ["MEMBER_FIELDS", "BATCH_FIELDS", "QUICK", "PLANNING_BUCKETS", "RunConfig", "Batch", "RunSummary",
-           "default_agents", "quick_config", "plan", "batch_grid", "run_benchmark"]
+__all__ = ["MEMBER_FIELDS", "BATCH_FIELDS", "QUICK", "PLANNING_BUCKETS", "DEEP_BUCKETS", "RunConfig", "Batch",
+           "RunSummary", "default_agents", "quick_config", "plan", "batch_grid", "padded_blocks", "run_benchmark"]
 
 #: The reference's quick-test protocol (benchmark.md §2: 2 seeds, indicators every 1000 / 500 steps); the steps are
 #: fewer than its 50 000 so that ``--quick`` takes minutes on a CPU, and PSRL continuous is left out: its optimistic
@@ -102,6 +105,13 @@ QUICK = dict(sets=sets.QUICK_SETS, seeds=(0, 1), n_steps=1_000, n_buckets=1, age
 #: Benchmark wall time.
 PLANNING_BUCKETS: Mapping[str, int] = {"psrl_episodic": 8}
 
+#: Size buckets per set for the deep agents: two programs per agent and setting. A member padded to its bucket's
+#: states pays for them at every log (the greedy policy of the network on every state, its exact regret), so one
+#: bucket for the whole set makes the running 1.5-2x slower than two, and four buckets are faster still but compile
+#: more (docs/performance.md, Deep agents).
+DEEP_BUCKETS: Mapping[str, int] = {
+    n: 2 for n in agent_registry.names(observations=("emission",)) if n in agent_registry.SHIPPED}
+
 
 @dataclasses.dataclass(frozen=True)
 class RunConfig:
@@ -116,7 +126,8 @@ class RunConfig:
       n_buckets: size buckets per set; max_members: members per runner call (``None``: a whole bucket, halved
         until its programs fit in memory, :func:`split_batch`).
       agent_buckets: size buckets per set for the agents it names, instead of ``n_buckets`` (default
-        :data:`PLANNING_BUCKETS`). A member's results depend on its bucket (its padding shapes the random draws).
+        :data:`PLANNING_BUCKETS` and :data:`DEEP_BUCKETS`). A member's results depend on its bucket (its padding
+        shapes the random draws).
       memory_limit: bytes a runner call's programs may use (``None``: what the machine has available); not part of
         the results, so not of the plan's settings.
       n_records: records per member in the per-record CSVs and curves.
@@ -145,7 +156,8 @@ class RunConfig:
     log_periods: Mapping[str, int] = dataclasses.field(default_factory=dict)
     hparams: str = "tuned"
     n_buckets: int = 4
-    agent_buckets: Mapping[str, int] = dataclasses.field(default_factory=lambda: dict(PLANNING_BUCKETS))
+    agent_buckets: Mapping[str, int] = dataclasses.field(
+        default_factory=lambda: {**PLANNING_BUCKETS, **DEEP_BUCKETS})
     max_members: int | None = None
     n_records: int = 100
     emission: str | None = None
@@ -259,6 +271,8 @@ def _settings(config: RunConfig, names: Sequence[str]) -> dict[str, Any]:
         n_buckets=int(config.n_buckets), max_members=config.max_members, n_records=int(config.n_records),
         agent_buckets={a: config.buckets(a) for a in all_agents if config.buckets(a) != config.n_buckets},
         emission=None if config.emission is None else canonical_emission(config.emission),
+        # Named only with an emission: a folder of an emission run from before the padding refuses this protocol.
+        **({} if config.emission is None else {"observations": "padded"}),
         variant=config.indicator_variant,
         only=list(config.only) if config.only else None, **stop,
     )
@@ -308,7 +322,7 @@ def _set_batches(config: RunConfig, settings: dict, set_name: str, agents: Seque
     for n_buckets in sorted({config.buckets(a) for a in agents}):
         groups = [(f"b{b}", sorted(g)) for b, g in enumerate(jaxmdp.size_buckets(sizes, n_buckets))]
         if settings["emission"] is not None:
-            groups = _split_by_observation(groups, sizes, settings["emission"], config.seeds[0])
+            groups = _split_by_rank(groups, sizes, settings["emission"], config.seeds[0])
         grouped[n_buckets] = groups
     out: dict[str, list[Batch]] = {}
     for agent in agents:
@@ -326,7 +340,7 @@ def _set_batches(config: RunConfig, settings: dict, set_name: str, agents: Seque
 
 def _batch_key(settings: dict, set_name: str, agent: str, members: Sequence, whole: Sequence | None = None) -> str:
     """Hash of everything a batch's results depend on (a part's key includes the batch it was split from)."""
-    key = {k: settings[k] for k in ("n_steps", "n_records", "emission", "variant", "agent_variant",
+    key = {k: settings[k] for k in ("n_steps", "n_records", "emission", "observations", "variant", "agent_variant",
                                     "stop_when_converged") if k in settings}
     key.update(set=set_name, agent=agent, members=[list(m) for m in members],
                log_period=settings["log_periods"][set_name], hparams=settings["hparams"][agent])
@@ -340,7 +354,8 @@ def split_batch(batch: Batch, settings: dict) -> list[Batch]:
     programs do not fit in memory. Each half remembers the batch it came from (:attr:`Batch.whole`, the original one
     after repeated splits) and is padded and sized like it (MDP shapes, PSRL's candidate buffer), so every member
     computes what it would have computed in the whole batch: the results do not depend on the machine's memory.
-    (With an emission the halves are padded to their own members: an observation's shape follows the padding.)"""
+    (With an emission the halves' MDPs are padded to their own members and their observations to the whole batch's
+    shape.)"""
     if len(batch.members) < 2:
         raise ValueError(f"batch {batch.id} has a single member and cannot be split")
     half = -(-len(batch.members) // 2)
@@ -352,18 +367,19 @@ def split_batch(batch: Batch, settings: dict) -> list[Batch]:
     ]
 
 
-def _split_by_observation(
+def _split_by_rank(
     groups: list[tuple[str, list[int]]], mdps: Sequence[MDP], emission: str, seed: int
 ) -> list[tuple[str, list[int]]]:
-    """Split every size bucket into groups of one observation shape (BlockMDPs of different shapes cannot share a
-    runner call; noiseless one-hot members can, padded), named ``b<k>.o<j>`` when a bucket splits."""
+    """Split every size bucket into groups whose observations have one rank (observations of one rank are padded to
+    one shape, :func:`batch_grid`; of different ranks they cannot share a runner call), named ``b<k>.o<j>`` when a
+    bucket splits."""
     if emission == "one_hot":
         return groups
     out = []
     for gid, group in groups:
-        shapes: dict[tuple[int, ...], list[int]] = {}
+        shapes: dict[int, list[int]] = {}
         for i in group:
-            shapes.setdefault(to_block_mdp(mdps[i], emission, seed).obs_shape, []).append(i)
+            shapes.setdefault(len(to_block_mdp(mdps[i], emission, seed).obs_shape), []).append(i)
         parts = list(shapes.values())
         out += [(gid if len(parts) == 1 else f"{gid}.o{j}", part) for j, part in enumerate(parts)]
     return out
@@ -406,7 +422,7 @@ def batch_grid(batch: Batch, config: RunConfig) -> runner.Grid:
     distinct, labels, mdp_index, emission_seeds = _distinct(batch.members, batch.set_name, emission)
     like = distinct
     if batch.whole is not None:
-        like = _distinct(batch.whole, batch.set_name, emission)[0]
+        like, _, _, like_seeds = _distinct(batch.whole, batch.set_name, emission)
         if emission is None:
             S, A, K = (max(getattr(m, f) for m in like) for f in ("n_states", "n_actions", "max_successors"))
             H = max(m.H for m in like) if like[0].episodic else None
@@ -415,10 +431,25 @@ def batch_grid(batch: Batch, config: RunConfig) -> runner.Grid:
     fitted = hp_sources.fit_static_sizes(batch.agent, [hp], like)[0]
     seeds = [s for _, s in batch.members]
     hparams = runner.stack_hparams([fitted] * len(seeds))
-    mdps = distinct if emission is None else [to_block_mdp(m, emission, s) for m, s in zip(distinct, emission_seeds)]
+    mdps = distinct if emission is None else padded_blocks(
+        [to_block_mdp(m, emission, s) for m, s in zip(distinct, emission_seeds)],
+        None if batch.whole is None else [to_block_mdp(m, emission, s) for m, s in zip(like, like_seeds)],
+    )
     g = runner.grid(mdps, hparams, runner.seed_keys(seeds), mdp_index=mdp_index,
                     hparams_index=[0] * len(seeds), seeds=seeds)
     return dataclasses.replace(g, mdp_labels=tuple(labels))
+
+
+def padded_blocks(blocks: Sequence[jaxmdp.BlockMDP], like: Sequence[jaxmdp.BlockMDP] | None = None
+                  ) -> list[jaxmdp.BlockMDP]:
+    """``blocks`` with their observations zero-padded (:func:`jaxmdp.pad_observations`) to the largest shape of
+    ``like`` (default ``blocks``) on every axis, so that they stack into one batch; noiseless one-hot blocks as they
+    are (:func:`jaxmdp.stack` pads them with their states)."""
+    like = blocks if like is None else like
+    if blocks[0].emission_kind == "one_hot" or len({b.obs_shape for b in like}) == 1:
+        return list(blocks)
+    shape = tuple(int(n) for n in np.max([b.obs_shape for b in like], axis=0))
+    return [jaxmdp.pad_observations(b, shape) for b in blocks]
 
 
 def _finals(batch: Batch, result: runner.RunResult) -> list[dict[str, Any]]:

@@ -116,8 +116,9 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="the reference's convergence stop: a run whose normalised regret stayed near 0 for ten logs "
                         "past a fifth of its steps stops learning (docs/measures.md; off: learn to the end)")
     p.add_argument("--buckets", type=int, default=None,
-                   help="size buckets per set for every agent (default 4, and 8 for episodic PSRL, whose posterior "
-                        "draws pay for the padding at every episode; --quick 1)")
+                   help="size buckets per set for every agent (default 4, 8 for episodic PSRL, whose posterior "
+                        "draws pay for the padding at every episode, and 2 for the deep agents, one program each; "
+                        "--quick 1)")
     p.add_argument("--max-members", type=int, default=None,
                    help="members per runner call (default: a bucket, halved until it fits in memory)")
     p.add_argument("--memory-limit", type=float, default=None, metavar="GIB",

@@ -18,6 +18,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxmdp import struct
 from jaxmdp.blockmdp.emission_maps import check_emission_kind, emission_table
@@ -30,7 +31,7 @@ from jaxmdp.blockmdp.noise import (
 )
 from jaxmdp.mdp import MDP
 
-__all__ = ["BlockMDP", "block_mdp", "observe", "noise_key"]
+__all__ = ["BlockMDP", "block_mdp", "observe", "noise_key", "pad_observations"]
 
 # fold_in constants: the noise stream of a step's key and the Wishart stream of block_mdp's key.
 _NOISE_STREAM = 0x6E6F6973
@@ -51,6 +52,9 @@ class BlockMDP:
       emission_kind: static, the emission map's name.
       noise_kind: static, the noise's name or ``None``.
       obs_shape: static, the shape of one observation.
+      obs_mask: ``None``, or (after :func:`pad_observations`) a 0/1 array of ``obs_shape`` (batch axes first) that is
+        1 on the components the emission map fills and 0 on the padding, which is 0 in every observation: a learner
+        may read it to initialise its input layer as for the unpadded observation.
     """
 
     mdp: MDP
@@ -61,6 +65,7 @@ class BlockMDP:
     emission_kind: str = struct.field(pytree_node=False, default="state_info")
     noise_kind: str | None = struct.field(pytree_node=False, default=None)
     obs_shape: tuple[int, ...] = struct.field(pytree_node=False, default=())
+    obs_mask: jax.Array | None = None
 
     @property
     def episodic(self) -> bool:
@@ -152,6 +157,41 @@ def block_mdp(
     )
 
 
+def pad_observations(block: BlockMDP, obs_shape: tuple[int, ...]) -> BlockMDP:
+    """``block`` observed through ``obs_shape``: every observation zero-padded at the end of each axis, with
+    :attr:`BlockMDP.obs_mask` marking the original components (paper App. A.2's emission maps are unchanged on them).
+
+    What it is for: BlockMDPs whose emission maps give observations of different shapes (``state_info`` of RiverSwim
+    has one field, of DeepSea two) then stack into one batch, and run as one compiled program. The padding carries no
+    information (it is 0 in every observation, noise included) and a deep agent of :mod:`agents.deep` rescales its
+    input layer by the mask at ``init`` (:func:`agents.deep.networks.mask_input_layer`), so that its initialisation,
+    and with it its learning, has the distribution it has on the unpadded observations.
+
+    Raises ``ValueError`` for a batched BlockMDP, an ``obs_shape`` of another rank or smaller on some axis, and a
+    correlated noise (its covariance is drawn at the original dimension).
+    """
+    obs_shape = tuple(int(n) for n in obs_shape)
+    lead = 2 if block.episodic else 1
+    if block.emissions.ndim != len(block.obs_shape) + lead:
+        raise ValueError("pad_observations expects an unbatched BlockMDP; pad each member before jaxmdp.stack")
+    if len(obs_shape) != len(block.obs_shape) or any(n < m for n, m in zip(obs_shape, block.obs_shape)):
+        raise ValueError(f"obs_shape must have the observation's rank ({len(block.obs_shape)}) and be at least "
+                         f"{block.obs_shape} on every axis; got {obs_shape}")
+    if block.noise_kind in CORRELATED_NOISE_KINDS:
+        raise ValueError(f"pad_observations: noise {block.noise_kind!r} is drawn with a covariance of the original "
+                         f"dimension {block.obs_dim}; pad a BlockMDP without noise or with an uncorrelated one")
+    if obs_shape == block.obs_shape:
+        return block
+    widths = [(0, 0)] * lead + [(0, n - m) for n, m in zip(obs_shape, block.obs_shape)]
+    mask = np.ones(block.obs_shape, block.dtype) if block.obs_mask is None else np.asarray(block.obs_mask)
+    # Padded on the host: jnp.pad would compile a small program per shape.
+    return block.replace(
+        emissions=jax.device_put(np.pad(np.asarray(block.emissions), widths)),
+        obs_mask=jax.device_put(np.pad(mask, widths[lead:])),
+        obs_shape=obs_shape,
+    )
+
+
 def noise_key(key: jax.Array) -> jax.Array:
     """The key of the emission noise drawn by :func:`jaxmdp.reset` / :func:`jaxmdp.step` called with ``key``."""
     return jax.random.fold_in(key, _NOISE_STREAM)
@@ -174,9 +214,10 @@ def observe(key: jax.Array | None, block: BlockMDP, state: jax.Array, h: jax.Arr
     if block.noise_kind is not None:
         if key is None:
             raise ValueError(f"observe needs a key to draw the {block.noise_kind!r} noise")
-        row = row + sample_noise(
+        noise = sample_noise(
             key, block.noise_kind, block.obs_shape, block.noise_scale, block.noise_df, block.noise_chol, row.dtype
         )
+        row = row + (noise if block.obs_mask is None else noise * block.obs_mask.astype(row.dtype))
     if block.episodic:
         row = jnp.where(h < block.mdp.horizon, row, jnp.zeros_like(row))
     return row

@@ -4,7 +4,9 @@ The MDPs are padded and stacked as :mod:`jaxmdp.batching` does; each emission ta
 padded states (and, episodic, for the steps past the member's horizon, which an episode never reaches) and stacked;
 the noise parameters are stacked as they are. The members must share the emission kind, the noise kind and the
 observation shape, except that noiseless ``one_hot`` members of different sizes are padded to the largest ``S`` (the
-one-hot vector of a state gains trailing zeros, which carry no information).
+one-hot vector of a state gains trailing zeros, which carry no information, marked by ``obs_mask`` as
+:func:`~jaxmdp.blockmdp.block_mdp.pad_observations` marks its padding; members of other emissions and shapes stack
+after that function has padded them to one shape).
 """
 
 from __future__ import annotations
@@ -41,7 +43,8 @@ def check_stackable(items: Sequence[object]) -> list[BlockMDP]:
         raise ValueError("stack expects unbatched BlockMDPs")
     shapes = {b.obs_shape for b in items}
     if len(shapes) > 1 and not _pads_one_hot(items):
-        raise ValueError(f"cannot stack BlockMDPs with different observation shapes: {sorted(shapes)}")
+        raise ValueError(f"cannot stack BlockMDPs with different observation shapes: {sorted(shapes)}; pad them to "
+                         "one shape first (jaxmdp.pad_observations)")
     return items
 
 
@@ -71,6 +74,14 @@ def stack_blocks(blocks: Sequence[BlockMDP], stacked: MDP) -> BlockMDP:
         values = [getattr(b, name) for b in blocks]
         return None if values[0] is None else jnp.asarray(np.stack([np.asarray(v) for v in values]))
 
+    def mask(b: BlockMDP) -> np.ndarray:
+        out = np.zeros(obs_shape, stacked.dtype)
+        own = np.ones(b.obs_shape, stacked.dtype) if b.obs_mask is None else np.asarray(b.obs_mask)
+        out[tuple(slice(0, n) for n in own.shape)] = own
+        return out
+
+    padded = any(b.obs_mask is not None or b.obs_shape != obs_shape for b in blocks)
+
     return BlockMDP(
         mdp=stacked,
         emissions=jnp.asarray(np.stack(tables)),
@@ -80,6 +91,7 @@ def stack_blocks(blocks: Sequence[BlockMDP], stacked: MDP) -> BlockMDP:
         emission_kind=blocks[0].emission_kind,
         noise_kind=blocks[0].noise_kind,
         obs_shape=obs_shape,
+        obs_mask=jnp.asarray(np.stack([mask(b) for b in blocks])) if padded else None,
     )
 
 
@@ -92,8 +104,10 @@ def unstack_blocks(batch: BlockMDP, members: Sequence[MDP]) -> list[BlockMDP]:
         table = batch.emissions[i, : m.H] if m.episodic else batch.emissions[i]
         table = table[:, :S] if m.episodic else table[:S]
         obs_shape = batch.obs_shape
+        obs_mask = None if batch.obs_mask is None else batch.obs_mask[i]
         if one_hot and batch.noise_kind is None:
             table, obs_shape = table[..., :S], (S,)
+            obs_mask = None if obs_mask is None or bool(np.all(np.asarray(obs_mask)[:S])) else obs_mask[:S]
         out.append(
             BlockMDP(
                 mdp=m,
@@ -104,6 +118,7 @@ def unstack_blocks(batch: BlockMDP, members: Sequence[MDP]) -> list[BlockMDP]:
                 emission_kind=batch.emission_kind,
                 noise_kind=batch.noise_kind,
                 obs_shape=obs_shape,
+                obs_mask=obs_mask,
             )
         )
     return out

@@ -88,6 +88,9 @@ class MDPSpec(struct.PyTreeNode):
     n_steps: jax.Array
     #: The emission table of a BlockMDP (``[S, *obs]`` or ``[H, S, *obs]``); ``None`` for a plain MDP.
     observations: jax.Array | None = None
+    #: ``None``, or a 0/1 array of one observation's shape (traced) marking the components the emission map fills;
+    #: 0 marks padding, which is 0 in every observation (:func:`jaxmdp.pad_observations`).
+    observation_mask: jax.Array | None = None
     #: Floating dtype of the MDP (static): tabular agents keep their tables in it.
     dtype: Any = struct.field(pytree_node=False, default=np.dtype("float32"))
     #: Length ``K`` of the MDP's successor lists (static): no pair has more than ``K`` next states of positive
@@ -115,6 +118,7 @@ def spec_of(
     if (state_order is None) != (bandwidth is None):
         raise ValueError("state_order and bandwidth go together: give both (jaxmdp.gth.band_order) or neither")
     observations = getattr(mdp, "emissions", None)
+    observation_mask = getattr(mdp, "obs_mask", None)
     mdp = getattr(mdp, "mdp", mdp)
     return MDPSpec(
         n_states=mdp.n_states,
@@ -125,6 +129,7 @@ def spec_of(
         action_mask=mdp.action_mask,
         n_steps=jnp.broadcast_to(jnp.asarray(n_steps, jnp.int32), mdp.horizon.shape),
         observations=observations,
+        observation_mask=observation_mask,
         dtype=np.dtype(mdp.dtype),
         max_successors=mdp.max_successors,
         state_order=state_order,
