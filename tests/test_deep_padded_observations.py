@@ -55,13 +55,21 @@ def input_kernel(params, name: str, np=np) -> np.ndarray:
     return np.asarray(node["kernel"])
 
 
-def kernels(name: str, block: jaxmdp.BlockMDP, n_keys: int, *, drop_mask: bool = False) -> np.ndarray:
-    """The input-layer kernels of ``n_keys`` initialisations on ``block``, ``[n_keys, (heads,) d, width]``."""
+@functools.cache
+def initialise(name: str):
+    """``init(keys, spec)``: the jitted, vmapped ``init`` of ``name`` (the spec an argument: one compilation per
+    observation shape)."""
     agent, hp = agent_and_hparams(name)
+    return jax.jit(jax.vmap(lambda k, spec: agent.init(k, spec, hp), in_axes=(0, None)))
+
+
+def kernels(name: str, block: jaxmdp.BlockMDP, n_keys: int, *, rescale: bool = True) -> np.ndarray:
+    """The input-layer kernels of ``n_keys`` initialisations on ``block``, ``[n_keys, (heads,) d, width]``; with
+    ``rescale=False``, the padded block's mask replaced by ones (the initialisation of an agent that ignores it)."""
     spec = spec_of(block, 100)
-    if drop_mask:
-        spec = spec.replace(observation_mask=None)
-    states = jax.jit(jax.vmap(lambda k: agent.init(k, spec, hp)))(jax.random.split(jax.random.key(11), n_keys))
+    if not rescale:
+        spec = spec.replace(observation_mask=jnp.ones_like(spec.observation_mask))
+    states = initialise(name)(jax.random.split(jax.random.key(11), n_keys), spec)
     return input_kernel(states.params, name)
 
 
@@ -78,7 +86,7 @@ def test_input_layer_initialisation_has_the_unpadded_distribution(name):
     # Kolmogorov-Smirnov, two independent samples of iid entries (other keys): a false failure has probability 1e-6.
     assert stats.ks_2samp(kept, want).pvalue > 1e-6
     # The test's power: without the mask's rescaling the kept rows have a quarter of the variance, and it sees that.
-    unscaled = kernels(name, padded, n_keys, drop_mask=True)[..., :WIDTH, :].reshape(-1)
+    unscaled = kernels(name, padded, n_keys, rescale=False)[..., :WIDTH, :].reshape(-1)
     assert stats.ks_2samp(unscaled, want).pvalue < 1e-20
 
 
