@@ -106,9 +106,9 @@ QUICK = dict(sets=sets.QUICK_SETS, seeds=(0, 1), n_steps=1_000, n_buckets=1, age
 PLANNING_BUCKETS: Mapping[str, int] = {"psrl_episodic": 8}
 
 #: Size buckets per set for the deep agents: two programs per agent and setting. A member padded to its bucket's
-#: states pays for them at every log (the greedy policy of the network on every state, its exact regret), so one
-#: bucket for the whole set makes the running 1.5-2x slower than two, and four buckets are faster still but compile
-#: more (docs/performance.md, Deep agents).
+#: states pays for them at every log (the greedy policy of the network on every state, its exact regret), and every
+#: batch pays its own compiling and lockstep loop: on the continuous ergodic set one bucket runs DQN 2x slower than
+#: two, four run 1.1x slower and compile 1.6x longer (docs/performance.md, Deep agents).
 DEEP_BUCKETS: Mapping[str, int] = {
     n: 2 for n in agent_registry.names(observations=("emission",)) if n in agent_registry.SHIPPED}
 
