@@ -8,6 +8,7 @@ and the random agent, two seeds, 200 steps.
 import csv
 import json
 import os
+import re
 import shutil
 import socket
 import subprocess
@@ -426,6 +427,26 @@ def test_an_emission_run_pads_each_bucket_s_observations_into_one_batch():
     old = {k: v for k, v in settings.items() if k != "observations"}
     with pytest.raises(ValueError, match="another protocol .*observations: None there, 'padded' here"):
         plans.merge_settings(old, settings)
+
+
+def test_observation_shape_is_the_block_mdp_s_without_building_its_table():
+    # Every emission kind on the quick sets' MDPs of at most 60 states (RiverSwim, FrozenLake, DeepSea: one field to
+    # three, grids rendered): the shape the plan groups by (emission_shape) is the built BlockMDP's, and an MDP that
+    # cannot produce a kind raises the table's error. linear_optimal takes emission_shape's branch of linear_random
+    # (the same feature count) and costs a value iteration per MDP, so it is left out.
+    for set_name in ("episodic quick test", "continuous quick test"):
+        for inst in sets.instances(set_name):
+            mdp = inst.build(0)
+            if mdp.n_states > 60:
+                continue
+            for kind in sorted(set(jaxmdp.EMISSION_KINDS) - {"linear_optimal"}):
+                try:
+                    want = run.to_block_mdp(mdp, kind, 0).obs_shape
+                except ValueError as error:
+                    with pytest.raises(ValueError, match=re.escape(str(error))):
+                        run.observation_shape(mdp, kind, 0)
+                    continue
+                assert run.observation_shape(mdp, kind, 0) == want, (inst.label, kind)
 
 
 def test_emission_names_and_keys():

@@ -48,11 +48,12 @@ def agent_and_hparams(name: str):
     return agent, agent.default_hparams.replace(**SMALL[name])
 
 
-def input_kernel(params, name: str, np=np) -> np.ndarray:
+def input_kernel(params, name: str, xp=np) -> np.ndarray:
+    """The input layer's kernel of ``name``'s parameters, as an ``xp`` array (numpy, or jax.numpy under ``jit``)."""
     node = params["params"]
     for key in INPUT[name]:
         node = node[key]
-    return np.asarray(node["kernel"])
+    return xp.asarray(node["kernel"])
 
 
 @functools.cache
@@ -130,7 +131,7 @@ def play(agent, block, plain, like, key, n_steps):
         same_need = need == agent.needs_plan(state)
         plain, state = jax.lax.cond(need, lambda s: tuple(agent.plan(k_plan, x) for x in s), lambda s: s,
                                     (plain, state))
-        padding = jnp.max(jnp.abs(input_kernel(state.params, agent.name, np=jnp)[..., WIDTH:, :]))
+        padding = jnp.max(jnp.abs(input_kernel(state.params, agent.name, xp=jnp)[..., WIDTH:, :]))
         return (plain, env2, obs2), (a, a_padded, same_need, largest_difference(state, plain), padding)
 
     (plain, _, _), out = jax.lax.scan(body, (plain, env, obs), jnp.arange(n_steps))

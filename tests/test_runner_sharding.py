@@ -2,8 +2,8 @@
 when they ask (every member's plan count is its own period's), and the records equal one device's.
 
 That a Q-learning member's records are the same alone and in a batch on two devices is
-tests/test_properties_runner.py's property (on random MDPs). The device count of the CPU backend is fixed when JAX starts, so the check runs in a subprocess started
-with ``XLA_FLAGS=--xla_force_host_platform_device_count=2``.
+tests/test_properties_runner.py's property (on random MDPs). The device count of the CPU backend is fixed when JAX
+starts, so the check runs in a subprocess started with ``XLA_FLAGS=--xla_force_host_platform_device_count=2``.
 """
 
 from __future__ import annotations

@@ -104,6 +104,11 @@ def check_hparams(hparams: ActorCriticHParams) -> None:
     pg.check_common_hparams(hparams)
 
 
+#: Where the torso's input layer sits in the parameters of both actor-critics
+#: (:func:`agents.deep.networks.mask_input_layer`).
+INPUT_LAYER = ("params", "MLP_0", "Dense_0")
+
+
 def initial_state(
     cls: type, key: jax.Array, spec: MDPSpec, hparams: Any, net: nn.Module, init_params: Callable, *,
     episodic: bool, name: str, **extra: Any,
@@ -112,8 +117,7 @@ def initial_state(
     shape), Adam state, an empty buffer, the emission table; ``extra`` fields as given."""
     table = observation_table(spec, name, episodic)
     obs_shape = observation_shape(table, episodic)
-    params = mask_input_layer(init_params(key, jnp.zeros(obs_shape, table.dtype)), spec.observation_mask,
-                              ("params", "MLP_0", "Dense_0"))
+    params = mask_input_layer(init_params(key, jnp.zeros(obs_shape, table.dtype)), spec.observation_mask, INPUT_LAYER)
     length = pg.buffer_length(hparams.max_sequence_length, spec, episodic)
     hparams = cast_hparams(hparams)
     return cls(

@@ -7,10 +7,11 @@ import jax
 
 import jaxmdp
 from jaxmdp._checks import did_you_mean
+from jaxmdp.blockmdp.emission_maps import emission_shape
 from jaxmdp.mdp import MDP
 
 __all__ = ["REFERENCE_EMISSIONS", "KEYED_EMISSIONS", "EMISSION_STREAM", "canonical_emission", "emission_key",
-           "to_block_mdp"]
+           "to_block_mdp", "observation_shape"]
 
 
 #: The reference's emission-map class names (benchmark.md §5) and the kinds of :func:`jaxmdp.block_mdp` they are.
@@ -49,3 +50,11 @@ def to_block_mdp(mdp: MDP, emission: str, seed: int) -> jaxmdp.BlockMDP:
     kind = canonical_emission(emission)
     key = emission_key(seed) if kind in KEYED_EMISSIONS else None
     return jaxmdp.block_mdp(mdp, kind, key=key)
+
+
+def observation_shape(mdp: MDP, emission: str, seed: int) -> tuple[int, ...]:
+    """``to_block_mdp(mdp, emission, seed).obs_shape`` without building the emission table
+    (:func:`jaxmdp.blockmdp.emission_maps.emission_shape`; the linear kinds' features are a value iteration per MDP);
+    where the MDP cannot produce ``emission``, the table's own error."""
+    shape = emission_shape(mdp, canonical_emission(emission))
+    return to_block_mdp(mdp, emission, seed).obs_shape if shape is None else shape

@@ -77,6 +77,7 @@ from hardness.benchmark.emissions import (  # noqa: F401 (re-exported: the run's
     REFERENCE_EMISSIONS,
     canonical_emission,
     emission_key,
+    observation_shape,
     to_block_mdp,
 )
 from hardness.benchmark.plans import Batch
@@ -379,7 +380,7 @@ def _split_by_rank(
     for gid, group in groups:
         shapes: dict[int, list[int]] = {}
         for i in group:
-            shapes.setdefault(len(to_block_mdp(mdps[i], emission, seed).obs_shape), []).append(i)
+            shapes.setdefault(len(observation_shape(mdps[i], emission, seed)), []).append(i)
         parts = list(shapes.values())
         out += [(gid if len(parts) == 1 else f"{gid}.o{j}", part) for j, part in enumerate(parts)]
     return out
@@ -433,22 +434,22 @@ def batch_grid(batch: Batch, config: RunConfig) -> runner.Grid:
     hparams = runner.stack_hparams([fitted] * len(seeds))
     mdps = distinct if emission is None else padded_blocks(
         [to_block_mdp(m, emission, s) for m, s in zip(distinct, emission_seeds)],
-        None if batch.whole is None else [to_block_mdp(m, emission, s) for m, s in zip(like, like_seeds)],
+        None if batch.whole is None else [observation_shape(m, emission, s) for m, s in zip(like, like_seeds)],
     )
     g = runner.grid(mdps, hparams, runner.seed_keys(seeds), mdp_index=mdp_index,
                     hparams_index=[0] * len(seeds), seeds=seeds)
     return dataclasses.replace(g, mdp_labels=tuple(labels))
 
 
-def padded_blocks(blocks: Sequence[jaxmdp.BlockMDP], like: Sequence[jaxmdp.BlockMDP] | None = None
+def padded_blocks(blocks: Sequence[jaxmdp.BlockMDP], shapes: Sequence[tuple[int, ...]] | None = None
                   ) -> list[jaxmdp.BlockMDP]:
-    """``blocks`` with their observations zero-padded (:func:`jaxmdp.pad_observations`) to the largest shape of
-    ``like`` (default ``blocks``) on every axis, so that they stack into one batch; noiseless one-hot blocks as they
-    are (:func:`jaxmdp.stack` pads them with their states)."""
-    like = blocks if like is None else like
-    if blocks[0].emission_kind == "one_hot" or len({b.obs_shape for b in like}) == 1:
+    """``blocks`` with their observations zero-padded (:func:`jaxmdp.pad_observations`) to the largest of ``shapes``
+    (default: the blocks' own) on every axis, so that they stack into one batch; noiseless one-hot blocks as they are
+    (:func:`jaxmdp.stack` pads them with their states)."""
+    shapes = [b.obs_shape for b in blocks] if shapes is None else list(shapes)
+    if blocks[0].emission_kind == "one_hot" or len(set(shapes)) == 1:
         return list(blocks)
-    shape = tuple(int(n) for n in np.max([b.obs_shape for b in like], axis=0))
+    shape = tuple(int(n) for n in np.max(shapes, axis=0))
     return [jaxmdp.pad_observations(b, shape) for b in blocks]
 
 
