@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import re
 import textwrap
 
 import jax
@@ -15,7 +16,7 @@ import pytest
 
 import agents
 import jaxmdp
-from jaxmdp.experiment import lockstep, runner
+from jaxmdp.experiment import lockstep, programs, runner
 from jaxmdp.experiment.agent_interface import spec_of, where_due
 from jaxmdp.experiment.members import member_mdp
 from jaxmdp.experiment.planning import default_plan_slots, plan_due
@@ -75,13 +76,82 @@ def test_plan_due_does_not_write_back_the_leaves_a_plan_passes_through(slots):
         np.testing.assert_array_equal(got[name], want[name], err_msg=name)
 
 
-def test_where_due_keeps_a_passed_through_leaf_as_it_is():
+def test_where_due_keeps_a_passed_through_leaf_as_it_is_for_one_member():
+    # One member's merge (a plan guarding itself, under the rounds' vmap) returns a passed-through leaf as it is, so
+    # that the rounds do not write it back; the runner's merge over a batch selects every leaf (XLA simplifies the
+    # select, and a leaf returned as it is made XLA copy a deep agent's replay buffer at every step:
+    # test_a_deep_agent_s_step_loop_does_not_copy_its_replay_buffer).
     old = {"a": jnp.arange(3.0), "b": jnp.zeros(3)}
     new = {"a": old["a"], "b": jnp.ones(3)}
     for due in (jnp.asarray(False), jnp.asarray([True, False, True])):
         merged = where_due(due, new, old)
-        assert merged["a"] is old["a"]
+        assert (merged["a"] is old["a"]) == (due.ndim == 0)
+        np.testing.assert_array_equal(merged["a"], old["a"])
         np.testing.assert_array_equal(merged["b"], jnp.where(due, 1.0, 0.0) * jnp.ones(3))
+
+
+@pytest.mark.parametrize("name", ["dqn_continuous", "boot_dqn_episodic", "actor_critic_continuous",
+                                  "actor_critic_rnn_episodic"])
+def test_the_deep_agents_plan_the_whole_batch(name):
+    # Their members take their gradient steps together: a slot per member, so the runner compiles no planning rounds.
+    agent = agents.get(name)
+    assert agent.hints.plans_together
+    states = {"replay": jax.ShapeDtypeStruct((40, 10_000, 3), jnp.float32)}
+    assert runner.plan_slots_for(agent, states) == 40
+    assert runner.plan_slots_for(agent.with_hints(plans_together=False), states) == 3
+
+
+def _chunk_text(agent, g) -> str:
+    """The runner's compiled chunk program of ``agent`` on grid ``g`` (one device), as optimised HLO text."""
+    settings = runner._validated_settings(agent, g, 200, 100, 2, "paper", None, 1)
+    display, _ = runner._display(False, agent, g, settings.n_steps)
+    return runner._compile(agent, g, settings, display).chunk.as_text()
+
+
+def _copies(text: str, dims: str) -> list[str]:
+    """The ``copy`` instructions of ``text`` whose f32 result has the dimensions ``dims`` (e.g. ``"20,37,37"``)."""
+    return [line for line in text.splitlines() if re.search(rf"= f32\[{dims}\]\S* copy\(", line)]
+
+
+@pytest.mark.skipif(jax.default_backend() != "cpu", reason="the CPU compiler option")
+def test_the_runner_compiles_so_that_a_plan_updates_the_parameters_in_place(monkeypatch):
+    # The actor-critic (hidden width 37, a size no other array has) on 20 members learns under the runner's planning
+    # conditional. With XLA's default copy insertion every parameter and Adam moment came out of the conditional into
+    # a new buffer and was copied back into the loop's carry at every step; with the runner's compiler options
+    # (programs.CPU_COMPILER_OPTIONS) none is (docs/performance.md, Deep agents).
+    agent = agents.get("actor_critic_continuous")
+    mdp = jaxmdp.block_mdp(jaxmdp.make("RiverSwim", episodic=False, seed=0, size=5, randomize_actions=False),
+                           "state_info")
+    g = runner.product([mdp], [agent.default_hparams.replace(width=37)], seeds=range(20))
+    assert not _copies(_chunk_text(agent, g), "20,37,37")
+    monkeypatch.setattr(runner, "compile_options", lambda platform: None)
+    assert len(_copies(_chunk_text(agent, g), "20,37,37")) >= 6  # two hidden kernels x (params, two Adam moments)
+
+
+def test_an_option_the_jaxlib_does_not_know_compiles_without_the_options():
+    lowered = jax.jit(lambda x: x * 2.0).lower(jnp.arange(3.0))
+    compiled = programs.compile_lowered(lowered, {"xla_no_such_option_in_any_jaxlib": True})
+    np.testing.assert_array_equal(compiled(jnp.arange(3.0)), [0.0, 2.0, 4.0])
+    with pytest.raises(Exception, match="No such compile option"):
+        lowered.compile({"xla_no_such_option_in_any_jaxlib": True})
+    assert programs.compile_options("gpu") is None
+    # The runner's own options are known to the installed jaxlib (a rename would silently lose their speed).
+    lowered.compile(programs.compile_options("cpu"))
+
+
+def test_a_deep_agent_s_step_loop_does_not_copy_its_replay_buffer():
+    # DQN (a capacity of 3 000 items, a size no other array of the program has) on 20 members: the compiled chunk
+    # program writes each step's transition into the buffer in place. Planning rounds, or a whole-batch merge that
+    # returned the buffer as it is, made XLA copy the buffer's arrays twice per step, halving DQN's throughput
+    # (docs/performance.md, Deep agents).
+    agent = agents.get("dqn_continuous")
+    mdp = jaxmdp.block_mdp(jaxmdp.make("RiverSwim", episodic=False, seed=0, size=5, randomize_actions=False),
+                           "state_info")
+    g = runner.product([mdp], [agent.default_hparams.replace(replay_capacity=3000)], seeds=range(20))
+    text = _chunk_text(agent, g)
+    buffer_copies = [line for line in text.splitlines()
+                     if re.search(r"= \w+\[[0-9,]*\b3000\b[0-9,]*\]\S* copy\(", line)]
+    assert "3000" in text and not buffer_copies, buffer_copies[:4]
 
 
 def test_default_plan_slots():

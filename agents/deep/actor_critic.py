@@ -35,6 +35,7 @@ from flax import struct
 
 from agents.deep import policy_gradient as pg
 from agents.deep.common import (
+    DEEP_HINTS,
     assert_act,
     assert_update,
     cast_hparams,
@@ -214,6 +215,7 @@ def make_agent(
         plan=functools.partial(_plan, learn),
         check_hparams=check_hparams,
         observation="emission",
+        hints=DEEP_HINTS,
     )
 
 

@@ -59,6 +59,7 @@ from flax import struct
 
 from agents.deep import replay
 from agents.deep.common import (
+    DEEP_HINTS,
     assert_act,
     assert_update,
     cast_hparams,
@@ -284,6 +285,7 @@ def _make(episodic: bool) -> Agent:
         plan=plan,
         check_hparams=check_hparams,
         observation="emission",
+        hints=DEEP_HINTS,
     )
 
 

@@ -15,9 +15,10 @@ import optax
 
 from jaxmdp._asserts import assert_observation, assert_transition
 from jaxmdp._checks import check_range
-from jaxmdp.experiment.agent_interface import MDPSpec, Transition
+from jaxmdp.experiment.agent_interface import MDPSpec, RunnerHints, Transition
 
 __all__ = [
+    "DEEP_HINTS",
     "observation_table",
     "observation_shape",
     "assert_act",
@@ -28,6 +29,11 @@ __all__ = [
     "optimizer_step",
     "on_table",
 ]
+
+#: The deep agents' runner hints: every member takes its gradient steps at the same steps (a schedule of the step
+#: count and hyperparameters), so the runner plans the whole batch at once; planning rounds gathered and scattered
+#: every member's replay buffer at every step and halved DQN's throughput (docs/performance.md, Deep agents).
+DEEP_HINTS = RunnerHints(plans_together=True)
 
 
 def observation_table(spec: MDPSpec, agent_name: str, episodic: bool | None = None) -> jax.Array:

@@ -48,6 +48,7 @@ from flax import struct
 from agents.tabular_common import greedy_action
 from agents.deep import replay
 from agents.deep.common import (
+    DEEP_HINTS,
     assert_act,
     assert_update,
     cast_hparams,
@@ -322,6 +323,7 @@ def _make(episodic: bool) -> Agent:
         plan=plan,
         check_hparams=check_hparams,
         observation="emission",
+        hints=DEEP_HINTS,
     )
 
 

@@ -200,6 +200,13 @@ class RunnerHints:
     #: slots itself (``plan_slots=None``): at most ``plan_slot_bytes // (one member's state bytes)`` slots, at least
     #: one (``None``: no cap; :func:`jaxmdp.experiment.planning.default_plan_slots`).
     plan_slot_bytes: int | None = None
+    #: True when the members of a batch ask for a plan together (a schedule of step counts and shared
+    #: hyperparameters, as the deep agents' gradient steps): the runner then plans the whole batch whenever one
+    #: member asks, under one conditional, and compiles no planning rounds, whose gathers and scatters would move
+    #: every member's state (a replay buffer) at each plan for nothing (docs/performance.md, Deep agents). The
+    #: records are the same either way; a grid whose members ask at different steps (different ``sgd_period``)
+    #: pays a whole batch of plans for each.
+    plans_together: bool = False
 
     def __post_init__(self) -> None:
         if (self.warm_policy is None) != (self.policy_start is None):
@@ -271,13 +278,16 @@ def where_due(due: jax.Array, new: Any, old: Any) -> Any:
     ``due`` is a boolean scalar (one member: an agent's ``plan`` applies it to itself, so that a plan requested by a
     member that does not need one is a no-op whoever calls it) or ``[B]`` over the leading member axis of every leaf
     (the runner, which plans a batch of members and keeps the result only for those that asked: all members when
-    most asked, else rounds of those that did, :mod:`jaxmdp.experiment.planning`). A leaf that ``new`` takes from
-    ``old`` unchanged (the same object) is returned as it is, so that the rounds do not write it back.
+    most asked, else rounds of those that did, :mod:`jaxmdp.experiment.planning`). With a scalar ``due``, a leaf that
+    ``new`` takes from ``old`` unchanged (the same object) is returned as it is, so that the rounds do not write it
+    back. Over a batch every leaf is selected: XLA simplifies the select of a leaf with itself, while the leaf
+    returned as it is from the runner's planning conditional made XLA copy a deep agent's replay buffer twice at every
+    step (docs/performance.md, Deep agents).
     """
     due = jnp.asarray(due)
 
     def merge(n, o):
-        if n is o:
+        if n is o and due.ndim == 0:
             return o
         return jnp.where(due if due.ndim == 0 else due.reshape(due.shape + (1,) * (n.ndim - due.ndim)), n, o)
 

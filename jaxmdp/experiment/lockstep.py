@@ -240,9 +240,10 @@ def plan_slots_for(agent: Agent, states: Any) -> int:
     """Planning slots of a lockstep loop (paper App. A.1) over ``states`` (member axis first; arrays, tracers or
     shapes): ``ceil(B / 16)`` for ``B`` members, on a CPU at most ``agent.hints.plan_slot_bytes // m`` (at least
     one), ``m`` one member's state bytes (:func:`~jaxmdp.experiment.planning.default_plan_slots`); ``B`` slots for a
-    batch of at most :data:`SMALL_BATCH` members that may plan whole."""
+    batch of at most :data:`SMALL_BATCH` members that may plan whole, and for an agent whose members plan together
+    (:attr:`~jaxmdp.experiment.agent_interface.RunnerHints.plans_together`)."""
     members, nbytes = batch_bytes(states)
-    if members <= SMALL_BATCH and plans_whole(agent, states):
+    if agent.hints.plans_together or (members <= SMALL_BATCH and plans_whole(agent, states)):
         return members
     cap = agent.hints.plan_slot_bytes if jax.default_backend() == "cpu" else None
     return default_plan_slots(members, nbytes // max(members, 1), cap)

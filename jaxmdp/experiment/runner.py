@@ -72,7 +72,13 @@ from jaxmdp.experiment.lockstep import (  # noqa: F401 (the convergence stop's c
 )
 from jaxmdp.experiment.memory import ProgramTooLarge, check_fits
 from jaxmdp.experiment.members import Grid, dynamics, grid, member_mdp, product, seed_keys, stack_hparams
-from jaxmdp.experiment.programs import chunk_program, constants_program, init_program
+from jaxmdp.experiment.programs import (
+    chunk_program,
+    compile_lowered,
+    compile_options,
+    constants_program,
+    init_program,
+)
 from jaxmdp.experiment.progress import Progress
 from jaxmdp.experiment.records import MEMBER_COLUMNS, RunResult, append_rows, csv_rows, record_steps, truncate_csv
 from jaxmdp.gth import band_order
@@ -374,9 +380,10 @@ def _compile(agent: Agent, grid: Grid, settings: _Settings, display: Progress) -
         consts = constants_program(settings.variant)(mdps, mdp_index)
         orders, bandwidth = _band(mdps, grid.mdp_index)
         consts = consts.replace(state_order=orders)
+    options = compile_options(jax.default_backend())
     init_jit = init_program(agent, settings.record_visits, bandwidth, settings.stop_when_converged)
     with display.compiling("the initialisation program"):
-        init_fn = init_jit.lower(mdps, mdp_index, hparams, key_data, sched.n_steps, orders).compile()
+        init_fn = compile_lowered(init_jit.lower(mdps, mdp_index, hparams, key_data, sched.n_steps, orders), options)
     carry_shape = jax.eval_shape(init_jit, mdps, mdp_index, hparams, key_data, sched.n_steps, orders)
     leaves, treedef = jax.tree.flatten(carry_shape)
     carry_layout = (treedef, tuple(x.ndim for x in leaves))
@@ -385,7 +392,7 @@ def _compile(agent: Agent, grid: Grid, settings: _Settings, display: Progress) -
         settings.plan_slots, bandwidth, settings.stop_when_converged,
     )
     with display.compiling("the chunk program"):
-        chunk_exe = chunk_fn.lower(carry_shape, mdps, mdp_index, consts, sched, jnp.int32(0)).compile()
+        chunk_exe = compile_lowered(chunk_fn.lower(carry_shape, mdps, mdp_index, consts, sched, jnp.int32(0)), options)
     jax.block_until_ready(consts)
     check_fits(
         [("initialisation", init_fn), ("chunk", chunk_exe)],
