@@ -30,8 +30,8 @@ MAX_CACHED_PROGRAMS = 32
 #: XLA options for the runner's programs on a CPU, given per compilation (not through ``XLA_FLAGS``, which would
 #: change the process). Region-based copy insertion lets the lockstep loop update an agent's parameters in place
 #: where the planning conditional returns them: without it XLA copied every parameter and optimiser array out of the
-#: conditional and again into the loop's carry at every step (ActorCriticRNN 64 seeds: 8.7 k -> 23.0 k agent-steps/s,
-#: the actor-critic 168 k -> 534 k; results bit-identical; docs/performance.md, Deep agents).
+#: conditional and again into the loop's carry at every step (ActorCriticRNN 64 seeds: 8.7 k -> 17.5 k agent-steps/s,
+#: the actor-critic 168 k -> 543 k; results bit-identical; docs/performance.md, Deep agents).
 CPU_COMPILER_OPTIONS = {"xla_cpu_copy_insertion_use_region_analysis": True}
 
 
@@ -46,7 +46,7 @@ def compile_lowered(lowered: jax.stages.Lowered, options: dict[str, Any] | None)
     without them instead of failing."""
     try:
         return lowered.compile(options)
-    except Exception as error:  # jaxlib's runtime error class has moved between releases
+    except Exception as error:  # matched by its message: jaxlib's runtime error type is no stable public name
         if options and "No such compile option" in str(error):
             return lowered.compile()
         raise
