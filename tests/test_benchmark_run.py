@@ -359,12 +359,9 @@ def test_a_batch_too_large_for_memory_is_split_with_the_same_results(tmp_path):
     plan = json.loads((tmp_path / "split" / "plan.json").read_text())
     assert [len(b["members"]) for b in plan["batches"]] == [2, 2]
     assert all(len(b["whole"]) == 4 for b in plan["batches"])
-    rows = {}
-    for name in ("whole", "split"):
-        with (tmp_path / name / "members.csv").open(newline="") as f:
-            rows[name] = [r[:-1] for r in csv.reader(f)]  # all but the batch id
     # The RiverSwim half is padded to DeepSea's shape, as in the whole batch: the same numbers, to the last digit.
-    assert rows["split"] == rows["whole"] and len(rows["whole"]) == 5
+    rows = _member_rows(tmp_path / "whole")
+    assert _member_rows(tmp_path / "split") == rows and len(rows) == 5
     again = run.run_benchmark(config, tmp_path / "split", progress=False, report=False)  # the split plan is reused
     assert again.ran == [] and again.reused == split.ran
     with pytest.raises(runner.ProgramTooLarge, match="a single member"):  # halves down to one member, then refuse
@@ -372,6 +369,50 @@ def test_a_batch_too_large_for_memory_is_split_with_the_same_results(tmp_path):
     with pytest.raises(runner.ProgramTooLarge, match="run fewer than its 2 members"):  # max_members: no split
         run.run_benchmark(run.RunConfig(**{**ONE_BUCKET, "max_members": 2}, memory_limit=1), tmp_path / "fixed",
                           progress=False)
+
+
+def _member_rows(out):
+    with (out / "members.csv").open(newline="") as f:
+        return [r[:-1] for r in csv.reader(f)]  # all but the batch id
+
+
+def test_a_batch_runs_in_parts_of_at_most_part_members_with_the_whole_batch_s_results(tmp_path):
+    # One batch of 4 members: RiverSwim 5 and DeepSea 10, two seeds each. In parts of one member, split in halves
+    # twice; each part padded like the whole, so every number is the whole batch's to the last digit.
+    whole = run.run_benchmark(run.RunConfig(**ONE_BUCKET), tmp_path / "whole", progress=False, report=False)
+    b = whole.ran[0]
+    config = run.RunConfig(**ONE_BUCKET, part_members=1)
+    parts = run.run_benchmark(config, tmp_path / "parts", progress=False, report=False)
+    assert parts.finished and parts.ran == [f"{b}.s{i}.s{j}" for i in (0, 1) for j in (0, 1)]
+    plan = json.loads((tmp_path / "parts" / "plan.json").read_text())
+    assert [len(p["members"]) for p in plan["batches"]] == [1, 1, 1, 1]
+    assert all(len(p["whole"]) == 4 for p in plan["batches"])
+    rows = _member_rows(tmp_path / "whole")
+    assert _member_rows(tmp_path / "parts") == rows and len(rows) == 5
+    with (tmp_path / "parts" / "batches.csv").open(newline="") as f:
+        assert [r["batch"] for r in csv.DictReader(f)] == parts.ran  # each part written when it finished
+    again = run.run_benchmark(run.RunConfig(**ONE_BUCKET), tmp_path / "parts", progress=False, report=False)
+    assert again.ran == [] and again.reused == parts.ran  # the parts stay parts without the option
+    # A batch that has started (its checkpoint) continues whole rather than losing its steps.
+    started = run.run_benchmark(run.RunConfig(**ONE_BUCKET), tmp_path / "started", progress=False, report=False,
+                                stop_at=(0, 1))
+    assert not started.finished and (tmp_path / "started" / "runs" / f"{b}.ckpt.npz").exists()
+    rest = run.run_benchmark(config, tmp_path / "started", progress=False, report=False)
+    assert rest.finished and rest.ran == [b]
+    assert _member_rows(tmp_path / "started") == _member_rows(tmp_path / "whole")
+
+
+def test_part_members_is_checked_and_given_by_the_command_line(tmp_path):
+    from hardness.cli import benchmark as cli
+    for bad in (0, -2, 1.5, True, "4"):
+        with pytest.raises(ValueError, match=r"part_members must be a positive integer \(members per part"):
+            run.plan(run.RunConfig(**ONE_BUCKET, part_members=bad))
+    with pytest.raises(ValueError, match="part_members applies to a run here, not to one on Ray"):
+        run.run_benchmark(run.RunConfig(**ONE_BUCKET, part_members=2), tmp_path, progress=False, ray=True)
+    assert not (tmp_path / "plan.json").exists()  # refused before anything is written
+    args = cli.build_parser().parse_args(["run", "--out", "x", "--part-members", "3"])
+    assert cli.config_from_args(args).part_members == 3
+    assert cli.config_from_args(cli.build_parser().parse_args(["run", "--out", "x"])).part_members is None
 
 
 DEEP = dict(sets=("episodic quick test",), agents=("dqn_episodic", "random_episodic"), seeds=(0, 1), n_steps=200,

@@ -14,7 +14,8 @@ buckets' members split in order otherwise): one lockstep runner call (:func:`jax
 pays for a larger bucket's padding. Identical instances (seed-independent families) are stored once per batch. A
 batch whose compiled programs would not fit in memory (the runner checks before running,
 :mod:`jaxmdp.experiment.memory`) is split in halves until they fit (:func:`split_batch`; unless ``max_members`` is
-given), each half padded like the whole batch so that its members' results are the same.
+given), each half padded like the whole batch so that its members' results are the same; ``part_members`` splits a
+batch the same way into parts that each finish on their own.
 
 Deep agents (paper §3.1, App. G): with ``emission`` every MDP is wrapped as a noiseless BlockMDP
 (:func:`to_block_mdp`; the non-tabular benchmark's choice is ``StateInfo``), the default agents are the deep agents
@@ -131,6 +132,11 @@ class RunConfig:
         shapes the random draws).
       memory_limit: bytes a runner call's programs may use (``None``: what the machine has available); not part of
         the results, so not of the plan's settings.
+      part_members: run a batch of more members in parts of at most this many (:func:`split_batch`'s halves, again
+        until each is small enough), each finished and written on its own, so that a batch of hours becomes pieces
+        that a machine finishes within its lifetime and a later call resumes from what was written; a batch with a
+        checkpoint continues whole. ``None``: whole batches. Not part of the results (a part is padded like its
+        batch), so not of the plan's settings.
       n_records: records per member in the per-record CSVs and curves.
       emission: the emission through which the agents observe the MDPs (:func:`to_block_mdp`: a kind of
         :data:`jaxmdp.EMISSION_KINDS` or a reference class name such as ``"StateInfo"``); the deep agents need one,
@@ -167,6 +173,7 @@ class RunConfig:
     memory_limit: int | None = None
     indicator_variant: str = "paper"
     stop_when_converged: bool = False
+    part_members: int | None = None
 
     def period(self, set_name: str) -> int:
         return int(self.log_periods.get(set_name, self.log_period))
@@ -248,6 +255,10 @@ def _check(config: RunConfig) -> list[str]:
         raise ValueError(f"max_members must be a positive integer or None; got {config.max_members!r}")
     if config.memory_limit is not None and (isinstance(config.memory_limit, bool) or config.memory_limit < 1):
         raise ValueError(f"memory_limit must be a positive number of bytes or None; got {config.memory_limit!r}")
+    parts = config.part_members
+    if parts is not None and (isinstance(parts, bool) or not isinstance(parts, (int, np.integer)) or parts < 1):
+        raise ValueError(f"part_members must be a positive integer (members per part of a batch) or None; got "
+                         f"{config.part_members!r}")
     # Named agents run on the sets of their type only: a set that none of them is for is left out (--quick with
     # episodic agents runs the episodic quick-test set).
     return [s for s in names if config.agents is None or _agents_of(config, s)]
@@ -352,11 +363,12 @@ def _batch_key(settings: dict, set_name: str, agent: str, members: Sequence, who
 
 def split_batch(batch: Batch, settings: dict) -> list[Batch]:
     """``batch`` in two halves (ids ``<id>.s0``, ``<id>.s1``): how :func:`run_benchmark` splits a batch whose
-    programs do not fit in memory. Each half remembers the batch it came from (:attr:`Batch.whole`, the original one
-    after repeated splits) and is padded and sized like it (MDP shapes, PSRL's candidate buffer), so every member
-    computes what it would have computed in the whole batch: the results do not depend on the machine's memory.
-    (With an emission the halves' MDPs are padded to their own members and their observations to the whole batch's
-    shape.)"""
+    programs do not fit in memory, or of more than ``part_members`` members. Each half remembers the batch it came
+    from (:attr:`Batch.whole`, the original one after repeated splits) and is padded and sized like it (MDP shapes,
+    PSRL's candidate buffer), so every member computes what it would have computed in the whole batch: the results
+    do not depend on the machine's memory. (With an emission the halves' MDPs are padded to their own members and
+    their observations to the whole batch's shape: the same trajectories and regrets, and the normalised columns,
+    whose normalising gains are computed on the part's padded MDPs, the same to float32 rounding.)"""
     if len(batch.members) < 2:
         raise ValueError(f"batch {batch.id} has a single member and cannot be split")
     half = -(-len(batch.members) // 2)
@@ -540,6 +552,9 @@ def run_benchmark(
         shard = shards.check_shard(shard)
     if not poll_s > 0:
         raise ValueError(f"poll_s must be a positive number of seconds; got {poll_s!r}")
+    if ray is not None and config.part_members is not None:
+        raise ValueError("part_members applies to a run here, not to one on Ray (a Ray task retried on another "
+                         "machine continues from its batch's checkpoint); got both")
     settings, batches = _plan(config, out)  # a refused run writes nothing
     if baseline is not None:
         from hardness.benchmark import baselines
@@ -585,6 +600,12 @@ def run_benchmark(
                 continue
             if _finished(run_dir, batch) is not None:  # finished between the look and the claim
                 held.drop(batch.id)
+                continue
+            if (config.part_members is not None and len(batch.members) > config.part_members
+                    and not (run_dir / f"{batch.id}.ckpt.npz").exists()):
+                held.drop(batch.id, f"split: parts of at most {config.part_members} members")
+                plans.replace(out, dataclasses.asdict(batch), [dataclasses.asdict(h)
+                                                               for h in split_batch(batch, settings)])
                 continue
             bar.set_postfix(f"{batch.id}: {len(batch.members)} members")
             chunks = stop_at[1] if stop_at is not None and k == stop_at[0] else None

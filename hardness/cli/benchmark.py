@@ -27,6 +27,7 @@ differs); ``--baseline DIR`` does so with another run folder.
     jaxmdp-benchmark report results/benchmark_quick
     jaxmdp-benchmark run --quick --shard 0/2 --out DIR0; jaxmdp-benchmark run --quick --shard 1/2 --out DIR1
     jaxmdp-benchmark report DIR0 DIR1 --out DIR                            # the shards merged, the single run's
+    jaxmdp-benchmark run --emission state_info --agents boot_dqn_episodic --part-members 8 --out DIR   # in pieces
     jaxmdp-benchmark run --quick --ray --out DIR                            # batches as tasks of a local Ray
     jaxmdp-benchmark run --settings episodic_ergodic --ray auto --gpus-per-batch 0.25 --out DIR   # a Ray cluster
     jaxmdp-benchmark report DIR --baseline committed
@@ -123,6 +124,10 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="members per runner call (default: a bucket, halved until it fits in memory)")
     p.add_argument("--memory-limit", type=float, default=None, metavar="GIB",
                    help="GiB a runner call may use (default: the memory available)")
+    p.add_argument("--part-members", type=int, default=None, metavar="N",
+                   help="run each batch of more than N members in parts of at most N, each written when it finishes, "
+                        "with the same results: hours-long batches in pieces that a machine finishes before it goes "
+                        "(default: whole batches; not with --ray)")
     p.add_argument("--emission", default=None,
                    help="observe the MDPs through this emission map, for the deep agents: state_info (the reference's "
                         "StateInfo), one_hot (OneHotEncoding), image, tensor, linear_optimal, linear_random (default: "
@@ -278,7 +283,8 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
                  seeds=tuple(range(args.seeds)) if args.seeds is not None else None, n_steps=args.steps,
                  n_buckets=args.buckets, max_members=args.max_members, emission=args.emission,
                  only=tuple(args.mdps) if args.mdps else None,
-                 memory_limit=None if args.memory_limit is None else int(args.memory_limit * 2**30))
+                 memory_limit=None if args.memory_limit is None else int(args.memory_limit * 2**30),
+                 part_members=args.part_members)
     config = {**base, **{k: v for k, v in given.items() if v is not None}, "hparams": args.hparams,
               "agent_variant": args.agent_variant, "indicator_variant": args.indicators,
               "stop_when_converged": args.stop_when_converged}
