@@ -194,3 +194,57 @@ def test_curves_figure_plots_the_mean_cumulative_regret_from_the_origin(folder):
             x, y = lines[a].get_data()
             np.testing.assert_array_equal(x, [0, *STEPS])
             np.testing.assert_allclose(y, [0.0, *curves[(titles[ax.get_title()], a)].mean(0)], rtol=1e-12)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The late regret rate: piecewise-linear cumulative regrets with known slopes
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def _late_folder(out: Path) -> None:
+    """Two MDPs of ``SET``: the first with two seeds, the second with one, cumulative regret ``C(t) = r1 t`` up to
+    step 60 and slope ``r2`` after it, normalising constants ``k``; a batch of another set, one unfinished and one
+    of a stale key are left out."""
+    labels = [i.label for i in sets.instances(SET) if i.label.split("/")[0] in ("DeepSea", "RiverSwim")]
+    steps = np.array([20, 40, 60, 80, 100])
+    members = [(labels[0], 0, 0.5, 2.0, 0.25), (labels[0], 1, 0.5, 1.0, 0.5), (labels[1], 0, 2.0, 0.1, 0.0)]
+    curve = np.array([[r1 * min(t, 60) + r2 * max(t - 60, 0) for *_, r1, r2 in members] for t in steps])
+    batches = [dict(id="b", key="k", set_name=SET, agent="q_learning_episodic", members=[m[:2] for m in members]),
+               dict(id="other", key="k", set_name="episodic ergodic", agent="q_learning_episodic", members=[]),
+               dict(id="unfinished", key="k", set_name=SET, agent="q_learning_episodic", members=[]),
+               dict(id="stale", key="new", set_name=SET, agent="q_learning_episodic", members=[])]
+    (out / "plan.json").write_text(json.dumps(dict(settings=dict(sets=[SET]), batches=batches)))
+    (out / "runs").mkdir()
+    rows = [dict(mdp=lab, seed=s, cumulative_regret=c, normalized_cumulative_regret=k * c,
+                 normalized_regret_per_step=k * c / 100) for (lab, s, k, _, _), c in zip(members, curve[-1])]
+    for name in ("b", "other", "stale"):
+        np.savez(out / "runs" / f"{name}.curves.npz", steps=steps, cumulative_regret=curve * (name == "b"),
+                 random_cumulative_regret=curve)
+        (out / "runs" / f"{name}.json").write_text(json.dumps(dict(key="k", members=rows)))
+
+
+def test_late_regret_is_the_slope_over_the_last_steps_and_its_projection(tmp_path):
+    _late_folder(tmp_path)
+    got = report.late_regret(tmp_path, SET, fraction=0.2, horizon=1000)
+    assert list(got) == ["q_learning_episodic"]
+    # Per member (end k C(100)/100, late k r2, projected k (C(100) + 900 r2) / 1000), then seeds, then MDPs.
+    end = ((0.5 * 130 / 100 + 0.5 * 80 / 100) / 2 + 2.0 * 6 / 100) / 2
+    late = ((0.5 * 0.25 + 0.5 * 0.5) / 2 + 0.0) / 2
+    projected = ((0.5 * 355 / 1000 + 0.5 * 530 / 1000) / 2 + 2.0 * 6 / 1000) / 2
+    np.testing.assert_allclose(got["q_learning_episodic"][:3], [end, late, projected], rtol=1e-12)
+    assert got["q_learning_episodic"].n_mdps == 2
+    # From step 40 on (fraction 0.6): the slope over 40..100 mixes r1 and r2.
+    mixed = report.late_regret(tmp_path, SET, fraction=0.6)["q_learning_episodic"]
+    assert mixed.late == pytest.approx(((0.5 * 50 / 60 + 0.5 * 40 / 60) / 2 + 2.0 * 2 / 60) / 2, rel=1e-12)
+    assert math.isnan(mixed.projected)
+
+
+def test_late_regret_refuses_a_fraction_or_horizon_it_cannot_use(tmp_path):
+    _late_folder(tmp_path)
+    for bad in (0, 1, 1.5, -0.2):
+        with pytest.raises(ValueError, match="fraction must lie strictly between 0 and 1"):
+            report.late_regret(tmp_path, SET, fraction=bad)
+    with pytest.raises(ValueError, match="leaves fewer than two records"):
+        report.late_regret(tmp_path, SET, fraction=0.05)
+    with pytest.raises(ValueError, match="horizon must be at least the run's 100 steps; got 99"):
+        report.late_regret(tmp_path, SET, horizon=99)

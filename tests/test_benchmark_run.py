@@ -76,6 +76,25 @@ def test_second_run_finishes_at_once_without_building_anything(full_run, monkeyp
     assert (out / "members.csv").read_bytes() == before
 
 
+def test_late_regret_of_a_run_ends_at_its_scores_and_the_random_agent_keeps_its_rate(full_run):
+    out, _ = full_run
+    with (out / "members.csv").open(newline="") as f:
+        rows = list(csv.DictReader(f))
+    late = report.late_regret(out, TINY["sets"][0], fraction=0.5, horizon=1000)
+    assert sorted(late) == sorted(TINY["agents"])
+    for agent, got in late.items():
+        per_mdp = {}
+        for r in rows:
+            if r["agent"] == agent:
+                per_mdp.setdefault(r["mdp"], []).append(float(r["normalized_regret_per_step"]))
+        assert got.n_mdps == 2  # members.csv prints 10 significant digits
+        assert got.end == pytest.approx(np.mean([np.mean(v) for v in per_mdp.values()]), rel=1e-9)
+    # The uniform policy's expected regret grows by the same amount every episode, so its late rate and projection
+    # are its score but for the episode that a record cuts (0.05% here; a slope over n or n - t0 would be 2x off).
+    rnd = late["random_episodic"]
+    assert rnd.late == pytest.approx(rnd.end, rel=2e-3) and rnd.projected == pytest.approx(rnd.end, rel=2e-3)
+
+
 def test_interrupted_and_resumed_run_gives_the_same_members_csv(full_run, tmp_path):
     out, _ = full_run
     # 4 runner chunks per batch (50 steps each): stop after 2 chunks of the second batch, then after one more.

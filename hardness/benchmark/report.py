@@ -47,13 +47,13 @@ import os
 from collections import defaultdict
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from hardness.benchmark import aggregate, baselines, published, sets
 
-__all__ = ["Summary", "summarize", "markdown_table", "latex_table", "write_report"]
+__all__ = ["Summary", "summarize", "markdown_table", "latex_table", "write_report", "LateRegret", "late_regret"]
 
 #: Seeds whose hardness measures are averaged (the reference's helper averages seeds 0-4).
 MEASURE_SEEDS = 5
@@ -293,6 +293,63 @@ def _curves(s: Summary, set_name: str) -> dict[tuple[str, str], dict[str, np.nda
                 d["cumulative_regret"].append(z["cumulative_regret"][:, i])
                 d["random_cumulative_regret"].append(z["random_cumulative_regret"][:, i])
     return {k: {n: np.asarray(v) for n, v in d.items()} for k, d in out.items()}
+
+
+class LateRegret(NamedTuple):
+    """An agent's per-step normalised regret on a set (mean over each MDP's seeds, then over the MDPs): ``end``, the
+    score at the run's end; ``late``, the rate over the run's last steps; ``projected``, the score at ``horizon`` had
+    the late rate held (``nan`` without a horizon); ``n_mdps``, the MDPs with finished runs."""
+
+    end: float
+    late: float
+    projected: float
+    n_mdps: int
+
+
+def late_regret(
+    out: str | os.PathLike, set_name: str, fraction: float = 0.2, horizon: int | None = None
+) -> dict[str, LateRegret]:
+    """Whether the agents of a run folder still learn at its end, per agent of ``set_name`` (App. E's per-step
+    normalised regret, :class:`LateRegret`), from every finished batch's curves, however many have finished.
+
+    A member's normalised regret is ``k C(t)`` with ``C`` its cumulative regret and ``k`` its MDP's normalising
+    constant (``normalized_cumulative_regret / cumulative_regret`` at the end). With ``n`` the run's steps and ``t0``
+    the first record at or after ``(1 - fraction) n``: ``end = k C(n) / n``, ``late = k (C(n) - C(t0)) / (n - t0)``
+    and ``projected = k (C(n) + (horizon - n) late_rate) / horizon``, the score at ``horizon`` steps if the regret went
+    on accruing at its late rate: below ``end`` while the agent still learns, and an upper bound of the longer run's
+    score when its rate keeps falling. A member with no regret at the end counts ``0`` in each.
+    """
+    if not 0 < fraction < 1:
+        raise ValueError(f"fraction must lie strictly between 0 and 1 (the last part of the run); got {fraction!r}")
+    out = Path(out)
+    plan = json.loads((out / "plan.json").read_text())
+    per: dict[str, dict[str, list[tuple[float, float, float]]]] = defaultdict(lambda: defaultdict(list))
+    for b in plan["batches"]:
+        saved, npz = out / "runs" / f"{b['id']}.json", out / "runs" / f"{b['id']}.curves.npz"
+        if b["set_name"] != set_name or not (saved.exists() and npz.exists()):
+            continue
+        record = json.loads(saved.read_text())
+        if record.get("key") != b["key"]:
+            continue
+        with np.load(npz) as z:
+            steps, regret = z["steps"].astype(np.float64), z["cumulative_regret"].astype(np.float64)
+        n = steps[-1]
+        if horizon is not None and not horizon >= n:
+            raise ValueError(f"horizon must be at least the run's {int(n)} steps; got {horizon!r}")
+        t0 = int(np.searchsorted(steps, (1 - fraction) * n))
+        if t0 >= steps.size - 1:
+            raise ValueError(f"fraction {fraction} leaves fewer than two records of {out.name}'s {steps.size}; "
+                             "choose a larger fraction")
+        for i, m in enumerate(record["members"]):
+            k = m["normalized_cumulative_regret"] / m["cumulative_regret"] if m["cumulative_regret"] else 0.0
+            rate = (regret[-1, i] - regret[t0, i]) / (n - steps[t0])
+            projected = k * (regret[-1, i] + (horizon - n) * rate) / horizon if horizon is not None else math.nan
+            per[b["agent"]][m["mdp"]].append((m["normalized_regret_per_step"], k * rate, projected))
+    result = {}
+    for agent, mdps in per.items():
+        means = np.array([np.mean(v, axis=0) for v in mdps.values()])
+        result[agent] = LateRegret(*(float(x) for x in means.mean(axis=0)), len(mdps))
+    return result
 
 
 def _from_origin(d: dict[str, np.ndarray], column: str) -> tuple[np.ndarray, np.ndarray]:
