@@ -276,22 +276,29 @@ def _save(fig: Any, stem: Path) -> list[Path]:
     return paths
 
 
+def _finished_curves(out: Path, batches: Sequence[dict], set_name: str):
+    """``(batch, its runs/<batch>.json record, its curves {"steps": [R], "cumulative_regret": [R, members],
+    "random_cumulative_regret": [R, members]})`` for every batch of ``set_name`` that finished under its plan key."""
+    for b in batches:
+        saved, npz = out / "runs" / f"{b['id']}.json", out / "runs" / f"{b['id']}.curves.npz"
+        if b["set_name"] != set_name or not (saved.exists() and npz.exists()):
+            continue
+        record = json.loads(saved.read_text())
+        if record.get("key") != b["key"]:
+            continue
+        with np.load(npz) as z:
+            yield b, record, {name: z[name] for name in z.files}
+
+
 def _curves(s: Summary, set_name: str) -> dict[tuple[str, str], dict[str, np.ndarray]]:
     """``{(mdp, agent): {"steps": [R], "cumulative_regret": [seeds, R], "random_cumulative_regret": [seeds, R]}}``."""
     out: dict[tuple[str, str], dict[str, list]] = defaultdict(lambda: defaultdict(list))
-    for b in s.batches:
-        if b["set_name"] != set_name:
-            continue
-        saved = s.out / "runs" / f"{b['id']}.json"
-        npz = s.out / "runs" / f"{b['id']}.curves.npz"
-        if not (saved.exists() and npz.exists()) or json.loads(saved.read_text()).get("key") != b["key"]:
-            continue
-        with np.load(npz) as z:
-            for i, (label, _) in enumerate(b["members"]):
-                d = out[(label, b["agent"])]
-                d["steps"] = z["steps"]
-                d["cumulative_regret"].append(z["cumulative_regret"][:, i])
-                d["random_cumulative_regret"].append(z["random_cumulative_regret"][:, i])
+    for b, _, z in _finished_curves(s.out, s.batches, set_name):
+        for i, (label, _) in enumerate(b["members"]):
+            d = out[(label, b["agent"])]
+            d["steps"] = z["steps"]
+            d["cumulative_regret"].append(z["cumulative_regret"][:, i])
+            d["random_cumulative_regret"].append(z["random_cumulative_regret"][:, i])
     return {k: {n: np.asarray(v) for n, v in d.items()} for k, d in out.items()}
 
 
@@ -322,17 +329,10 @@ def late_regret(
     if not 0 < fraction < 1:
         raise ValueError(f"fraction must lie strictly between 0 and 1 (the last part of the run); got {fraction!r}")
     out = Path(out)
-    plan = json.loads((out / "plan.json").read_text())
+    batches = json.loads((out / "plan.json").read_text())["batches"]
     per: dict[str, dict[str, list[tuple[float, float, float]]]] = defaultdict(lambda: defaultdict(list))
-    for b in plan["batches"]:
-        saved, npz = out / "runs" / f"{b['id']}.json", out / "runs" / f"{b['id']}.curves.npz"
-        if b["set_name"] != set_name or not (saved.exists() and npz.exists()):
-            continue
-        record = json.loads(saved.read_text())
-        if record.get("key") != b["key"]:
-            continue
-        with np.load(npz) as z:
-            steps, regret = z["steps"].astype(np.float64), z["cumulative_regret"].astype(np.float64)
+    for b, record, z in _finished_curves(out, batches, set_name):
+        steps, regret = z["steps"].astype(np.float64), z["cumulative_regret"].astype(np.float64)
         n = steps[-1]
         if horizon is not None and not horizon >= n:
             raise ValueError(f"horizon must be at least the run's {int(n)} steps; got {horizon!r}")

@@ -258,7 +258,7 @@ def _check(config: RunConfig) -> list[str]:
     parts = config.part_members
     if parts is not None and (isinstance(parts, bool) or not isinstance(parts, (int, np.integer)) or parts < 1):
         raise ValueError(f"part_members must be a positive integer (members per part of a batch) or None; got "
-                         f"{config.part_members!r}")
+                         f"{parts!r}")
     # Named agents run on the sets of their type only: a set that none of them is for is left out (--quick with
     # episodic agents runs the episodic quick-test set).
     return [s for s in names if config.agents is None or _agents_of(config, s)]
@@ -603,9 +603,10 @@ def run_benchmark(
                 continue
             if (config.part_members is not None and len(batch.members) > config.part_members
                     and not (run_dir / f"{batch.id}.ckpt.npz").exists()):
-                held.drop(batch.id, f"split: parts of at most {config.part_members} members")
+                # The plan first, then the claim: no other process can take the whole batch in between.
                 plans.replace(out, dataclasses.asdict(batch), [dataclasses.asdict(h)
                                                                for h in split_batch(batch, settings)])
+                held.drop(batch.id, f"split: parts of at most {config.part_members} members")
                 continue
             bar.set_postfix(f"{batch.id}: {len(batch.members)} members")
             chunks = stop_at[1] if stop_at is not None and k == stop_at[0] else None
