@@ -248,3 +248,40 @@ def test_late_regret_refuses_a_fraction_or_horizon_it_cannot_use(tmp_path):
         report.late_regret(tmp_path, SET, fraction=0.05)
     with pytest.raises(ValueError, match="horizon must be at least the run's 100 steps; got 99"):
         report.late_regret(tmp_path, SET, horizon=99)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Compute: the hours of batches.csv per (set, agent)
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def test_compute_time_sums_each_pair_s_finished_batches_and_the_report_shows_them(tmp_path):
+    """Two pairs planned, one with two finished batches on two hosts, the other with none; the sums by hand."""
+    batches = [dict(id="a0", key="k", set_name=SET, agent="psrl_episodic", members=[["m", 0]] * 3),
+               dict(id="a1", key="k", set_name=SET, agent="psrl_episodic", members=[["m", 1]] * 2),
+               dict(id="b0", key="k", set_name=SET, agent="random_episodic", members=[["m", 0]] * 4)]
+    (tmp_path / "plan.json").write_text(json.dumps(dict(settings=dict(sets=[SET]), batches=batches)))
+    with pytest.raises(KeyError):  # a pair not in the plan is not counted; a planned one with nothing finished is
+        report.compute_time(tmp_path)[(SET, "ucrl2")]
+    assert report.compute_time(tmp_path)[(SET, "random_episodic")] == report.ComputeTime(0.0, 0.0, 0, 0, 4, ())
+    rows = [dict(batch="a0", set=SET, agent="psrl_episodic", members=3, compile_s=12.5, run_s=3600.0, host="x"),
+            dict(batch="a1", set=SET, agent="psrl_episodic", members=2, compile_s=7.5, run_s=1780.0, host="w")]
+    with (tmp_path / "batches.csv").open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    got = report.compute_time(tmp_path)
+    assert list(got) == [(SET, "psrl_episodic"), (SET, "random_episodic")]
+    assert got[(SET, "psrl_episodic")] == report.ComputeTime(20.0, 5380.0, 2, 5, 5, ("w", "x"))
+    assert got[(SET, "psrl_episodic")].hours == pytest.approx(1.5, rel=1e-15)
+    table = report.compute_table(tmp_path).splitlines()
+    assert table[2] == f"| {SET} | psrl_episodic | 2 | 5/5 | 0.01 | 1.49 | 1.50 | w, x |"
+    assert table[3] == f"| {SET} | random_episodic | 0 | 0/4 | 0.00 | 0.00 | 0.00 |  |"
+    assert table[4] == "| **total** |  | 2 | 5/9 | 0.01 | 1.49 | **1.50** |  |"
+
+
+def test_a_report_s_compute_section_is_its_folder_s_compute_table(folder):
+    out, _, _ = folder
+    section = (out / "report.md").read_text().split("\n## Compute\n", 1)[1]
+    assert report.compute_table(out) in section
+    assert "| **total** |  | 0 | 0/" in section  # the fake run has no batches.csv: nothing counted

@@ -22,6 +22,9 @@ Written by :func:`write_report` (called at the end of :func:`hardness.benchmark.
   normalised regret pooled over seeds and MDPs with stratified-bootstrap intervals
   (:func:`hardness.benchmark.aggregate.aggregate_table`), the baseline's agents included;
 
+* a *Compute* section: hours of compiling and running per (set, agent), summed from ``batches.csv``
+  (:func:`compute_time`), with the members finished of those planned and the hosts that ran them;
+
 * ``curves_<set>.png/.pdf``: the cumulative regret of every agent (mean over seeds) against the steps, one panel per
   MDP, with the random agent as baseline (its own runs when it was run, else the uniform policy's exact expected
   regret);
@@ -53,7 +56,8 @@ import numpy as np
 
 from hardness.benchmark import aggregate, baselines, published, sets
 
-__all__ = ["Summary", "summarize", "markdown_table", "latex_table", "write_report", "LateRegret", "late_regret"]
+__all__ = ["Summary", "summarize", "markdown_table", "latex_table", "write_report", "LateRegret", "late_regret",
+           "ComputeTime", "compute_time", "compute_table"]
 
 #: Seeds whose hardness measures are averaged (the reference's helper averages seeds 0-4).
 MEASURE_SEEDS = 5
@@ -352,6 +356,70 @@ def late_regret(
     return result
 
 
+class ComputeTime(NamedTuple):
+    """What one (set, agent) of a run folder cost, from its finished batches' rows of ``batches.csv``: ``compile_s``
+    seconds compiling (in the call that finished each batch), ``run_s`` seconds of the lockstep loops (over every
+    call that ran a part of a batch); ``batches`` and ``members`` finished, of ``planned`` members in the plan;
+    ``hosts``, the machines that finished them (sorted)."""
+
+    compile_s: float
+    run_s: float
+    batches: int
+    members: int
+    planned: int
+    hosts: tuple[str, ...]
+
+    @property
+    def hours(self) -> float:
+        """``(compile_s + run_s) / 3600``."""
+        return (self.compile_s + self.run_s) / 3600
+
+
+def compute_time(out: str | os.PathLike) -> dict[tuple[str, str], ComputeTime]:
+    """``{(set, agent): ComputeTime}`` of a run folder, in the plan's order, every planned pair included (a pair with
+    no finished batch has zeros).
+
+    Sums the rows of ``batches.csv`` (which holds exactly the plan's finished batches, a batch run in parts as its
+    parts). A call runs one batch at a time, its members sharded over one host device per core, so for a run made by
+    one call at a time on one machine (no Ray, no concurrent shards) the sum is its wall time less each call's set-up
+    (building the MDPs, the indicator constants).
+    """
+    out = Path(out)
+    batches = json.loads((out / "plan.json").read_text())["batches"]
+    planned: dict[tuple[str, str], int] = defaultdict(int)
+    for b in batches:
+        planned[(b["set_name"], b["agent"])] += len(b["members"])
+    rows = []
+    if (out / "batches.csv").exists():
+        with (out / "batches.csv").open(newline="") as f:
+            rows = list(csv.DictReader(f))
+    done: dict[tuple[str, str], list[dict]] = defaultdict(list)
+    for r in rows:
+        done[(r["set"], r["agent"])].append(r)
+    result = {}
+    for pair, n in planned.items():
+        got = done.get(pair, [])
+        result[pair] = ComputeTime(
+            compile_s=math.fsum(float(r["compile_s"]) for r in got), run_s=math.fsum(float(r["run_s"]) for r in got),
+            batches=len(got), members=sum(int(r["members"]) for r in got), planned=n,
+            hosts=tuple(sorted({r.get("host") or "?" for r in got})))
+    return result
+
+
+def compute_table(out: str | os.PathLike) -> str:
+    """The report's *Compute* table (Markdown) of :func:`compute_time`: hours per (set, agent) and their total."""
+    times = compute_time(out)
+    rows = [[s, a, str(t.batches), f"{t.members}/{t.planned}", f"{t.compile_s / 3600:.2f}", f"{t.run_s / 3600:.2f}",
+             f"{t.hours:.2f}", ", ".join(t.hosts)] for (s, a), t in times.items()]
+    total = sum(t.hours for t in times.values())
+    rows.append(["**total**", "", str(sum(t.batches for t in times.values())),
+                 f"{sum(t.members for t in times.values())}/{sum(t.planned for t in times.values())}",
+                 f"{sum(t.compile_s for t in times.values()) / 3600:.2f}",
+                 f"{sum(t.run_s for t in times.values()) / 3600:.2f}", f"**{total:.2f}**", ""])
+    header = ["set", "agent", "batches", "members", "compiling, h", "running, h", "total, h", "hosts"]
+    return "\n".join(_markdown(header, rows))
+
+
 def _from_origin(d: dict[str, np.ndarray], column: str) -> tuple[np.ndarray, np.ndarray]:
     """Steps and the mean over seeds of ``column``, starting from ``(0, 0)`` (no regret before the first step)."""
     return np.concatenate([[0], d["steps"]]), np.concatenate([[0.0], d[column].mean(axis=0)])
@@ -525,6 +593,11 @@ def write_report(out: str | os.PathLike, baseline: str | os.PathLike | None = No
                "Interquartile mean and mean of the per-step normalised regret pooled over seeds and MDPs, with "
                "stratified-bootstrap intervals (`hardness.benchmark.aggregate`; Agarwal et al. 2021).", "",
                aggregate.aggregate_table(s.members)]
+    md += ["", "## Compute", "",
+           "Hours of the finished batches, summed from `batches.csv` (`hardness.benchmark.report.compute_time`): "
+           "compiling, and the lockstep loops over every call that ran a part of a batch. A call runs one batch at a "
+           "time on all of a machine's cores, so for a run made by one call at a time on one machine (no Ray, no "
+           "concurrent shards) the total is its wall time less each call's set-up.", "", compute_table(s.out)]
     (s.out / "report.md").write_text("\n".join(md) + "\n")
     (s.out / "report.tex").write_text("\n".join(tex) + "\n")
     return [s.out / "report.md", s.out / "report.tex"] + written
