@@ -335,7 +335,7 @@ def test_planning_agents_get_their_own_size_buckets():
     """By default episodic PSRL (a dense posterior draw per episode) runs on PLANNING_BUCKETS' finer buckets of a set,
     the other agents on ``n_buckets``; each agent's batches are jaxmdp.size_buckets of the set with its count, and
     together hold every MDP once. ``agent_buckets={}`` gives every agent ``n_buckets``."""
-    assert run.PLANNING_BUCKETS == {"psrl_episodic": 8}
+    assert run.PLANNING_BUCKETS == {"psrl_episodic": 16}
     for set_name, agents in (("episodic ergodic", ("psrl_episodic", "q_learning_episodic")),
                              ("continuous communicating", ("ucrl2", "psrl_continuous"))):
         insts = sets.instances(set_name)
@@ -347,7 +347,7 @@ def test_planning_agents_get_their_own_size_buckets():
             want = [sorted(insts[i].label for i in g) for g in jaxmdp.size_buckets(mdps, count)]
             assert got[agent] == want and len(want) == count
             assert [b.id for b in batches if b.agent == agent][-1].endswith(f".b{count - 1}")
-        assert settings["agent_buckets"] == {a: 8 for a in agents if a in run.PLANNING_BUCKETS}
+        assert settings["agent_buckets"] == {a: 16 for a in agents if a in run.PLANNING_BUCKETS}
         _, same = run.plan(run.RunConfig(sets=(set_name,), agents=agents, seeds=(0,), hparams="reference",
                                          agent_buckets={}))
         assert all(len(groups) == 4 for groups in _buckets_of(same).values())
@@ -356,7 +356,7 @@ def test_planning_agents_get_their_own_size_buckets():
 def test_run_benchmark_buckets_option_applies_to_every_agent():
     from hardness.cli import benchmark as cli
     default = cli.config_from_args(cli.build_parser().parse_args(["run", "--out", "x"]))
-    assert default.buckets("psrl_episodic") == 8 and default.buckets("psrl_continuous") == 4
+    assert default.buckets("psrl_episodic") == 16 and default.buckets("psrl_continuous") == 4
     given = cli.config_from_args(cli.build_parser().parse_args(["run", "--out", "x", "--buckets", "3"]))
     assert given.buckets("psrl_episodic") == given.buckets("q_learning_episodic") == 3
     quick = cli.config_from_args(cli.build_parser().parse_args(["run", "--out", "x", "--quick"]))

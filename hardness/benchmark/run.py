@@ -100,12 +100,14 @@ QUICK = dict(sets=sets.QUICK_SETS, seeds=(0, 1), n_steps=1_000, n_buckets=1, age
 #: Size buckets per set for the agents that run on more than :attr:`RunConfig.n_buckets`. Episodic PSRL draws a dense
 #: ``[S, A, S]`` posterior at every episode, so a member padded to its bucket's ``S_b`` and ``A_b`` pays ``S_b^2 A_b``
 #: per episode instead of ``S^2 A``, and the small MDPs with short horizons plan most often. Summed over each episodic
-#: set's MDPs per episode, four buckets pad that work by 1.47 (ergodic) and 1.64 (communicating), eight by 1.18 and
-#: 1.22, so eight buckets make episodic PSRL's steps cheaper for a little more compiling. PSRL continuous's plans cost
-#: as much on eight buckets as on four (their cost sits in the largest buckets), so it and the other agents keep four:
-#: every batch is one more compilation (and, on a GPU, one more sequence of lockstep steps). See docs/performance.md,
-#: Benchmark wall time.
-PLANNING_BUCKETS: Mapping[str, int] = {"psrl_episodic": 8}
+#: set's MDPs per episode (``sum S_b^2 A_b / H`` over ``sum S^2 A / H``), four buckets pad that work by 1.47 (ergodic)
+#: and 1.64 (communicating), eight by 1.18 and 1.22, sixteen by 1.001 and 1.002: on a CPU, where a batch costs in
+#: proportion to its members, sixteen buckets save about a sixth of episodic PSRL's draws (its floor, three quarters
+#: of its time) for eight more compilations of about 10 s per set. PSRL continuous's plans cost as much on eight
+#: buckets as on four (their cost sits in the largest buckets), so it and the other agents keep four: every batch is
+#: one more compilation (and, on a GPU, where a lockstep step costs about the same whatever its members, one more
+#: sequence of lockstep steps: pass fewer ``agent_buckets`` there). See docs/performance.md, Benchmark wall time.
+PLANNING_BUCKETS: Mapping[str, int] = {"psrl_episodic": 16}
 
 #: Size buckets per set for the deep agents: two programs per agent and setting. A member padded to its bucket's
 #: states pays for them at every log (the greedy policy of the network on every state, its exact regret), and every
