@@ -13,6 +13,14 @@ says an episode has ended.
 
 Policy estimate (for regret): backward induction on the posterior means (Dirichlet mean, ``mu``), greedy, ``[H, S, A]``.
 
+The counts live in ``K`` successor slots per pair (:class:`agents.estimated_model.SuccessorCounts`, ``K =
+MDPSpec.max_successors``, one more under the ``"last_state"`` rule), not in a dense ``[S, A, S]`` table: a pair meets
+no more next states than the MDP has successors, so the slots hold every count. The plan scatters them into the dense
+concentration its draw needs (the same numbers, so the same draws); the posterior mean is the slots plus the prior's
+uniform part, ``E[V(s')] = (sum_k N_k V(s'_k) + alpha0 sum_real V) / (alpha0 S_real + N(s, a))``, so the policy
+estimate that the indicators ask for at every log costs ``O(H S A K)`` instead of ``O(H S^2 A)``, and a planning
+round moves a small state instead of the dense table (docs/performance.md, Benchmark wall time).
+
 Differences from the reference (Colosseum), each deliberate:
 
 * The last step of an episode also updates the transition posterior (``final_transition="learn"``): here its next
@@ -38,12 +46,12 @@ import functools
 import jax
 import jax.numpy as jnp
 
+from agents import estimated_model as em
 from agents.posteriors import (
     COLOSSEUM_DIRICHLET_OFFSET,
     LogGammaSampler,
     NormalGamma,
     dirichlet_concentration,
-    dirichlet_mean,
     dirichlet_sample,
     log_gamma_sample,
     normal_gamma_mean,
@@ -91,9 +99,11 @@ class PSRLEpisodicHParams(struct.PyTreeNode):
 
 
 class PSRLEpisodicState(struct.PyTreeNode):
-    """Counts ``N[s, a, s']``, reward posterior, the current episode's ``Q~[H, S, A]`` and the spec's masks."""
+    """Counts ``N[s, a, s']`` in successor slots (module docstring; ``successors.overflowed`` records a hand-made spec
+    whose ``max_successors`` is below the MDP's, as for UCRL2), reward posterior, the current episode's ``Q~[H, S,
+    A]`` and the spec's masks."""
 
-    counts: jax.Array
+    successors: em.SuccessorCounts
     rewards: NormalGamma
     Q: jax.Array
     plan_due: jax.Array
@@ -101,6 +111,11 @@ class PSRLEpisodicState(struct.PyTreeNode):
     state_mask: jax.Array
     action_mask: jax.Array
     hparams: PSRLEpisodicHParams
+
+    @property
+    def counts(self) -> jax.Array:
+        """The visit counts ``N(s, a, s')`` as a dense ``[..., S, A, S]`` table, rebuilt from the slots."""
+        return em.dense_counts(self.successors)
 
 
 def check_hparams(hparams: PSRLEpisodicHParams) -> None:
@@ -130,8 +145,11 @@ def init(key: jax.Array, spec: MDPSpec, hparams: PSRLEpisodicHParams) -> PSRLEpi
         hparams.reward_prior_precision_count,
         dtype,
     )
+    # The "last_state" rule counts a visit to the last real state after an episode's last step: a next state the
+    # MDP's successor lists need not hold, hence one more slot.
+    K = None if spec.max_successors is None else spec.max_successors + (hparams.final_transition == "last_state")
     return PSRLEpisodicState(
-        counts=jnp.zeros((S, A, S), jnp.int32),
+        successors=em.empty_counts(S, A, K),
         rewards=rewards,
         Q=jnp.zeros((H, S, A), dtype),
         plan_due=jnp.ones((), bool),
@@ -160,9 +178,11 @@ def update(state: PSRLEpisodicState, tr: Transition) -> PSRLEpisodicState:
     if rule == "last_state":  # the reference's count of observation -1: numpy's x[-1] is the last (real) state
         last = state.state_mask.shape[0] - 1 - jnp.argmax(state.state_mask[::-1])
         next_obs = jnp.where(tr.terminated, last, next_obs)
-    counts = state.counts.at[tr.obs, tr.action, next_obs].add(learn.astype(jnp.int32))
+    recorded = em.record(state.successors, tr.obs, tr.action, next_obs)
+    successors = recorded if rule != "skip" else jax.tree.map(
+        lambda new, old: jnp.where(learn, new, old), recorded, state.successors)
     rewards = normal_gamma_observe(state.rewards, (tr.obs, tr.action), tr.reward)
-    return state.replace(counts=counts, rewards=rewards, plan_due=state.plan_due | tr.terminated)
+    return state.replace(successors=successors, rewards=rewards, plan_due=state.plan_due | tr.terminated)
 
 
 def needs_plan(state: PSRLEpisodicState) -> jax.Array:
@@ -170,7 +190,31 @@ def needs_plan(state: PSRLEpisodicState) -> jax.Array:
 
 
 def _alpha(state: PSRLEpisodicState) -> jax.Array:
+    """The dense posterior concentration ``alpha0 [s' real] + N(s, a, s')`` (the draw's input)."""
     return dirichlet_concentration(state.hparams.transition_prior, state.counts, state.state_mask)
+
+
+def posterior_mean_values(state: PSRLEpisodicState) -> jax.Array:
+    """``Q[H, S, A]`` of backward induction on the posterior means: ``Q_h = mu + E[V_{h+1}(s')]``, ``V_H = 0``, steps
+    ``h >= horizon`` worth zero (:func:`jaxmdp.dynamic_programming.finite_horizon_value_iteration`'s rule), with
+    ``E`` under the Dirichlet mean read from the slots (module docstring), ``O(H S A K)``."""
+    dtype = state.Q.dtype
+    prior = jnp.asarray(state.hparams.transition_prior, dtype)
+    mask = state.state_mask.astype(dtype)
+    counts = state.successors.counts.astype(dtype)
+    uniform_mass = prior * jnp.sum(mask)
+    total = uniform_mass + jnp.sum(counts, axis=-1)  # the row sums of alpha
+    kernel = em.SparseKernel.of(state.successors, counts / total[..., None], uniform_mass / total, state.state_mask)
+    kernel = kernel.copy_action_zero(state.action_mask)
+    R = copy_action_zero(normal_gamma_mean(state.rewards), state.action_mask)
+
+    def step(V_next, h):
+        Q = jnp.where(h < state.horizon, R + em.expected_next_values(kernel, V_next), 0.0)
+        return jnp.max(Q, axis=-1), Q
+
+    H = state.Q.shape[0]
+    _, Q = jax.lax.scan(step, jnp.zeros(R.shape[:1], dtype), jnp.arange(H), reverse=True)
+    return Q
 
 
 def plan(
@@ -195,11 +239,8 @@ def plan(
 
 
 def policy(state: PSRLEpisodicState) -> jax.Array:
-    """Greedy ``[H, S, A]`` policy of backward induction on the posterior means."""
-    P = copy_action_zero(dirichlet_mean(_alpha(state)), state.action_mask)
-    R = copy_action_zero(normal_gamma_mean(state.rewards), state.action_mask)
-    Q, _ = dp.finite_horizon_value_iteration(P, rewards=R, H=state.Q.shape[0], horizon=state.horizon)
-    return dp.greedy(Q, state.action_mask)
+    """Greedy ``[H, S, A]`` policy of backward induction on the posterior means (:func:`posterior_mean_values`)."""
+    return dp.greedy(posterior_mean_values(state), state.action_mask)
 
 
 PSRL_EPISODIC = Agent(
@@ -213,16 +254,20 @@ PSRL_EPISODIC = Agent(
     needs_plan=needs_plan,
     plan=plan,
     check_hparams=check_hparams,
+    diagnostics=lambda state: {
+        "slots_overflowed": state.successors.overflowed.astype(jnp.int32),  # a spec below the MDP's successors
+    },
     hints=RunnerHints(
         # A whole batch of plans pays only when its members' episodes end together (one horizon) and it is small:
-        # once a batch's agent states leave the caches (about 8 MB, 64 seeds of 100 states), rounds are faster
-        # (docs/performance.md, Planning rounds).
+        # a plan's draw works on a dense [S, A, S] per member, and once a batch's draws leave the caches, rounds are
+        # faster (docs/performance.md, Planning rounds). The state holds no dense table, so the caps are in its
+        # bytes (2 MiB: 20 seeds of a 256-state, three-action MDP of the benchmark).
         whole_batch_plans=64,
-        whole_batch_bytes=8 * 2**20,
-        # One plan a round once a member's state passes 256 KiB (108 states and more in the benchmark): a plan's
-        # draws over ``[S, A, S]`` are long enough to vectorise alone, so more slots save only rounds and cost cache
-        # (docs/performance.md, Planning rounds).
-        plan_slot_bytes=2**18,
+        whole_batch_bytes=2 * 2**20,
+        # One plan a round once a member's state passes 32 KiB (about 100 states and more in the benchmark): a
+        # plan's draws over [S, A, S] are long enough to vectorise alone, so more slots save only rounds and cost
+        # cache (docs/performance.md, Planning rounds).
+        plan_slot_bytes=2**15,
     ),
 )
 

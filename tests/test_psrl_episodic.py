@@ -10,8 +10,9 @@ import pytest
 import jaxmdp
 from agent_loop import is_river, make_runner, probe_batch, seeds
 from agents import AGENTS
-from agents.posteriors import dirichlet_concentration, dirichlet_sample, normal_gamma_sample
-from agents.psrl_episodic import PSRL_EPISODIC, PSRLEpisodicHParams, check_hparams
+from agents import estimated_model as em
+from agents.posteriors import dirichlet_concentration, dirichlet_mean, dirichlet_sample, normal_gamma_sample
+from agents.psrl_episodic import PSRL_EPISODIC, PSRLEpisodicHParams, check_hparams, posterior_mean_values
 from jaxmdp import dynamic_programming as dp
 from jaxmdp.experiment.agent_interface import Transition, spec_of
 from stat_checks import failure_rate_bound, key, mostly
@@ -153,7 +154,7 @@ def _backward_induction(P, R, H):
 def test_plan_is_backward_induction_on_a_posterior_draw():
     state = _fresh(AGENT.default_hparams, S=4, A=3, H=3)
     rng = np.random.default_rng(0)
-    state = state.replace(counts=jnp.asarray(rng.integers(0, 5, (4, 3, 4)), jnp.int32))
+    state = state.replace(successors=em.with_dense_counts(state.successors, rng.integers(0, 5, (4, 3, 4))))
     planned = jax.jit(AGENT.plan)(jax.random.key(3), state)
     k_p, k_r = jax.random.split(jax.random.key(3))
     alpha = dirichlet_concentration(AGENT.default_hparams.transition_prior, state.counts, state.state_mask)
@@ -164,6 +165,35 @@ def test_plan_is_backward_induction_on_a_posterior_draw():
     # A member that did not ask keeps its state.
     again = jax.jit(AGENT.plan)(jax.random.key(4), planned)
     jax.tree.map(np.testing.assert_array_equal, again.replace(hparams=planned.hparams), planned)
+
+
+def test_policy_estimate_is_backward_induction_on_the_dense_posterior_mean():
+    """The slots' posterior mean (counts at the slots plus the prior's uniform part) against the dense Dirichlet mean
+    of the same counts, in float64, on a padded spec (5 real of 7 states, 2 real of 3 actions, horizon 3 of H = 4)
+    with random counts on 3 successors a pair and random reward means: the same Q to rounding, the same policy."""
+    rng = np.random.default_rng(1)
+    S, A, K, H = 5, 2, 3, 3
+    P = np.zeros((S, A, S))
+    for s, a in np.ndindex(S, A):
+        P[s, a, rng.choice(S, K, replace=False)] = rng.dirichlet(np.ones(K))
+    spec = spec_of(jaxmdp.pad(jaxmdp.custom_mdp(P, R=np.zeros((S, A)), H=H), 7, 3, K, 4), 100)
+    with jax.enable_x64():
+        state = AGENT.init(jax.random.key(0), spec, AGENT.default_hparams)
+        dense = np.zeros((7, 3, 7), np.int64)
+        dense[:S, :A, :S] = rng.integers(0, 6, (S, A, S)) * (P > 0)
+        mu = jnp.asarray(rng.uniform(-1, 1, (7, 3)))
+        state = state.replace(successors=em.with_dense_counts(state.successors, dense),
+                              rewards=state.rewards.replace(mu=mu), Q=state.Q.astype(jnp.float64))
+        got = np.asarray(jax.jit(posterior_mean_values)(state))
+        alpha = dirichlet_concentration(AGENT.default_hparams.transition_prior, jnp.asarray(dense), spec.state_mask)
+        mean = np.array(dirichlet_mean(alpha))
+        mean[:, A:] = mean[:, :1]  # padded actions copy action 0 (copy_action_zero)
+        R = np.array(mu)
+        R[:, A:] = R[:, :1]
+        want = np.zeros((4, 7, 3))
+        want[:H] = _backward_induction(mean, R, H)  # steps h >= horizon are worth zero
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+        np.testing.assert_array_equal(jax.jit(AGENT.policy)(state), dp.greedy(jnp.asarray(want), spec.action_mask))
 
 
 def test_check_hparams_and_setting():
