@@ -137,6 +137,22 @@ def test_last_state_rule_counts_the_last_real_state_of_a_padded_spec():
     assert counts.shape == (5, 2, 5) and int(counts[1, 1, 2]) == 1 and int(counts.sum()) == 1
 
 
+def test_a_spec_below_the_mdp_s_successors_is_recorded_as_an_overflow():
+    """A hand-made spec promising one successor a pair: a second next state of a pair is not counted, the slots say
+    so, and the diagnostic the runner warns on counts it; the last-state rule gets a slot more."""
+    mdp = jaxmdp.custom_mdp(np.full((3, 2, 3), 1.0 / 3), R=np.zeros((3, 2)), H=2)
+    spec = spec_of(mdp, 100).replace(max_successors=1)
+    last = AGENT.init(jax.random.key(0), spec, PSRLEpisodicHParams(final_transition="last_state"))
+    assert last.successors.counts.shape == (3, 2, 2)
+    state = AGENT.init(jax.random.key(0), spec, AGENT.default_hparams)
+    update = jax.jit(AGENT.update)
+    for s2 in (1, 1, 2):
+        state = update(state, Transition(jnp.int32(0), jnp.int32(0), jnp.float32(0.0), jnp.int32(s2), jnp.int32(0),
+                                         jnp.asarray(False)))
+    np.testing.assert_array_equal(state.counts[0, 0], [0, 2, 0])
+    assert int(AGENT.diagnostics(state)["slots_overflowed"]) == 1
+
+
 def test_final_transition_rule_is_checked():
     with pytest.raises(ValueError, match=r"final_transition must be one of .*; got 'last'; did you mean 'last_state'"):
         AGENT.check_hparams(PSRLEpisodicHParams(final_transition="last"))
