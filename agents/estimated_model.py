@@ -83,9 +83,12 @@ def empty_counts(
     )
 
 
-def record(table: SuccessorCounts, s: jax.Array, a: jax.Array, s_next: jax.Array) -> SuccessorCounts:
+def record(
+    table: SuccessorCounts, s: jax.Array, a: jax.Array, s_next: jax.Array, count: jax.Array | bool = True
+) -> SuccessorCounts:
     """Count the transition ``(s, a, s_next)``: in the slot already holding ``s_next``, else in the pair's first empty
-    slot (``O(K)``)."""
+    slot (``O(K)``). ``count`` False (traced or not) leaves the counts as they are: an agent that skips a transition
+    pays ``O(K)`` for it, not a select over every slot."""
     states, counts = table.states[s, a], table.counts[s, a]
     used = counts > 0
     match = used & (states == s_next)
@@ -93,10 +96,11 @@ def record(table: SuccessorCounts, s: jax.Array, a: jax.Array, s_next: jax.Array
     free = ~used
     j = jnp.where(found, jnp.argmax(match), jnp.argmax(free))
     fits = found | jnp.any(free)
+    add = fits & jnp.asarray(count, bool)
     return table.replace(
-        states=table.states.at[s, a, j].set(jnp.where(fits, s_next, states[j])),
-        counts=table.counts.at[s, a, j].add(fits.astype(jnp.int32)),
-        overflowed=table.overflowed | ~fits,
+        states=table.states.at[s, a, j].set(jnp.where(add, s_next, states[j])),
+        counts=table.counts.at[s, a, j].add(add.astype(jnp.int32)),
+        overflowed=table.overflowed | (~fits & jnp.asarray(count, bool)),
     )
 
 

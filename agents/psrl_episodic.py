@@ -178,9 +178,7 @@ def update(state: PSRLEpisodicState, tr: Transition) -> PSRLEpisodicState:
     if rule == "last_state":  # the reference's count of observation -1: numpy's x[-1] is the last (real) state
         last = state.state_mask.shape[0] - 1 - jnp.argmax(state.state_mask[::-1])
         next_obs = jnp.where(tr.terminated, last, next_obs)
-    recorded = em.record(state.successors, tr.obs, tr.action, next_obs)
-    successors = recorded if rule != "skip" else jax.tree.map(
-        lambda new, old: jnp.where(learn, new, old), recorded, state.successors)
+    successors = em.record(state.successors, tr.obs, tr.action, next_obs, learn)
     rewards = normal_gamma_observe(state.rewards, (tr.obs, tr.action), tr.reward)
     return state.replace(successors=successors, rewards=rewards, plan_due=state.plan_due | tr.terminated)
 

@@ -54,6 +54,24 @@ def test_record_counts_every_transition_in_first_seen_slots():
         assert np.all(np.asarray(table.counts[i, j, :n]) > 0) and np.all(np.asarray(table.counts[i, j, n:]) == 0)
 
 
+def test_record_with_count_false_leaves_the_table_as_it_is():
+    """A skipped transition changes nothing: not the counts, not the slots' order, not the overflow flag (even for a
+    next state that does not fit); counted, that next state overflows the full pair."""
+    rng = np.random.default_rng(2)
+    S, A, K = 5, 2, 2
+    s, a, s2 = _stream(rng, 60, S, A, K)
+    table = _record_all(em.empty_counts(S, A, K), s, a, s2)
+    skip = jax.jit(em.record)
+    full = np.flatnonzero(np.asarray(table.counts[0, 0]) > 0).size == K
+    assert full  # pair (0, 0) has met both its next states: a third one overflows when counted
+    new = next(x for x in range(S) if x not in np.asarray(table.states[0, 0]).tolist())
+    for x in (int(s2[0]), new):
+        jax.tree.map(np.testing.assert_array_equal, skip(table, 0, 0, x, False), table)
+    counted = skip(table, 0, 0, new, True)
+    assert bool(counted.overflowed) and not bool(table.overflowed)
+    np.testing.assert_array_equal(counted.counts, table.counts)
+
+
 def test_with_dense_counts_holds_the_same_counts_in_index_order():
     rng = np.random.default_rng(5)
     S, A, K = 7, 3, 4

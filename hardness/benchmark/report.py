@@ -409,13 +409,14 @@ def compute_time(out: str | os.PathLike) -> dict[tuple[str, str], ComputeTime]:
 def compute_table(out: str | os.PathLike) -> str:
     """The report's *Compute* table (Markdown) of :func:`compute_time`: hours per (set, agent) and their total."""
     times = compute_time(out)
-    rows = [[s, a, str(t.batches), f"{t.members}/{t.planned}", f"{t.compile_s / 3600:.2f}", f"{t.run_s / 3600:.2f}",
-             f"{t.hours:.2f}", ", ".join(t.hosts)] for (s, a), t in times.items()]
-    total = sum(t.hours for t in times.values())
-    rows.append(["**total**", "", str(sum(t.batches for t in times.values())),
-                 f"{sum(t.members for t in times.values())}/{sum(t.planned for t in times.values())}",
-                 f"{sum(t.compile_s for t in times.values()) / 3600:.2f}",
-                 f"{sum(t.run_s for t in times.values()) / 3600:.2f}", f"**{total:.2f}**", ""])
+    total = ComputeTime(*(sum(t[i] for t in times.values()) for i in range(5)), ())  # every field but the hosts
+
+    def row(first: str, agent: str, t: ComputeTime, hours: str) -> list[str]:
+        return [first, agent, str(t.batches), f"{t.members}/{t.planned}", f"{t.compile_s / 3600:.2f}",
+                f"{t.run_s / 3600:.2f}", hours, ", ".join(t.hosts)]
+
+    rows = [row(s, a, t, f"{t.hours:.2f}") for (s, a), t in times.items()]
+    rows.append(row("**total**", "", total, f"**{total.hours:.2f}**"))
     header = ["set", "agent", "batches", "members", "compiling, h", "running, h", "total, h", "hosts"]
     return "\n".join(_markdown(header, rows))
 
