@@ -19,9 +19,11 @@ fewer than ``M`` at every size of the benchmark. An improvement step keeps per p
 and per state the best real action, a policy being a real action and a candidate slot per state (:class:`_Choice`); an
 evaluation solves ``(I - gamma P_pi) V = r_pi`` for the chosen rows, built only where the solve reads them (the states
 whose row is not a jump and the states jumped to, or all ``[S, S]`` when there are too many of those).
-A plan's working memory is ``O(S^2 + max_psi S A)`` per member (kept draws aside). With more than ``M`` pairs at
-``eta`` (e.g. optimism off, where every pair is), every backup pays ``psi`` Dirichlet draws of ``[S, A, S]``: a few
-per discounted plan, one per sweep of relative value iteration.
+A plan's working memory is ``O(S^2 + max_psi S A)`` per member (kept draws aside). A plan in which no pair is at
+``eta`` (nearly all of a run's plans) uses *lean* draws (:attr:`Draws.lean`): no kept rows and no posterior branches
+in the planner, the same candidates and plan. With more than ``M`` pairs at ``eta`` (e.g. optimism off, where every
+pair is), every backup pays ``psi`` Dirichlet draws of ``[S, A, S]``: a few per discounted plan, one per sweep of
+relative value iteration.
 """
 
 from __future__ import annotations
@@ -83,7 +85,8 @@ class Draws(struct.PyTreeNode):
     ``p^-(s, a) + missing[s, a] e_z[k, s, a]`` where ``posterior[s, a]`` is False, else a Dirichlet draw from the
     posterior concentration of the pair's counts: ``kept[k, m]`` for pair ``pairs[m]`` (the first ``M`` pairs at
     ``eta``, then the fill value ``S A``), or, when more than ``M`` pairs are at ``eta`` (``overflow``), row ``(s, a)``
-    of :meth:`draw`. ``active[k]``: slot ``k < psi``.
+    of :meth:`draw`. ``active[k]``: slot ``k < psi``. ``lean`` (static): drawn for a plan in which no pair is at
+    ``eta``, without kept rows (``M = 0``); the planner then leaves out every posterior path.
 
     ``p^-`` (:func:`_p_minus`) is non-zero only at observed next states, so it is held at the pair's successor slots
     (``p_minus[S, A, K]`` at ``slot_states``) and backed up in ``O(S A K)``. Nor is the dense concentration kept: the
@@ -104,6 +107,7 @@ class Draws(struct.PyTreeNode):
     offset: float = struct.field(pytree_node=False, default=0.0)
     colosseum: bool = struct.field(pytree_node=False, default=False)
     scaled: bool = struct.field(pytree_node=False, default=False)
+    lean: bool = struct.field(pytree_node=False, default=False)
 
     @property
     def any_posterior(self) -> jax.Array:
@@ -161,7 +165,8 @@ class Draws(struct.PyTreeNode):
 
 
 def draws(
-    key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "paper", keep_limit: int = KEEP_LIMIT
+    key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "paper", keep_limit: int = KEEP_LIMIT,
+    lean: bool = False,
 ) -> Draws:
     """The candidates of one plan (module docstring) without their dense kernels.
 
@@ -172,7 +177,8 @@ def draws(
     (:class:`Draws`). The posterior draws of the first ``M = min(S A, keep_limit / (max_psi S))`` (at least one) pairs
     at ``eta`` are kept (``keep_limit`` floats, static; default :data:`KEEP_LIMIT`), drawn only if some pair (of any
     member of a ``vmap``) is at ``eta``; with more pairs at ``eta``, every backup draws all rows again from the same
-    keys (:meth:`Draws.draw`)."""
+    keys (:meth:`Draws.draw`). ``lean`` (static): for a state with no pair at ``eta`` (the caller's promise, not
+    checked), keep no rows at all (:attr:`Draws.lean`); the candidates are the same."""
     colosseum = variant == "colosseum"
     hp, c = state.hparams, state.constants
     dtype = state.Q.dtype
@@ -192,14 +198,16 @@ def draws(
     index = fused_random.randint(k_z, (K,) if colosseum else (K, S, A), 0, jnp.sum(mask).astype(jnp.int32))
     z = jnp.broadcast_to(real_states[index].reshape((K, 1, 1) if colosseum else (K, S, A)), (K, S, A))
     posterior = N >= c.eta
-    M = min(S * A, max(1, keep_limit // (K * S)))
+    M = 0 if lean else min(S * A, max(1, keep_limit // (K * S)))
     (pairs,) = jnp.nonzero(posterior.reshape(-1), size=M, fill_value=S * A)
     out = Draws(slot_counts=succ.counts, slot_states=succ.states, p_minus=p_minus,
                 missing=1.0 - jnp.sum(p_minus, axis=-1), z=z.astype(jnp.int32),
                 posterior=posterior, concentration=jnp.stack([1.0 / n_real, c.omega, c.kappa]).astype(dtype),
                 state_mask=mask, key=k_dir, active=jnp.arange(K) < c.psi, pairs=pairs.astype(jnp.int32),
                 kept=jnp.zeros((K, M, S), dtype), offset=COLOSSEUM_DIRICHLET_OFFSET if colosseum else 0.0,
-                colosseum=colosseum, scaled=hp.scaled_dirichlet)
+                colosseum=colosseum, scaled=hp.scaled_dirichlet, lean=lean)
+    if lean:
+        return out
     zeros = jnp.zeros((M, S), dtype)
 
     # The draws come in as an operand, so that the concentrations are computed inside the skip, once per plan that
@@ -290,6 +298,8 @@ def best_candidates(d: Draws, R_ext: jax.Array, V: jax.Array, gamma: jax.Array) 
     q_opt = jnp.where(d.active[:, None, None], q_opt, -jnp.inf)
     k_opt = jnp.argmax(q_opt, axis=0).astype(jnp.int32)
     best_opt = jnp.max(q_opt, axis=0)
+    if d.lean:  # static: no pair at eta
+        return best_opt, k_opt
 
     pairs = jnp.minimum(d.pairs, S * A - 1)
 
@@ -373,6 +383,8 @@ def _chosen_rows(d: Draws, pi: _Choice, s: jax.Array) -> jax.Array:
     a, k = pi.action[s], pi.k[s]
     jumps = jax.nn.one_hot(d.z[k, s, a], S, dtype=d.missing.dtype)
     optimistic = d.p_minus_rows(s, a) + d.missing[s, a][:, None] * jumps
+    if d.lean:  # static
+        return optimistic
     posterior = only_if(d.any_posterior, _posterior_rows, jnp.zeros_like(optimistic), d, s, a, k)
     return jnp.where(d.posterior[s, a][:, None], posterior, optimistic)
 
@@ -385,6 +397,8 @@ def _chosen_expectations(d: Draws, pi: _Choice, V: jax.Array) -> jax.Array:
     K, S, A = d.z.shape
     s, a, k = jnp.arange(S), pi.action, pi.k
     optimistic = d.p_minus_dot(V)[s, a] + d.missing[s, a] * V[d.z[k, s, a]]
+    if d.lean:  # static
+        return optimistic
 
     def kept(dd, V):
         return jnp.sum(dd.kept * V, axis=-1)[k, _kept_position(dd, s, a)]
@@ -457,10 +471,11 @@ def extended_draws(
     variant: Variant = "paper",
     reward_variant: Variant | None = None,
     keep_limit: int = KEEP_LIMIT,
+    lean: bool = False,
 ) -> tuple[jax.Array, Draws]:
     """The extended MDP that :func:`agents.psrl_continuous.plan` draws with ``key``: its rewards
     ``R_ext[max_psi, S, A]`` (one Normal-Gamma draw per pair, :func:`_extended_rewards`) and its candidates
-    (:func:`draws`)."""
+    (:func:`draws`, ``lean`` as there)."""
     k_r, k_p = jax.random.split(key)
     R_ext = _extended_rewards(normal_gamma_sample(k_r, state.rewards), state, reward_variant or variant)
-    return R_ext, draws(k_p, state, variant=variant, keep_limit=keep_limit)
+    return R_ext, draws(k_p, state, variant=variant, keep_limit=keep_limit, lean=lean)

@@ -332,36 +332,47 @@ def plan(
     alone, so that an ablation can tell the two differences apart. ``keep_limit``: the posterior rows a plan keeps
     (:func:`draws`; the plan is the same, only its memory and the redrawing change: tests force the redrawing path
     with 0). ``jump_states``: the evaluations' elimination of jumping states (:data:`JUMP_STATES`; the plan is the
-    same to float32 precision; tests force it on small MDPs).
+    same to float32 precision; tests force it on small MDPs). While no pair is at ``eta`` the plan runs on lean draws
+    (:attr:`~agents.extended_policy_iteration.Draws.lean`: the same candidates, no posterior paths).
     """
     if reward_variant not in (None, *VARIANTS):
         raise ValueError(f"reward_variant must be None, 'paper' or 'colosseum'; got {reward_variant!r}")
-    hp = state.hparams
-    R_ext, d = extended_draws(key, state, variant=variant, reward_variant=reward_variant, keep_limit=keep_limit)
-    mask = state.action_mask
-    gamma = jnp.asarray(hp.discount, R_ext.dtype)
 
-    # Under vmap the hyperparameters stored in the state are batched, so this cond becomes a select that runs both
-    # branches: each branch is kept cheap and well posed when its result is not the one selected.
-    def discounted(_):
-        res = extended_policy_iteration(d, R_ext, jnp.where(gamma < 1, gamma, 0.99), state.u, mask, jump_states)
-        return res.Q, res.V, res.iterations, res.converged
+    def solve(st, k, lean):
+        hp, mask = st.hparams, st.action_mask
+        R_ext, d = extended_draws(k, st, variant=variant, reward_variant=reward_variant, keep_limit=keep_limit,
+                                  lean=lean)
+        gamma = jnp.asarray(hp.discount, R_ext.dtype)
 
-    def average(_):
-        res = dp.relative_value_iteration(
-            lambda u: copy_action_zero(best_candidates(d, R_ext, u, jnp.ones((), u.dtype))[0], mask),
-            state.u,
-            state.state_mask,
-            mask,
-            discount=1.0,
-            tol=hp.plan_tol,
-            max_iter=hp.plan_max_iter,
-            aperiodicity=hp.aperiodicity,
-            active=state.plan_due & (gamma >= 1),
-        )
-        return res.Q, res.u, res.iterations, res.converged
+        # Under vmap the hyperparameters stored in the state are batched, so this cond becomes a select that runs both
+        # branches: each branch is kept cheap and well posed when its result is not the one selected.
+        def discounted(_):
+            res = extended_policy_iteration(d, R_ext, jnp.where(gamma < 1, gamma, 0.99), st.u, mask, jump_states)
+            return res.Q, res.V, res.iterations, res.converged
 
-    Q, u, iterations, converged = jax.lax.cond(gamma < 1, discounted, average, None)
+        def average(_):
+            res = dp.relative_value_iteration(
+                lambda u: copy_action_zero(best_candidates(d, R_ext, u, jnp.ones((), u.dtype))[0], mask),
+                st.u,
+                st.state_mask,
+                mask,
+                discount=1.0,
+                tol=hp.plan_tol,
+                max_iter=hp.plan_max_iter,
+                aperiodicity=hp.aperiodicity,
+                active=st.plan_due & (gamma >= 1),
+            )
+            return res.Q, res.u, res.iterations, res.converged
+
+        return jax.lax.cond(gamma < 1, discounted, average, None)
+
+    # Until some pair reaches eta (early in a run, where nearly all plans fall) the plan runs without the posterior
+    # candidates' code and buffer (Draws.lean): the buffer of kept rows is zeroed at every plan and the posterior
+    # branches cost at every backup (docs/performance.md, Continuous planning). Both paths draw the same candidates.
+    any_posterior = jnp.any(state.schedule.visits.astype(state.Q.dtype) >= state.constants.eta)  # as draws' test
+    nothing = (state.Q, state.u, jnp.zeros((), jnp.int32), jnp.ones((), bool))
+    lean = only_if(~any_posterior, lambda st, k: solve(st, k, True), nothing, state, key)
+    Q, u, iterations, converged = only_if(any_posterior, lambda st, k: solve(st, k, False), lean, state, key)
     new = state.replace(
         Q=Q,
         u=u,

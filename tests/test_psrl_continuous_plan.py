@@ -182,6 +182,37 @@ def test_chosen_rows_and_expectations_agree_at_any_states(keep_limit):
     np.testing.assert_allclose(np.asarray(whole).sum(-1)[STATE_MASK], 1.0, atol=1e-5)
 
 
+@pytest.mark.parametrize("variant", ["paper", "colosseum"])
+def test_lean_draws_plan_as_the_full_ones_when_no_pair_is_at_eta(variant):
+    # A plan with no pair at eta runs on lean draws (no kept rows, no posterior branches): the same candidates from the
+    # same key, bit for bit, and the same policy iteration (values to float32 rounding, the same greedy actions); the
+    # plan's own result is that of the full draws.
+    agent, state = _state(variant, "none", seed=6)
+    gamma = jnp.asarray(0.99, jnp.float32)
+
+    @jax.jit
+    def both(k):
+        out = []
+        for lean in (False, True):
+            R_ext, d = pc.extended_draws(k, state, variant=variant, lean=lean)
+            res = epi.extended_policy_iteration(d, R_ext, gamma, state.u, state.action_mask)
+            out.append((R_ext, d.z, d.p_minus, d.missing, d.kept.shape, res.V, res.Q))
+        return out
+
+    plan = jax.jit(agent.plan)
+    for k in jax.random.split(key(28), N_KEYS):
+        full, lean = both(k)
+        for x, y in zip(full[:4], lean[:4]):
+            np.testing.assert_array_equal(x, y)
+        assert full[4][1] >= 1 and lean[4] == (state.hparams.max_psi, 0, S)
+        scale = 1 + float(np.abs(full[5]).max())
+        np.testing.assert_allclose(lean[5], full[5], rtol=0, atol=1e-6 * scale)
+        np.testing.assert_allclose(lean[6], full[6], rtol=0, atol=1e-6 * scale)
+        np.testing.assert_array_equal(np.asarray(lean[6]).argmax(-1), np.asarray(full[6]).argmax(-1))
+        new = plan(k, state)
+        np.testing.assert_allclose(new.u, full[5], rtol=0, atol=1e-6 * scale)
+
+
 # Nightly; a corner (one kept pair) of test_discounted_plan_equals_policy_iteration_on_the_dense_extended_mdp.
 @pytest.mark.nightly
 @pytest.mark.statistical(p=0.0)
