@@ -96,11 +96,12 @@ def record(
     free = ~used
     j = jnp.where(found, jnp.argmax(match), jnp.argmax(free))
     fits = found | jnp.any(free)
-    add = fits & jnp.asarray(count, bool)
+    count = jnp.asarray(count, bool)
+    add = fits & count
     return table.replace(
         states=table.states.at[s, a, j].set(jnp.where(add, s_next, states[j])),
         counts=table.counts.at[s, a, j].add(add.astype(jnp.int32)),
-        overflowed=table.overflowed | (~fits & jnp.asarray(count, bool)),
+        overflowed=table.overflowed | (~fits & count),
     )
 
 

@@ -58,6 +58,7 @@ __all__ = [
     "extended_mdp",
     "colosseum_extended_rewards",
     "extended_draws",
+    "at_eta",
     "best_candidates",
     "extended_policy_iteration",
 ]
@@ -164,6 +165,11 @@ class Draws(struct.PyTreeNode):
         return jnp.where(self.overflow, self.draw(k), kept.reshape(self.missing.shape + (S,)))
 
 
+def at_eta(state: PSRLContinuousState) -> jax.Array:
+    """``[S, A]``: the pairs whose candidates are posterior draws, ``N(s, a) >= eta`` (:class:`Draws`.posterior)."""
+    return state.schedule.visits.astype(state.Q.dtype) >= state.constants.eta
+
+
 def draws(
     key: jax.Array, state: PSRLContinuousState, *, variant: Variant = "paper", keep_limit: int = KEEP_LIMIT,
     lean: bool = False,
@@ -197,7 +203,7 @@ def draws(
     # (docs/performance.md, Sampling).
     index = fused_random.randint(k_z, (K,) if colosseum else (K, S, A), 0, jnp.sum(mask).astype(jnp.int32))
     z = jnp.broadcast_to(real_states[index].reshape((K, 1, 1) if colosseum else (K, S, A)), (K, S, A))
-    posterior = N >= c.eta
+    posterior = at_eta(state)
     M = 0 if lean else min(S * A, max(1, keep_limit // (K * S)))
     (pairs,) = jnp.nonzero(posterior.reshape(-1), size=M, fill_value=S * A)
     out = Draws(slot_counts=succ.counts, slot_states=succ.states, p_minus=p_minus,

@@ -85,6 +85,7 @@ from agents.posteriors import (
 from agents.extended_policy_iteration import (  # noqa: F401 (re-exported: the planner's names, as before)
     JUMP_STATES,
     KEEP_LIMIT,
+    at_eta,
     Draws,
     best_candidates,
     candidate_kernels,
@@ -369,7 +370,7 @@ def plan(
     # Until some pair reaches eta (early in a run, where nearly all plans fall) the plan runs without the posterior
     # candidates' code and buffer (Draws.lean): the buffer of kept rows is zeroed at every plan and the posterior
     # branches cost at every backup (docs/performance.md, Continuous planning). Both paths draw the same candidates.
-    any_posterior = jnp.any(state.schedule.visits.astype(state.Q.dtype) >= state.constants.eta)  # as draws' test
+    any_posterior = jnp.any(at_eta(state))
     nothing = (state.Q, state.u, jnp.zeros((), jnp.int32), jnp.ones((), bool))
     lean = only_if(~any_posterior, lambda st, k: solve(st, k, True), nothing, state, key)
     Q, u, iterations, converged = only_if(any_posterior, lambda st, k: solve(st, k, False), lean, state, key)

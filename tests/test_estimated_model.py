@@ -65,7 +65,7 @@ def test_record_with_count_false_leaves_the_table_as_it_is():
     full = np.flatnonzero(np.asarray(table.counts[0, 0]) > 0).size == K
     assert full  # pair (0, 0) has met both its next states: a third one overflows when counted
     new = next(x for x in range(S) if x not in np.asarray(table.states[0, 0]).tolist())
-    for x in (int(s2[0]), new):
+    for x in (int(table.states[0, 0, 0]), new):  # a next state the pair has met, and one it has not
         jax.tree.map(np.testing.assert_array_equal, skip(table, 0, 0, x, False), table)
     counted = skip(table, 0, 0, new, True)
     assert bool(counted.overflowed) and not bool(table.overflowed)

@@ -188,6 +188,7 @@ def test_lean_draws_plan_as_the_full_ones_when_no_pair_is_at_eta(variant):
     # same key, bit for bit, and the same policy iteration (values to float32 rounding, the same greedy actions); the
     # plan's own result is that of the full draws.
     agent, state = _state(variant, "none", seed=6)
+    assert not bool(jnp.any(epi.at_eta(state)))  # so that the plan runs lean
     gamma = jnp.asarray(0.99, jnp.float32)
 
     @jax.jit

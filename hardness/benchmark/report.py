@@ -409,7 +409,8 @@ def compute_time(out: str | os.PathLike) -> dict[tuple[str, str], ComputeTime]:
 def compute_table(out: str | os.PathLike) -> str:
     """The report's *Compute* table (Markdown) of :func:`compute_time`: hours per (set, agent) and their total."""
     times = compute_time(out)
-    total = ComputeTime(*(sum(t[i] for t in times.values()) for i in range(5)), ())  # every field but the hosts
+    total = ComputeTime(**{f: sum(getattr(t, f) for t in times.values()) for f in ComputeTime._fields if f != "hosts"},
+                        hosts=())
 
     def row(first: str, agent: str, t: ComputeTime, hours: str) -> list[str]:
         return [first, agent, str(t.batches), f"{t.members}/{t.planned}", f"{t.compile_s / 3600:.2f}",
