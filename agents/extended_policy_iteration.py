@@ -18,7 +18,10 @@ from the same keys (the same bits each time). Within ``T = 500 000`` steps at mo
 fewer than ``M`` at every size of the benchmark. An improvement step keeps per pair the best candidate (value and slot)
 and per state the best real action, a policy being a real action and a candidate slot per state (:class:`_Choice`); an
 evaluation solves ``(I - gamma P_pi) V = r_pi`` for the chosen rows, built only where the solve reads them (the states
-whose row is not a jump and the states jumped to, or all ``[S, S]`` when there are too many of those).
+whose row is not a jump and the states jumped to). When there are too many of those (late in a run, when most chosen
+rows carry observed mass) and the MDP's band order is known, the chosen ``p^-`` rows are banded in it (they lie on
+the MDP's successors) and their missing mass jumps to few states: a banded elimination with a low-rank correction;
+otherwise the whole ``[S, S]`` system.
 A plan's working memory is ``O(S^2 + max_psi S A)`` per member (kept draws aside). A plan in which no pair is at
 ``eta`` (nearly all of a run's plans) uses *lean* draws (:attr:`Draws.lean`): no kept rows and no posterior branches
 in the planner, the same candidates and plan. With more than ``M`` pairs at ``eta`` (e.g. optimism off, where every
@@ -52,6 +55,7 @@ if TYPE_CHECKING:
 __all__ = [
     "KEEP_LIMIT",
     "JUMP_STATES",
+    "BAND_TARGETS",
     "Draws",
     "draws",
     "candidate_kernels",
@@ -105,6 +109,8 @@ class Draws(struct.PyTreeNode):
     active: jax.Array  # [max_psi] bool
     pairs: jax.Array  # [M] int32 flat pair indices s A + a
     kept: jax.Array  # [max_psi, M, S]
+    order: jax.Array | None = None  # [S]: the MDP's band order (SuccessorCounts.order), or None
+    bandwidth: int | None = struct.field(pytree_node=False, default=None)
     offset: float = struct.field(pytree_node=False, default=0.0)
     colosseum: bool = struct.field(pytree_node=False, default=False)
     scaled: bool = struct.field(pytree_node=False, default=False)
@@ -210,7 +216,7 @@ def draws(
                 missing=1.0 - jnp.sum(p_minus, axis=-1), z=z.astype(jnp.int32),
                 posterior=posterior, concentration=jnp.stack([1.0 / n_real, c.omega, c.kappa]).astype(dtype),
                 state_mask=mask, key=k_dir, active=jnp.arange(K) < c.psi, pairs=pairs.astype(jnp.int32),
-                kept=jnp.zeros((K, M, S), dtype), offset=COLOSSEUM_DIRICHLET_OFFSET if colosseum else 0.0,
+                kept=jnp.zeros((K, M, S), dtype), order=succ.order, bandwidth=succ.bandwidth, offset=COLOSSEUM_DIRICHLET_OFFSET if colosseum else 0.0,
                 colosseum=colosseum, scaled=hp.scaled_dirichlet, lean=lean)
     if lean:
         return out
@@ -369,6 +375,13 @@ def _posterior_rows(d: Draws, s: jax.Array, a: jax.Array, k: jax.Array) -> jax.A
 # (jax.lax.linalg.lu on a CPU), so the system's size, not the states it holds, sets its cost (docs/performance.md,
 # Continuous planning).
 JUMP_STATES = (64, 256)
+# With the MDP's band order (the runner's spec gives it on a CPU), an evaluation that the first elimination cannot take
+# (late in a run, most chosen rows carry observed mass) is a banded elimination corrected for the states jumped to, if
+# they are at most this many (tried in increasing order), before the larger elimination and the whole [S, S] system.
+# A chosen row's jump goes to its best of psi candidate states, so few states receive them: 38-53 at 784-820 states
+# after 150 000-250 000 steps of the agent's own play, where a plan became 5-8x faster (docs/performance.md,
+# Continuous planning).
+BAND_TARGETS = (64, 256)
 
 
 class _Choice(struct.PyTreeNode):
@@ -416,6 +429,26 @@ def _chosen_expectations(d: Draws, pi: _Choice, V: jax.Array) -> jax.Array:
     return jnp.where(d.posterior[s, a], posterior, optimistic)
 
 
+def _banded_values(d: Draws, pi: _Choice, gamma: jax.Array, size: int) -> tuple[jax.Array, jax.Array]:
+    """``(V, fits)``: policy ``pi``'s values by a banded elimination in the MDP's band order (``d.order``), the jumps
+    of the missing mass as a rank-``m`` correction over the ``m <= size`` (static) states jumped to
+    (:func:`jaxmdp.dynamic_programming.discounted_banded_jump_chain_values`). ``fits``: ``m <= size``, every chosen
+    ``p^-`` within ``d.bandwidth`` (it lies on the MDP's observed successors) and no chosen row a posterior one."""
+    S = d.state_mask.shape[0]
+    order = d.order
+    pos = jnp.zeros((S,), jnp.int32).at[order].set(jnp.arange(S, dtype=jnp.int32))
+    a, k = pi.action[order], pi.k[order]  # position i: state order[i]
+    cols = pos[d.slot_states[order, a]]
+    probs = d.p_minus[order, a]
+    B = jnp.zeros((S, S), probs.dtype).at[jnp.arange(S)[:, None], cols].add(probs)
+    in_band = jnp.all((probs == 0) | (jnp.abs(jnp.arange(S)[:, None] - cols) <= d.bandwidth))
+    V, fits = dp.discounted_banded_jump_chain_values(
+        B, d.missing[order, a], pos[d.z[k, order, a]], pi.reward[order], gamma, d.bandwidth, size)
+    if not d.lean:  # static
+        fits = fits & ~jnp.any(d.posterior[order, a])
+    return V[pos], fits & in_band
+
+
 def _greedy(
     d: Draws, R_ext: jax.Array, V: jax.Array, gamma: jax.Array, action_mask: jax.Array
 ) -> tuple[jax.Array, _Choice]:
@@ -434,15 +467,19 @@ def _greedy(
 
 def extended_policy_iteration(
     d: Draws, R_ext: jax.Array, gamma: jax.Array, V0: jax.Array, action_mask: jax.Array,
-    jump_states: int | tuple[int, ...] = JUMP_STATES,
+    jump_states: int | tuple[int, ...] = JUMP_STATES, band_targets: int | tuple[int, ...] = BAND_TARGETS,
 ) -> dp.ValueIterationResult:
     """Policy iteration (:func:`jaxmdp.dynamic_programming.policy_iteration_by`, exact evaluation, ``rtol = 1e-5``)
     on the extended MDP of ``d`` and rewards ``R_ext[max_psi, S, A]``, from the policy greedy on one backup of
     ``V0``. Improvement picks per pair the best candidate and per state the best real action (:func:`_greedy`);
     evaluation solves ``(I - gamma P_pi) V = r_pi`` for the chosen rows, with more states than the largest of
     ``jump_states`` (static sizes, tried in increasing order) first eliminating those whose chosen row is a jump
-    (:data:`JUMP_STATES`), building the rows of the other states only. ``Q[S, A] = max_k Q_ext(s, (a, k))``."""
+    (:data:`JUMP_STATES`), building the rows of the other states only; then, with the MDP's band order in ``d``, a
+    banded elimination corrected for at most ``band_targets`` states jumped to (:data:`BAND_TARGETS`,
+    :func:`_banded_values`); then the larger eliminations, then the whole chain. ``Q[S, A] = max_k Q_ext(s, (a,
+    k))``."""
     sizes = sorted({jump_states} if isinstance(jump_states, int) else set(jump_states))
+    band_sizes = sorted({band_targets} if isinstance(band_targets, int) else set(band_targets))
     S = V0.shape[0]
 
     def dense(pi, dd):  # dd: the draws as an operand, so that a skipped evaluation's rows are not built anyway
@@ -454,10 +491,16 @@ def extended_policy_iteration(
 
         return values
 
+    def banded(size):
+        return lambda pi, dd: _banded_values(dd, pi, gamma, size)
+
     def evaluate(pi):
         if S <= sizes[-1]:  # static
             return dense(pi, d)
         V, fits = eliminated(sizes[0])(pi, d)
+        if d.order is not None:  # static: the MDP's band order is known
+            for size in band_sizes:
+                V, fits = only_if(~fits, banded(size), (V, fits), pi, d)
         for size in sizes[1:]:
             V, fits = only_if(~fits, eliminated(size), (V, fits), pi, d)
         return only_if(~fits, dense, V, pi, d)

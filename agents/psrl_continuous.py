@@ -83,6 +83,7 @@ from agents.posteriors import (
     normal_gamma_prior,
 )
 from agents.extended_policy_iteration import (  # noqa: F401 (re-exported: the planner's names, as before)
+    BAND_TARGETS,
     JUMP_STATES,
     KEEP_LIMIT,
     at_eta,
@@ -321,6 +322,7 @@ def plan(
     reward_variant: Variant | None = None,
     keep_limit: int = KEEP_LIMIT,
     jump_states: int | tuple[int, ...] = JUMP_STATES,
+    band_targets: int | tuple[int, ...] = BAND_TARGETS,
 ) -> PSRLContinuousState:
     """Start an epoch: draw the extended MDP and solve it (module docstring).
 
@@ -333,7 +335,9 @@ def plan(
     alone, so that an ablation can tell the two differences apart. ``keep_limit``: the posterior rows a plan keeps
     (:func:`draws`; the plan is the same, only its memory and the redrawing change: tests force the redrawing path
     with 0). ``jump_states``: the evaluations' elimination of jumping states (:data:`JUMP_STATES`; the plan is the
-    same to float32 precision; tests force it on small MDPs). While no pair is at ``eta`` the plan runs on lean draws
+    same to float32 precision; tests force it on small MDPs); ``band_targets``: the banded evaluation's largest
+    correction (:data:`~agents.extended_policy_iteration.BAND_TARGETS`, used when the spec gave the MDP's band
+    order; the plan is again the same to float32 precision). While no pair is at ``eta`` the plan runs on lean draws
     (:attr:`~agents.extended_policy_iteration.Draws.lean`: the same candidates, no posterior paths).
     """
     if reward_variant not in (None, *VARIANTS):
@@ -348,7 +352,8 @@ def plan(
         # Under vmap the hyperparameters stored in the state are batched, so this cond becomes a select that runs both
         # branches: each branch is kept cheap and well posed when its result is not the one selected.
         def discounted(_):
-            res = extended_policy_iteration(d, R_ext, jnp.where(gamma < 1, gamma, 0.99), st.u, mask, jump_states)
+            res = extended_policy_iteration(d, R_ext, jnp.where(gamma < 1, gamma, 0.99), st.u, mask, jump_states,
+                                            band_targets)
             return res.Q, res.V, res.iterations, res.converged
 
         def average(_):

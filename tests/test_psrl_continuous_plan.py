@@ -271,3 +271,101 @@ def test_missing_mass_goes_to_a_uniform_real_state(variant):
     if variant == "colosseum":
         assert np.all(z == z[:, :, :1, :1])  # one state per slot, shared by all pairs
     assert checks.n == 7 * len(samples)
+
+
+def _banded_state(variant, case, bandwidth, seed=0):
+    """A state whose MDP has a band order (a random permutation; transitions within 2 positions of it), ``eta = 10 S
+    = 70``: the pairs of five states visited 35-69 times (not at ``eta``; action 0 on one successor, action 1 on two at
+    odds 9 : 1, so that ``p^- > 0`` on one slot), the other pairs 0-4 times (jump rows); case "some": a few pairs
+    visited 70-89 times (at ``eta``). The agent's band order is the MDP's with the given ``bandwidth`` (1: some
+    observed successors lie outside it)."""
+    agent = get("psrl_continuous", variant)
+    rng = np.random.default_rng(seed)
+    real = np.flatnonzero(STATE_MASK)
+    order = rng.permutation(S)
+    pos = np.argsort(order)
+    mdp = jaxmdp.custom_mdp(np.full((S, A, S), 1.0 / S), R=np.zeros((S, A)))
+    spec = spec_of(mdp, 500_000, jnp.asarray(order, jnp.int32), bandwidth).replace(
+        state_mask=jnp.asarray(STATE_MASK), action_mask=jnp.asarray(ACTION_MASK))
+    hp = agent.default_hparams.replace(max_psi=4, psi_weight=0.08, eta_weight=1.0, discount=0.99, plan_tol=1e-5)
+    state = agent.init(jax.random.key(0), spec, hp)
+    counts = np.zeros((S, A, S), np.int64)
+    visited = rng.choice(real, size=5, replace=False)  # all their pairs, so that their chosen rows have p^- > 0
+    for s in real:
+        near = [t for t in real if abs(pos[t] - pos[s]) <= 2]
+        for a in np.flatnonzero(ACTION_MASK):
+            n = rng.integers(35, 70) if s in visited else rng.integers(0, 5)
+            if case == "some" and rng.random() < 0.15:
+                n = rng.integers(70, 90)
+            if s in visited:
+                succ, odds = rng.choice(near, size=2, replace=False), [0.9, 0.1] if a else [1.0, 0.0]
+            else:
+                succ, odds = real, None
+            np.add.at(counts[s, a], rng.choice(succ, size=n, p=odds), 1)
+    counts = jnp.asarray(counts, jnp.int32)
+    state = state.replace(successors=em.with_dense_counts(state.successors, counts),
+                          schedule=state.schedule.replace(visits=counts.sum(-1)),
+                          rewards=state.rewards.replace(mu=jnp.asarray(rng.uniform(0, 1, (S, A)), jnp.float32)),
+                          u=jnp.asarray(rng.uniform(0, 3, S), jnp.float32))
+    assert float(state.constants.eta) == 70.0 and state.successors.bandwidth == bandwidth
+    assert bool(jnp.any(epi.at_eta(state))) == (case == "some")
+    return agent, state
+
+
+@pytest.mark.statistical(p=0.0)
+@pytest.mark.parametrize("case", ["none", "some"])
+@pytest.mark.parametrize("variant", ["paper", "colosseum"])
+def test_banded_evaluation_is_the_chosen_chains_values(variant, case):
+    # For every key (p = 0): the banded evaluation of a greedy policy, in the MDP's band order, equals a float64
+    # solve of the chosen rows (_chosen_rows) when every chosen row's p^- lies in the band (bandwidth 2) and no chosen
+    # row is a posterior one; it reports that it does not fit otherwise (bandwidth 1, or a chosen posterior row), and
+    # when more states are jumped to than its size.
+    gamma = jnp.asarray(0.99, jnp.float32)
+    for bandwidth in (2, 1):
+        _, state = _banded_state(variant, case, bandwidth)
+
+        @jax.jit
+        def run(k):
+            R_ext, d = pc.extended_draws(k, state, variant=variant, lean=case == "none")
+            _, pi = epi._greedy(d, R_ext, state.u, gamma, state.action_mask)
+            rows = epi._chosen_rows(d, pi, jnp.arange(S))
+            fit = [epi._banded_values(d, pi, gamma, size) for size in (S, 1)]
+            return rows, pi, d, fit
+
+        bands = []
+        for k in jax.random.split(key(31), 4):
+            rows, pi, d, ((V, fits), (_, fits1)) = run(k)
+            a = np.asarray(pi.action)
+            p_minus = np.asarray(d.p_minus)[np.arange(S), a]
+            pos = np.argsort(np.asarray(d.order))
+            gaps = np.abs(pos[:, None] - pos[np.asarray(d.slot_states)[np.arange(S), a]])
+            in_band = np.all((p_minus == 0) | (gaps <= bandwidth))
+            posterior = np.any(np.asarray(d.posterior)[np.arange(S), a])
+            assert bool(fits) == (in_band and not posterior)
+            bands.append(in_band)
+            if bandwidth == 2 and case == "none":
+                assert bool(fits) and np.any(p_minus > 0)  # the banded path is taken, and B is not empty
+            if bool(fits):
+                expected = np.linalg.solve(np.eye(S) - 0.99 * np.asarray(rows, np.float64), np.asarray(pi.reward))
+                np.testing.assert_allclose(V, expected, rtol=0, atol=5e-6 * np.abs(expected).max())
+                targets = np.unique(np.asarray(d.z)[np.asarray(pi.k), np.arange(S), a][np.asarray(d.missing)[np.arange(S), a] > 0])
+                assert bool(fits1) == (len(targets) <= 1)
+        assert all(bands) == (bandwidth == 2)  # with bandwidth 1 some policy reads a successor 2 positions away
+
+
+@pytest.mark.statistical(p=0.0)
+@pytest.mark.parametrize("case", ["none", "some"])
+@pytest.mark.parametrize("variant", ["paper", pytest.param("colosseum", marks=pytest.mark.nightly)])
+def test_banded_plan_equals_policy_iteration_on_the_dense_extended_mdp(variant, case):
+    # As test_discounted_plan_equals_policy_iteration_on_the_dense_extended_mdp, for a state with a band order:
+    # jump_states 2 leaves most evaluations to the banded one (band_targets 2, then 8), the rest to the whole chain.
+    agent, state = _banded_state(variant, case, 2)
+    plan = jax.jit(functools.partial(agent.plan, jump_states=2, band_targets=(2, 8)))
+    for k in jax.random.split(key(32), N_KEYS):
+        new = plan(k, state)
+        assert bool(new.plan_converged)
+        T, R, mask = _dense(k, state, variant)
+        ref = _dense_policy_iteration(T, R, mask, state.u, 0.99)
+        scale = 1 + float(np.abs(ref.V).max())
+        np.testing.assert_allclose(new.u, ref.V, rtol=0, atol=4e-6 * scale)
+        np.testing.assert_allclose(new.Q, np.asarray(ref.Q).reshape(S, A, -1).max(-1), rtol=0, atol=4e-6 * scale)

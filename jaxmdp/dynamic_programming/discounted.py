@@ -38,6 +38,7 @@ __all__ = [
     "value_iteration",
     "discounted_chain_values",
     "discounted_chain_values_banded",
+    "discounted_banded_jump_chain_values",
     "discounted_jump_chain_values",
     "policy_evaluation",
     "policy_iteration_by",
@@ -121,6 +122,42 @@ def discounted_chain_values_banded(
     V = _substitute_up(M, scale, _pass_down(M, c.astype(P.dtype), W), jnp.zeros_like(c, P.dtype),
                        jnp.zeros((S,), bool), W)
     return V if r.ndim == 2 else V[:, 0]
+
+
+def discounted_banded_jump_chain_values(
+    B: jax.Array, deficit: jax.Array, target: jax.Array, r: jax.Array, gamma: float | jax.Array, bandwidth: int,
+    size: int, block: int = BAND_BLOCK,
+) -> tuple[jax.Array, jax.Array]:
+    """:func:`discounted_chain_values` of a chain whose row ``s`` is a banded part ``B[s]`` plus its missing mass
+    ``deficit[s] = 1 - sum_j B[s, j]`` moved to one state ``target[s]``: ``P = B + D E_target``. Returns ``(V,
+    fits)``.
+
+    ``B[i, j] = 0`` for ``|i - j| > bandwidth`` (static; not checked), ``deficit`` exact as in
+    :func:`discounted_chain_values_banded`. With ``T`` the states that receive some mass (``t_1 .. t_m``), ``P = B +
+    W E^T``, ``W[s, j] = deficit[s] [target[s] = t_j]``, ``E = [e_{t_1} .. e_{t_m}]``. One banded elimination gives
+    ``x, Y = (I - gamma B)^{-1} [r, W]`` (``O(S w (w + m))``), and Woodbury's identity ``V = x + gamma Y (I - gamma
+    Y[T])^{-1} x[T]`` (``Y[T]``: the rows of ``T``) one ``m x m`` solve instead of an ``S x S`` one. ``I - gamma Y[T]``
+    is an M-matrix: ``gamma Y 1 = 1 - (1 - gamma) (I - gamma B)^{-1} 1 <= gamma`` row by row. ``size`` (static)
+    bounds ``m``; ``fits`` is False when ``m > size``, and ``V`` is then meaningless (solve otherwise)."""
+    S = assert_chain(B)
+    chex.assert_shape([deficit, target], (S,), custom_message="deficit and target: [S]")
+    chex.assert_type(target, int, custom_message="target: state indices")
+    chex.assert_rank(r, 1, custom_message="r: rewards [S]")
+    dtype = B.dtype
+    moves = deficit > 0
+    is_target = jnp.zeros((S,), bool).at[jnp.where(moves, target, S)].set(True, mode="drop")
+    (idx,) = jnp.nonzero(is_target, size=size, fill_value=S)  # T's states, then S (an empty slot)
+    column = jnp.full((S,), size, jnp.int32).at[idx].set(jnp.arange(size, dtype=jnp.int32), mode="drop")
+    W = jnp.zeros((S, size + 1), dtype).at[jnp.arange(S), jnp.where(moves, column[target], size)].set(
+        deficit.astype(dtype))[:, :size]
+    X = discounted_chain_values_banded(B, deficit, jnp.concatenate([r[:, None].astype(dtype), W], axis=1), gamma,
+                                       bandwidth, block)
+    x, Y = X[:, 0], X[:, 1:]
+    gamma = jnp.asarray(gamma, dtype)
+    # Element-wise sums, not dot products: an accelerator may multiply float32 dot operands in reduced precision.
+    w = linear_solve(jnp.eye(size, dtype=dtype) - gamma * Y.at[idx].get(mode="fill", fill_value=0.0),
+                     x.at[idx].get(mode="fill", fill_value=0.0))
+    return x + gamma * jnp.sum(Y * w, axis=1), jnp.sum(is_target) <= size
 
 
 def discounted_jump_chain_values(
