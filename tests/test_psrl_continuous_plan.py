@@ -369,3 +369,20 @@ def test_banded_plan_equals_policy_iteration_on_the_dense_extended_mdp(variant, 
         scale = 1 + float(np.abs(ref.V).max())
         np.testing.assert_allclose(new.u, ref.V, rtol=0, atol=4e-6 * scale)
         np.testing.assert_allclose(new.Q, np.asarray(ref.Q).reshape(S, A, -1).max(-1), rtol=0, atol=4e-6 * scale)
+
+
+@pytest.mark.statistical(p=0.0)
+def test_banded_plans_batched_as_alone():
+    # Under vmap (the runner's planning slots) the evaluations' skips run for every member when one needs them: a
+    # member whose evaluations are banded and one whose are not (a chosen posterior row, case "some") plan as alone.
+    # (With these keys the first member's first greedy policy jumps to more than 2 states, at most 8, and is in band;
+    # the second's chooses a posterior row.)
+    plan = jax.jit(functools.partial(get("psrl_continuous").plan, jump_states=2, band_targets=(2, 8)))
+    members = [_banded_state("paper", case, 2, seed=seed)[1] for case, seed in (("none", 1), ("some", 2))]
+    batch = jax.tree.map(lambda *x: jnp.stack(x), *members)
+    keys = jax.random.split(key(33), 2)
+    both = jax.jit(jax.vmap(plan))(keys, batch)
+    for i, member in enumerate(members):
+        alone = plan(keys[i], member)
+        np.testing.assert_allclose(both.u[i], alone.u, rtol=1e-6, atol=1e-6)
+        np.testing.assert_array_equal(both.Q[i].argmax(-1), alone.Q.argmax(-1))
