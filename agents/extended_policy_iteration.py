@@ -375,9 +375,10 @@ def _posterior_rows(d: Draws, s: jax.Array, a: jax.Array, k: jax.Array) -> jax.A
 # (jax.lax.linalg.lu on a CPU), so the system's size, not the states it holds, sets its cost (docs/performance.md,
 # Continuous planning).
 JUMP_STATES = (64, 256)
-# With the MDP's band order (the runner's spec gives it on a CPU), an evaluation that the first elimination cannot take
+# With the MDP's band order (the runner's spec gives it on a CPU), an evaluation that the eliminations cannot take
 # (late in a run, most chosen rows carry observed mass) is a banded elimination corrected for the states jumped to, if
-# they are at most this many (tried in increasing order), before the larger elimination and the whole [S, S] system.
+# they are at most this many (tried in increasing order), before the whole [S, S] system. The eliminations go first:
+# where they fit (every row but a few hundred a jump) they cost 0.2-1.5 ms at 948 states, the banded one 5-16 ms.
 # A chosen row's jump goes to its best of psi candidate states, so few states receive them: 38-53 at 784-820 states
 # after 150 000-250 000 steps of the agent's own play, where a plan became 5-8x faster (docs/performance.md,
 # Continuous planning).
@@ -476,7 +477,7 @@ def extended_policy_iteration(
     ``jump_states`` (static sizes, tried in increasing order) first eliminating those whose chosen row is a jump
     (:data:`JUMP_STATES`), building the rows of the other states only; then, with the MDP's band order in ``d``, a
     banded elimination corrected for at most ``band_targets`` states jumped to (:data:`BAND_TARGETS`,
-    :func:`_banded_values`); then the larger eliminations, then the whole chain. ``Q[S, A] = max_k Q_ext(s, (a,
+    :func:`_banded_values`); then the whole chain. ``Q[S, A] = max_k Q_ext(s, (a,
     k))``."""
     sizes = sorted({jump_states} if isinstance(jump_states, int) else set(jump_states))
     band_sizes = sorted({band_targets} if isinstance(band_targets, int) else set(band_targets))
@@ -498,11 +499,11 @@ def extended_policy_iteration(
         if S <= sizes[-1]:  # static
             return dense(pi, d)
         V, fits = eliminated(sizes[0])(pi, d)
+        for size in sizes[1:]:
+            V, fits = only_if(~fits, eliminated(size), (V, fits), pi, d)
         if d.order is not None:  # static: the MDP's band order is known
             for size in band_sizes:
                 V, fits = only_if(~fits, banded(size), (V, fits), pi, d)
-        for size in sizes[1:]:
-            V, fits = only_if(~fits, eliminated(size), (V, fits), pi, d)
         return only_if(~fits, dense, V, pi, d)
 
     def improve(pi, V):
