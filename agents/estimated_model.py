@@ -40,6 +40,7 @@ __all__ = [
     "dense_counts",
     "with_dense_counts",
     "SparseKernel",
+    "positions",
     "expected_next_values",
     "policy_matrix",
     "policy_values",
@@ -162,7 +163,7 @@ class SparseKernel(struct.PyTreeNode):
         (``O(S A K)``; True without an order)."""
         if self.order is None:
             return jnp.ones((), bool)
-        pos = _positions(self.order)
+        pos = positions(self.order)
         return jnp.all((self.probs == 0) | (jnp.abs(pos[:, None, None] - pos[self.states]) <= self.bandwidth))
 
     def copy_action_zero(self, action_mask: jax.Array) -> "SparseKernel":
@@ -195,7 +196,7 @@ def policy_matrix(kernel: SparseKernel, pi: jax.Array) -> jax.Array:
     return sparse + jnp.sum(pi * kernel.uniform, axis=-1)[:, None] * _uniform_row(kernel, dtype)
 
 
-def _positions(order: jax.Array) -> jax.Array:
+def positions(order: jax.Array) -> jax.Array:
     """``pos[s]``: the position of state ``s`` in ``order`` (the inverse permutation)."""
     S = order.shape[0]
     return jnp.zeros((S,), jnp.int32).at[order].set(jnp.arange(S, dtype=jnp.int32))
@@ -217,7 +218,7 @@ def policy_values(kernel: SparseKernel, pi: jax.Array, R: jax.Array, discount: A
     if kernel.order is None:
         return dp.discounted_chain_values(policy_matrix(kernel, pi), r, discount)
     discount = jnp.asarray(discount, dtype)
-    order, pos = kernel.order, _positions(kernel.order)
+    order, pos = kernel.order, positions(kernel.order)
     # Row and column i: state order[i].
     B = dp.successor_policy_matrix(pos[kernel.states][order], kernel.probs[order], pi.astype(dtype)[order])
     u = jnp.sum(pi * kernel.uniform, axis=-1)[order]

@@ -148,6 +148,12 @@ class Draws(struct.PyTreeNode):
         """The dense rows ``p^-(s[n], a[n])``, ``[n, S]``, scattered from the slots (distinct states, so exact)."""
         return em.scatter_slots(self.slot_states[s, a], self.p_minus[s, a], self.state_mask.shape[0])
 
+    def p_minus_kernel(self) -> em.SparseKernel:
+        """``p^-`` on the successor slots with its missing mass as the uniform part and the MDP's band order: its
+        ``in_band`` says whether every ``p^-`` lies within ``bandwidth`` (the banded evaluations' premise)."""
+        return em.SparseKernel(states=self.slot_states, probs=self.p_minus, uniform=self.missing,
+                               state_mask=self.state_mask, order=self.order, bandwidth=self.bandwidth)
+
     def dirichlet(self, k: jax.Array, alpha: jax.Array) -> jax.Array:
         """Candidate ``k``'s posterior draws of concentrations ``alpha[..., S]`` (one key per candidate slot)."""
         return dirichlet_sample(jax.random.fold_in(self.key, k), alpha, offset=self.offset)
@@ -216,8 +222,9 @@ def draws(
                 missing=1.0 - jnp.sum(p_minus, axis=-1), z=z.astype(jnp.int32),
                 posterior=posterior, concentration=jnp.stack([1.0 / n_real, c.omega, c.kappa]).astype(dtype),
                 state_mask=mask, key=k_dir, active=jnp.arange(K) < c.psi, pairs=pairs.astype(jnp.int32),
-                kept=jnp.zeros((K, M, S), dtype), order=succ.order, bandwidth=succ.bandwidth, offset=COLOSSEUM_DIRICHLET_OFFSET if colosseum else 0.0,
-                colosseum=colosseum, scaled=hp.scaled_dirichlet, lean=lean)
+                kept=jnp.zeros((K, M, S), dtype), order=succ.order, bandwidth=succ.bandwidth,
+                offset=COLOSSEUM_DIRICHLET_OFFSET if colosseum else 0.0, colosseum=colosseum,
+                scaled=hp.scaled_dirichlet, lean=lean)
     if lean:
         return out
     zeros = jnp.zeros((M, S), dtype)
@@ -431,23 +438,21 @@ def _chosen_expectations(d: Draws, pi: _Choice, V: jax.Array) -> jax.Array:
 
 
 def _banded_values(d: Draws, pi: _Choice, gamma: jax.Array, size: int) -> tuple[jax.Array, jax.Array]:
-    """``(V, fits)``: policy ``pi``'s values by a banded elimination in the MDP's band order (``d.order``), the jumps
-    of the missing mass as a rank-``m`` correction over the ``m <= size`` (static) states jumped to
-    (:func:`jaxmdp.dynamic_programming.discounted_banded_jump_chain_values`). ``fits``: ``m <= size``, every chosen
-    ``p^-`` within ``d.bandwidth`` (it lies on the MDP's observed successors) and no chosen row a posterior one."""
-    S = d.state_mask.shape[0]
-    order = d.order
-    pos = jnp.zeros((S,), jnp.int32).at[order].set(jnp.arange(S, dtype=jnp.int32))
+    """``(V, fits)``: policy ``pi``'s values by a banded elimination in the MDP's band order (``d.order``, within
+    which every ``p^-`` must lie: the caller checks :meth:`Draws.p_minus_kernel`'s ``in_band``), the jumps of the
+    missing mass as a rank-``m`` correction over the ``m <= size`` (static) states jumped to
+    (:func:`jaxmdp.dynamic_programming.discounted_banded_jump_chain_values`). ``fits``: ``m <= size`` and no chosen
+    row a posterior one."""
+    order, pos = d.order, em.positions(d.order)
     a, k = pi.action[order], pi.k[order]  # position i: state order[i]
-    cols = pos[d.slot_states[order, a]]
-    probs = d.p_minus[order, a]
-    B = jnp.zeros((S, S), probs.dtype).at[jnp.arange(S)[:, None], cols].add(probs)
-    in_band = jnp.all((probs == 0) | (jnp.abs(jnp.arange(S)[:, None] - cols) <= d.bandwidth))
+    # The chosen rows' p^- in the order's positions: a deterministic policy's successor_policy_matrix.
+    B = dp.successor_policy_matrix(pos[d.slot_states[order, a]][:, None], d.p_minus[order, a][:, None],
+                                   jnp.ones((order.shape[0], 1), d.p_minus.dtype))
     V, fits = dp.discounted_banded_jump_chain_values(
         B, d.missing[order, a], pos[d.z[k, order, a]], pi.reward[order], gamma, d.bandwidth, size)
     if not d.lean:  # static
         fits = fits & ~jnp.any(d.posterior[order, a])
-    return V[pos], fits & in_band
+    return V[pos], fits
 
 
 def _greedy(
@@ -477,8 +482,7 @@ def extended_policy_iteration(
     ``jump_states`` (static sizes, tried in increasing order) first eliminating those whose chosen row is a jump
     (:data:`JUMP_STATES`), building the rows of the other states only; then, with the MDP's band order in ``d``, a
     banded elimination corrected for at most ``band_targets`` states jumped to (:data:`BAND_TARGETS`,
-    :func:`_banded_values`); then the whole chain. ``Q[S, A] = max_k Q_ext(s, (a,
-    k))``."""
+    :func:`_banded_values`); then the whole chain. ``Q[S, A] = max_k Q_ext(s, (a, k))``."""
     sizes = sorted({jump_states} if isinstance(jump_states, int) else set(jump_states))
     band_sizes = sorted({band_targets} if isinstance(band_targets, int) else set(band_targets))
     S = V0.shape[0]
@@ -495,6 +499,9 @@ def extended_policy_iteration(
     def banded(size):
         return lambda pi, dd: _banded_values(dd, pi, gamma, size)
 
+    # Once per plan, for every evaluation: the observed successors lie in the MDP's band (False only for a wrong order).
+    in_band = d.p_minus_kernel().in_band()
+
     def evaluate(pi):
         if S <= sizes[-1]:  # static
             return dense(pi, d)
@@ -503,7 +510,7 @@ def extended_policy_iteration(
             V, fits = only_if(~fits, eliminated(size), (V, fits), pi, d)
         if d.order is not None:  # static: the MDP's band order is known
             for size in band_sizes:
-                V, fits = only_if(~fits, banded(size), (V, fits), pi, d)
+                V, fits = only_if(~fits & in_band, banded(size), (V, fits), pi, d)
         return only_if(~fits, dense, V, pi, d)
 
     def improve(pi, V):

@@ -312,55 +312,72 @@ def _banded_state(variant, case, bandwidth, seed=0):
     return agent, state
 
 
+@functools.partial(jax.jit, static_argnames=("variant", "lean"))
+def _first_policy(k, state, variant, lean):
+    """The plan's first policy iteration step with key ``k`` (discounted, 0.99): its draws, its policy (greedy on one
+    backup of ``state.u``), the policy's rows, the banded evaluations of sizes 1, 2, 8 and ``S`` (``(V, fits)``),
+    whether the jump elimination of size 2 fits, and whether every ``p^-`` lies in the band."""
+    gamma = jnp.asarray(0.99, jnp.float32)
+    R_ext, d = pc.extended_draws(k, state, variant=variant, lean=lean)
+    _, pi = epi._greedy(d, R_ext, state.u, gamma, state.action_mask)
+    banded = {size: epi._banded_values(d, pi, gamma, size) for size in (1, 2, 8, S)}
+    rows = functools.partial(epi._chosen_rows, d, pi)
+    jump2 = dp.discounted_jump_chain_values(rows, pi.reward, gamma, pi.jump, 2)[1]
+    return d, pi, rows(jnp.arange(S)), banded, jump2, d.p_minus_kernel().in_band()
+
+
+def _chosen(d, pi):
+    """Host-side facts of policy ``pi``'s rows: their ``p^-`` ``[S, K]``, whether one is a posterior row, and the
+    states their missing mass goes to."""
+    s, a = np.arange(S), np.asarray(pi.action)
+    targets = np.asarray(d.z)[np.asarray(pi.k), s, a][np.asarray(d.missing)[s, a] > 0]
+    return np.asarray(d.p_minus)[s, a], bool(np.any(np.asarray(d.posterior)[s, a])), np.unique(targets)
+
+
 @pytest.mark.statistical(p=0.0)
 @pytest.mark.parametrize("case", ["none", "some"])
 @pytest.mark.parametrize("variant", ["paper", "colosseum"])
 def test_banded_evaluation_is_the_chosen_chains_values(variant, case):
-    # For every key (p = 0): the banded evaluation of a greedy policy, in the MDP's band order, equals a float64
-    # solve of the chosen rows (_chosen_rows) when every chosen row's p^- lies in the band (bandwidth 2) and no chosen
-    # row is a posterior one; it reports that it does not fit otherwise (bandwidth 1, or a chosen posterior row), and
-    # when more states are jumped to than its size.
-    gamma = jnp.asarray(0.99, jnp.float32)
+    # For every key (p = 0): the banded evaluation of the plan's first policy, in the MDP's band order, equals a
+    # float64 solve of the chosen rows (_chosen_rows) to 5e-6 max|V| when no chosen row is a posterior one, and it
+    # fits exactly when no chosen row is a posterior one and at most its size of states are jumped to. Its premise,
+    # every pair's p^- in the band (Draws.p_minus_kernel().in_band(), the plan's check), holds at bandwidth 2 and
+    # not at bandwidth 1 (an observed successor 2 positions away).
     for bandwidth in (2, 1):
         _, state = _banded_state(variant, case, bandwidth)
-
-        @jax.jit
-        def run(k):
-            R_ext, d = pc.extended_draws(k, state, variant=variant, lean=case == "none")
-            _, pi = epi._greedy(d, R_ext, state.u, gamma, state.action_mask)
-            rows = epi._chosen_rows(d, pi, jnp.arange(S))
-            fit = [epi._banded_values(d, pi, gamma, size) for size in (S, 1)]
-            return rows, pi, d, fit
-
-        bands = []
         for k in jax.random.split(key(31), 4):
-            rows, pi, d, ((V, fits), (_, fits1)) = run(k)
-            a = np.asarray(pi.action)
-            p_minus = np.asarray(d.p_minus)[np.arange(S), a]
+            d, pi, rows, banded, _, in_band = _first_policy(k, state, variant, case == "none")
             pos = np.argsort(np.asarray(d.order))
-            gaps = np.abs(pos[:, None] - pos[np.asarray(d.slot_states)[np.arange(S), a]])
-            in_band = np.all((p_minus == 0) | (gaps <= bandwidth))
-            posterior = np.any(np.asarray(d.posterior)[np.arange(S), a])
-            assert bool(fits) == (in_band and not posterior)
-            bands.append(in_band)
+            gaps = np.abs(pos[:, None, None] - pos[np.asarray(d.slot_states)])
+            assert bool(in_band) == bool(np.all((np.asarray(d.p_minus) == 0) | (gaps <= bandwidth)))
+            assert bool(in_band) == (bandwidth == 2)
+            p_minus, posterior, targets = _chosen(d, pi)
+            for size, (_, fits) in banded.items():
+                assert bool(fits) == (not posterior and len(targets) <= size)
             if bandwidth == 2 and case == "none":
-                assert bool(fits) and np.any(p_minus > 0)  # the banded path is taken, and B is not empty
-            if bool(fits):
+                assert not posterior and np.any(p_minus > 0)  # the banded values are checked, with a non-empty B
+            if bandwidth == 2 and not posterior:
                 expected = np.linalg.solve(np.eye(S) - 0.99 * np.asarray(rows, np.float64), np.asarray(pi.reward))
-                np.testing.assert_allclose(V, expected, rtol=0, atol=5e-6 * np.abs(expected).max())
-                targets = np.unique(np.asarray(d.z)[np.asarray(pi.k), np.arange(S), a][np.asarray(d.missing)[np.arange(S), a] > 0])
-                assert bool(fits1) == (len(targets) <= 1)
-        assert all(bands) == (bandwidth == 2)  # with bandwidth 1 some policy reads a successor 2 positions away
+                np.testing.assert_allclose(banded[S][0], expected, rtol=0, atol=5e-6 * np.abs(expected).max())
+
+
+def _takes_the_banded_path(k, state, variant, lean):
+    """Whether the plan's first evaluation (``jump_states=2, band_targets=(2, 8)``) is the banded one of size 8."""
+    _, _, _, banded, jump2, in_band = _first_policy(k, state, variant, lean)
+    return not bool(jump2) and bool(in_band) and not bool(banded[2][1]) and bool(banded[8][1])
 
 
 @pytest.mark.statistical(p=0.0)
-@pytest.mark.parametrize("case", ["none", "some"])
+@pytest.mark.parametrize("case,bandwidth", [("none", 2), ("some", 2), ("none", 1)])
 @pytest.mark.parametrize("variant", ["paper", pytest.param("colosseum", marks=pytest.mark.nightly)])
-def test_banded_plan_equals_policy_iteration_on_the_dense_extended_mdp(variant, case):
+def test_banded_plan_equals_policy_iteration_on_the_dense_extended_mdp(variant, case, bandwidth):
     # As test_discounted_plan_equals_policy_iteration_on_the_dense_extended_mdp, for a state with a band order:
     # jump_states 2 leaves most evaluations to the banded one (band_targets 2, then 8), the rest to the whole chain.
-    agent, state = _banded_state(variant, case, 2)
+    # Case "none": some key's first evaluation is the banded one of size 8; case "some": every first policy chooses a
+    # posterior row, and bandwidth 1: an observed successor lies outside the band, so the fallback is what is checked.
+    agent, state = _banded_state(variant, case, bandwidth)
     plan = jax.jit(functools.partial(agent.plan, jump_states=2, band_targets=(2, 8)))
+    banded = []
     for k in jax.random.split(key(32), N_KEYS):
         new = plan(k, state)
         assert bool(new.plan_converged)
@@ -369,18 +386,21 @@ def test_banded_plan_equals_policy_iteration_on_the_dense_extended_mdp(variant, 
         scale = 1 + float(np.abs(ref.V).max())
         np.testing.assert_allclose(new.u, ref.V, rtol=0, atol=4e-6 * scale)
         np.testing.assert_allclose(new.Q, np.asarray(ref.Q).reshape(S, A, -1).max(-1), rtol=0, atol=4e-6 * scale)
+        banded.append(_takes_the_banded_path(k, state, variant, case == "none"))
+    assert any(banded) == (case == "none" and bandwidth == 2)
 
 
 @pytest.mark.statistical(p=0.0)
 def test_banded_plans_batched_as_alone():
     # Under vmap (the runner's planning slots) the evaluations' skips run for every member when one needs them: a
-    # member whose evaluations are banded and one whose are not (a chosen posterior row, case "some") plan as alone.
-    # (With these keys the first member's first greedy policy jumps to more than 2 states, at most 8, and is in band;
-    # the second's chooses a posterior row.)
+    # member whose first evaluation is banded and one whose first policy chooses a posterior row (case "some", so
+    # not banded) plan as alone.
     plan = jax.jit(functools.partial(get("psrl_continuous").plan, jump_states=2, band_targets=(2, 8)))
     members = [_banded_state("paper", case, 2, seed=seed)[1] for case, seed in (("none", 1), ("some", 2))]
-    batch = jax.tree.map(lambda *x: jnp.stack(x), *members)
     keys = jax.random.split(key(33), 2)
+    assert _takes_the_banded_path(keys[0], members[0], "paper", True)
+    assert _chosen(*_first_policy(keys[1], members[1], "paper", False)[:2])[1]
+    batch = jax.tree.map(lambda *x: jnp.stack(x), *members)
     both = jax.jit(jax.vmap(plan))(keys, batch)
     for i, member in enumerate(members):
         alone = plan(keys[i], member)

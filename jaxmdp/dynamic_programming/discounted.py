@@ -124,6 +124,14 @@ def discounted_chain_values_banded(
     return V if r.ndim == 2 else V[:, 0]
 
 
+def _slots(flags: jax.Array, size: int) -> tuple[jax.Array, jax.Array]:
+    """The flagged states in ``size`` (static) slots: ``idx[size]``, the flagged states in order then ``S`` (an empty
+    slot), and ``slot[S]``, each flagged state's slot (``size`` for the others and for flagged states past ``size``)."""
+    S = flags.shape[0]
+    (idx,) = jnp.nonzero(flags, size=size, fill_value=S)
+    return idx, jnp.full((S,), size, jnp.int32).at[idx].set(jnp.arange(size, dtype=jnp.int32), mode="drop")
+
+
 def discounted_banded_jump_chain_values(
     B: jax.Array, deficit: jax.Array, target: jax.Array, r: jax.Array, gamma: float | jax.Array, bandwidth: int,
     size: int, block: int = BAND_BLOCK,
@@ -146,8 +154,7 @@ def discounted_banded_jump_chain_values(
     dtype = B.dtype
     moves = deficit > 0
     is_target = jnp.zeros((S,), bool).at[jnp.where(moves, target, S)].set(True, mode="drop")
-    (idx,) = jnp.nonzero(is_target, size=size, fill_value=S)  # T's states, then S (an empty slot)
-    column = jnp.full((S,), size, jnp.int32).at[idx].set(jnp.arange(size, dtype=jnp.int32), mode="drop")
+    idx, column = _slots(is_target, size)
     W = jnp.zeros((S, size + 1), dtype).at[jnp.arange(S), jnp.where(moves, column[target], size)].set(
         deficit.astype(dtype))[:, :size]
     X = discounted_chain_values_banded(B, deficit, jnp.concatenate([r[:, None].astype(dtype), W], axis=1), gamma,
@@ -183,8 +190,7 @@ def discounted_jump_chain_values(
     chex.assert_type(jump, int, custom_message="jump: state indices")
     jumps = jump >= 0
     in_k = ~jumps | jnp.zeros((S,), bool).at[jnp.where(jumps, jump, S)].set(True, mode="drop")
-    (idx,) = jnp.nonzero(in_k, size=size, fill_value=S)  # K's states, then S (an empty slot)
-    pos = jnp.full((S,), size, jnp.int32).at[idx].set(jnp.arange(size, dtype=jnp.int32), mode="drop")
+    idx, pos = _slots(in_k, size)
     if callable(P):
         rows = jnp.where((idx < S)[:, None], P(jnp.minimum(idx, S - 1)), 0.0)
     else:
