@@ -188,8 +188,8 @@ def draws(
 ) -> Draws:
     """The candidates of one plan (module docstring) without their dense kernels.
 
-    The state receiving the missing mass is one ``randint`` (:func:`jaxmdp.sampling.fused_random.randint`) over the
-    real states (``state_mask``, in index order, wherever the padding lies) per pair and slot (``variant="colosseum"``:
+    The state receiving the missing mass is one uniform draw (:func:`jaxmdp.sampling.fused_random.uniform_index`)
+    over the real states (``state_mask``, in index order, wherever the padding lies) per pair and slot (``variant="colosseum"``:
     per slot, shared by all pairs). The colosseum variant's deviation divides by ``max(1, N(s, a, s'))`` and its
     posterior draws are normalised by ``sum + 1e-5``. ``p^-`` is computed at the successor slots only
     (:class:`Draws`). The posterior draws of the first ``M = min(S A, keep_limit / (max_psi S))`` (at least one) pairs
@@ -211,9 +211,9 @@ def draws(
     p_minus = _p_minus(succ.counts.astype(dtype), n1, log4s, colosseum)
     k_dir, k_z = jax.random.split(key)
     real_states = jnp.argsort(~mask, stable=True)  # the real states first, in index order
-    # jax.random.randint's draws, bit for bit, hashed in the plan's own fusion, where XLA fuses them with their use
-    # (docs/performance.md, Sampling).
-    index = fused_random.randint(k_z, (K,) if colosseum else (K, S, A), 0, jnp.sum(mask).astype(jnp.int32))
+    # One written-out hash and a multiply-shift an entry, fused with their use; a remainder by the traced number of
+    # real states would run scalar (docs/performance.md, Continuous planning).
+    index = fused_random.uniform_index(k_z, (K,) if colosseum else (K, S, A), jnp.sum(mask).astype(jnp.int32))
     z = jnp.broadcast_to(real_states[index].reshape((K, 1, 1) if colosseum else (K, S, A)), (K, S, A))
     posterior = at_eta(state)
     M = 0 if lean else min(S * A, max(1, keep_limit // (K * S)))

@@ -24,7 +24,8 @@ Candidate kernels of ``(s, a)`` with ``N(s, a)`` visits:
 * ``N(s, a) < eta`` ("simple optimistic sampling"): with ``p_hat = N(s, a, .) / max(1, N(s, a))``,
   ``p^- = p_hat - min(sqrt(3 p_hat ln(4S) / N') + 3 ln(4S) / N', p_hat)`` (``N' = max(1, N(s, a))``), and each
   candidate puts the missing mass ``1 - sum p^-`` on one next state drawn uniformly among the real states,
-  independently per pair and candidate (one ``randint`` over the real states per pair and candidate).
+  independently per pair and candidate (one uniform index over the real states per pair and candidate,
+  :func:`jaxmdp.sampling.fused_random.uniform_index`).
 
 Planning: the extended MDP is solved for ``discount`` (default 0.99, as the reference): by policy iteration with exact
 (linear-solve) evaluation, warm-started from the previous epoch's values, rather than by value iteration to ``1e-3``.

@@ -1,13 +1,16 @@
 """Speed of the Gamma/Beta sampler ``jaxmdp.sampling.beta_sampling`` against ``jax.random`` (``dirichlet``, ``beta``,
 ``loggamma``), both in one process, interleaved, best of ``--reps`` (other processes share the machine: read the
-ratios). Three measurements:
+ratios). Four measurements:
 
 1. Dirichlet posterior draws, ns per Gamma entry: ``vmap`` over members of ``agents.posteriors.dirichlet_sample``
    against ``jax.random.dirichlet`` (log-Gammas then a softmax, as ours) on ``[S, A, S]`` concentrations
    ``1/S + counts`` (counts ~ Poisson(0.3): mostly shapes below one, the boosted and slowest case).
 2. Beta rewards, ns per draw: ``vmap`` of ``sample_beta`` against ``jax.random.beta`` over 4096 members, shapes
    uniform on (0.05, 5).
-3. PSRL episodic agent-steps per second on MiniGridEmpty size 5 (S = 100, A = 3, H = 13), 64 seeds, through
+3. PSRL continuous's candidate states, ns per index: ``vmap`` over 4 members of ``[psi, S, A] = [60, 784, 3]``
+   uniform integers below each member's traced number of real states (770-784), ``jax.random.randint`` and its
+   bit-for-bit written-out copy ``fused_random.randint`` against ``fused_random.uniform_index`` (what a plan draws).
+4. PSRL episodic agent-steps per second on MiniGridEmpty size 5 (S = 100, A = 3, H = 13), 64 seeds, through
    ``jaxmdp.experiment.runner`` (indicators every 100 steps): the registered agent against the same agent whose
    ``plan`` draws its posteriors with ``jax.random.loggamma`` (``psrl_episodic.plan``'s ``log_gamma`` argument).
    The MDP's rewards are deterministic, so the environment draws no Beta rewards. One host device per core, as
@@ -41,7 +44,7 @@ import jaxmdp  # noqa: E402
 from jaxmdp.experiment import compilation  # noqa: E402
 from agents import psrl_episodic  # noqa: E402
 from jaxmdp.experiment import runner  # noqa: E402
-from jaxmdp.sampling import beta_sampling  # noqa: E402
+from jaxmdp.sampling import beta_sampling, fused_random  # noqa: E402
 
 import _common  # noqa: E402
 
@@ -91,6 +94,20 @@ def beta_draws(members: int, reps: int) -> dict:
                                     for i, m in enumerate(("wall", "cpu"))})
 
 
+def index_draws(members: int, shape: tuple[int, int, int], reps: int) -> dict:
+    keys = jax.random.split(jax.random.key(5), members)
+    spans = jnp.asarray(shape[1] - np.arange(members) * 14 // max(members - 1, 1), jnp.int32)
+    fns = {
+        "jax": jax.jit(jax.vmap(lambda k, n: jax.random.randint(k, shape, 0, n))),
+        "fused": jax.jit(jax.vmap(lambda k, n: fused_random.randint(k, shape, 0, n))),
+        "new": jax.jit(jax.vmap(lambda k, n: fused_random.uniform_index(k, shape, n))),
+    }
+    best = interleaved(fns, (keys, spans), reps * 20)
+    n = members * int(np.prod(shape))
+    return dict(shape=f"{members} x {list(shape)}", **{f"{k}_{m}": v[i] / n * 1e9 for k, v in best.items()
+                                                      for i, m in enumerate(("wall", "cpu"))})
+
+
 def psrl_steps(seeds: int, steps: int, reps: int) -> dict:
     mdp = jaxmdp.make("MiniGridEmpty", episodic=True, seed=0, size=5)
     assert not mdp.stochastic_rewards  # so the environment's Beta sampler plays no part
@@ -131,20 +148,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     beta = beta_draws(16 if args.smoke else 4096, args.reps)
     print(f"Beta x{beta['members']}: jax {beta['jax_wall']:.0f} ns, new {beta['new_wall']:.0f} ns per draw "
           f"({beta['jax_wall'] / beta['new_wall']:.1f}x)", flush=True)
+    index = index_draws(2, (2, 9, 3), args.reps) if args.smoke else index_draws(4, (60, 784, 3), args.reps)
+    print(f"Candidate states {index['shape']}: jax.random.randint {index['jax_wall']:.2f} ns, fused randint "
+          f"{index['fused_wall']:.2f} ns, uniform_index {index['new_wall']:.2f} ns per index", flush=True)
     psrl = None  # smoke size: the runner's PSRL programs alone take minutes to compile, so they are left out
     if not args.smoke:
         psrl = psrl_steps(64, args.psrl_steps, args.psrl_reps)
         print(f"PSRL episodic: jax {psrl['jax_steps_per_s']:,.0f}, new {psrl['new_steps_per_s']:,.0f} agent-steps/s "
               f"({psrl['new_steps_per_s'] / psrl['jax_steps_per_s']:.1f}x)", flush=True)
-    _common.publish(NAME, "Sampling: jaxmdp.sampling.beta_sampling against jax.random", body(draws, beta, psrl, args),
+    _common.publish(NAME, "Sampling: jaxmdp.sampling.beta_sampling against jax.random", body(draws, beta, index, psrl, args),
                     args, argv)
     print(compilation.time_report(time.perf_counter() - t_script, compile_stats.snapshot(), cache_folder),
           file=sys.stderr)
     return 0
 
 
-def body(draws: list[dict], beta: dict, psrl: dict | None, args) -> list[str]:
-    """The table's lines: Dirichlet and Beta draws, then PSRL in the runner."""
+def body(draws: list[dict], beta: dict, index: dict, psrl: dict | None, args) -> list[str]:
+    """The table's lines: Dirichlet and Beta draws, then candidate states, then PSRL in the runner."""
     lines = [
         f"`jax.random` and ours (`jaxmdp.sampling.beta_sampling`) timed in one process, interleaved, best of "
         f"{args.reps} (PSRL: best of {args.psrl_reps}); read the ratios. Wall ns, then CPU ns summed over threads.",
@@ -161,6 +181,17 @@ def body(draws: list[dict], beta: dict, psrl: dict | None, args) -> list[str]:
         f"| Beta rewards, ns per draw: {beta['members']} members, shapes uniform on (0.05, 5) | "
         f"{beta['jax_wall']:.0f} | {beta['new_wall']:.0f} | {beta['jax_wall'] / beta['new_wall']:.1f}x | "
         f"{beta['jax_cpu']:.0f} | {beta['new_cpu']:.0f} | {beta['jax_cpu'] / beta['new_cpu']:.1f}x |")
+    lines += [
+        "",
+        f"PSRL continuous's candidate states, ns per index ({index['shape']}, a traced span per member), best of "
+        f"{args.reps * 20}: `jax.random.randint`, its written-out copy `fused_random.randint` (the same integers) "
+        "and `fused_random.uniform_index` (one hash and a multiply-shift an index; what a plan draws).",
+        "",
+        "| sampler | wall ns |",  # a call takes under a millisecond: too short for the CPU clock's ticks
+        "|---|---|",
+        *(f"| {name} | {index[k + '_wall']:.2f} |" for k, name in
+          (("jax", "jax.random.randint"), ("fused", "fused_random.randint"), ("new", "fused_random.uniform_index"))),
+    ]
     if psrl is None:
         return lines
     lines += [

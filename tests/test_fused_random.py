@@ -128,3 +128,61 @@ def test_split_and_uniform_want_one_key():
         fr.randint(keys, (2,), 0, 3)
     with pytest.raises(ValueError, match=r"must broadcast to shape \(2,\); got shapes \(3,\) and \(\)"):
         fr.randint(keys[0], (2,), jnp.zeros(3, jnp.int32), 3)
+
+
+# uniform_index: floor(n b / 2^32) of jax.random.bits' words, for spans up to int32's largest and the empty one.
+SPANS = [1, 2, 3, 7, 948, 2**16, 2**16 + 1, 123_456_789, 2**31 - 1, 0, -4]
+
+
+def expected_index(key: jax.Array, shape: tuple[int, ...], n) -> np.ndarray:
+    """Lemire's multiply-shift in numpy's exact uint64 arithmetic (a product of two words is below 2^64)."""
+    bits = np.asarray(jax.random.bits(key, shape, jnp.uint32)).astype(np.uint64)
+    span = np.maximum(np.asarray(n, np.int64), 0).astype(np.uint64)
+    return ((bits * span) >> np.uint64(32)).astype(np.int32)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_uniform_index_is_the_multiply_shift_of_jax_random_bits(seed):
+    key = jax.random.key(seed)
+    draw = jax.jit(fr.uniform_index, static_argnums=1)
+    for n in SPANS:
+        for shape in [(), (5,), (3, 4), (60, 7, 3)]:
+            expected = expected_index(key, shape, n)
+            assert same_bits(fr.uniform_index(key, shape, jnp.int32(n)), expected), (n, shape)
+            assert same_bits(draw(key, shape, jnp.int32(n)), expected), (n, shape)  # a traced span
+            got = np.asarray(expected)
+            assert got.min() >= 0 and got.max() <= max(n - 1, 0), (n, shape)
+
+
+def test_uniform_index_with_array_spans_batches_of_keys_and_other_keys():
+    key = jax.random.key(21)
+    spans = jnp.array([[1], [948], [2**31 - 1]], jnp.int32)  # broadcast to (3, 4)
+    assert same_bits(fr.uniform_index(key, (3, 4), spans), expected_index(key, (3, 4), np.asarray(spans)))
+    keys, n = jax.random.split(key, 4), jnp.array([1, 2, 784, 2**20], jnp.int32)
+    got = jax.vmap(lambda k, m: fr.uniform_index(k, (6, 2), m))(keys, n)
+    for i in range(4):
+        assert same_bits(got[i], expected_index(keys[i], (6, 2), int(n[i])))
+    for other in (jax.random.key(0, impl="rbg"), jax.random.PRNGKey(4)):  # jax.random.bits' words of any key
+        assert same_bits(fr.uniform_index(other, (9,), jnp.int32(948)), expected_index(other, (9,), 948))
+    with jax.threefry_partitionable(False):
+        assert same_bits(fr.uniform_index(key, (9,), jnp.int32(5)), expected_index(key, (9,), 5))
+
+
+def test_mul_hi_is_exact_on_uint32():
+    edges = np.array([0, 1, 2, 0xFFFF, 0x10000, 0x10001, 2**31 - 1, 2**31, 2**32 - 2, 2**32 - 1], np.uint64)
+    rng = np.random.default_rng(7)
+    a = np.concatenate([np.repeat(edges, edges.size), rng.integers(0, 2**32, 4096, dtype=np.uint64)])
+    b = np.concatenate([np.tile(edges, edges.size), rng.integers(0, 2**32, 4096, dtype=np.uint64)])
+    expected = np.array([(int(x) * int(y)) >> 32 for x, y in zip(a, b)], np.uint64)
+    got = fr._mul_hi(jnp.asarray(a.astype(np.uint32)), jnp.asarray(b.astype(np.uint32)))
+    np.testing.assert_array_equal(np.asarray(got).astype(np.uint64), expected)
+
+
+def test_uniform_index_refuses_bad_spans_and_batches_of_keys():
+    key = jax.random.key(0)
+    with pytest.raises(ValueError, match="n must be int32"):
+        fr.uniform_index(key, (3,), jnp.int64(5) if jax.config.jax_enable_x64 else np.uint32(5))
+    with pytest.raises(ValueError, match=r"n must broadcast to shape \(3,\)"):
+        fr.uniform_index(key, (3,), jnp.ones((4,), jnp.int32))
+    with pytest.raises(ValueError, match="single key"):
+        fr.uniform_index(jax.random.split(key, 2), (3,), jnp.int32(5))

@@ -373,11 +373,12 @@ def _takes_the_banded_path(k, state, variant, lean):
 def test_banded_plan_equals_policy_iteration_on_the_dense_extended_mdp(variant, case, bandwidth):
     # As test_discounted_plan_equals_policy_iteration_on_the_dense_extended_mdp, for a state with a band order:
     # jump_states 2 leaves most evaluations to the banded one (band_targets 2, then 8), the rest to the whole chain.
-    # Case "none": some key's first evaluation is the banded one of size 8; case "some": every first policy chooses a
-    # posterior row, and bandwidth 1: an observed successor lies outside the band, so the fallback is what is checked.
+    # Case "none": some key's first evaluation is the banded one of size 8; case "some": some key's first policy
+    # chooses a posterior row, which no banded evaluation takes; bandwidth 1: an observed successor lies outside the
+    # band, so the fallback is what is checked.
     agent, state = _banded_state(variant, case, bandwidth)
     plan = jax.jit(functools.partial(agent.plan, jump_states=2, band_targets=(2, 8)))
-    banded = []
+    banded, posterior_rows = [], []
     for k in jax.random.split(key(32), N_KEYS):
         new = plan(k, state)
         assert bool(new.plan_converged)
@@ -387,7 +388,13 @@ def test_banded_plan_equals_policy_iteration_on_the_dense_extended_mdp(variant, 
         np.testing.assert_allclose(new.u, ref.V, rtol=0, atol=4e-6 * scale)
         np.testing.assert_allclose(new.Q, np.asarray(ref.Q).reshape(S, A, -1).max(-1), rtol=0, atol=4e-6 * scale)
         banded.append(_takes_the_banded_path(k, state, variant, case == "none"))
-    assert any(banded) == (case == "none" and bandwidth == 2)
+        posterior_rows.append(bool(_chosen(*_first_policy(k, state, variant, case == "none")[:2])[1]))
+        assert not (banded[-1] and posterior_rows[-1])
+    if bandwidth == 1:
+        assert not any(banded)
+    elif case == "none":
+        assert any(banded)
+    assert any(posterior_rows) == (case == "some")
 
 
 @pytest.mark.statistical(p=0.0)

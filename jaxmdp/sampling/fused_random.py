@@ -1,5 +1,5 @@
 """``fold_in``, ``split``, ``uniform`` and ``randint`` of ``jax.random``, bit for bit, with the hash written out so that
-XLA fuses it.
+XLA fuses it; and :func:`uniform_index`, a cheaper uniform integer from ``jax.random.bits``' words.
 
 A lockstep step calls ``jax.random`` a few times per member: the runner folds the step index into two member keys, the
 environment splits its key and draws two uniforms, an agent draws a tie-breaking uniform. Each call hashes with
@@ -26,9 +26,10 @@ and other float types go to ``jax.random`` itself, so every key gets ``jax.rando
 Where the words of a hash feed many fusions, XLA may copy the hash into each one. Written out in episodic
 Q-learning's action draw, which chains it to the runner's ``fold_in``, it makes the agent several times dearer, and
 ``jax.lax.optimization_barrier`` does not stop the copies. So the agents' draws keep ``jax.random``. These functions are
-used where they pay: the runner's per-step keys, the environment's step, the random agent's action (faster episodic
-runs of the random agent and faster environment steps on CPU; docs/performance.md, Environment step), and PSRL
-continuous's ``psi x S x A`` candidate states of a plan (docs/performance.md, Planning rounds).
+used where they pay: the runner's per-step keys, the environment's step and the random agent's action (faster episodic
+runs of the random agent and faster environment steps on CPU; docs/performance.md, Environment step).
+:func:`uniform_index` draws PSRL continuous's ``psi x S x A`` candidate states of a plan (docs/performance.md,
+Continuous planning).
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ import numpy as np
 
 from jaxmdp.sampling.threefry import join_words, threefry2x32, unit_floats
 
-__all__ = ["fold_in", "randint", "split", "uniform"]
+__all__ = ["fold_in", "randint", "split", "uniform", "uniform_index"]
 
 
 def _written_out(key: jax.Array) -> bool:
@@ -136,3 +137,42 @@ def randint(key: jax.Array, shape: tuple[int, ...], minval: Any, maxval: Any, dt
     multiplier = multiplier * multiplier % span
     offset = ((b_hi % span) * multiplier + b_lo % span) % span
     return lo + offset.astype(jnp.int32)
+
+
+def _mul_hi(a: jax.Array, b: jax.Array) -> jax.Array:
+    """``floor(a b / 2^32)`` of ``uint32`` arrays, exactly, from 16-bit halves (products below ``2^32``): XLA CPU
+    vectorises these ``uint32`` multiplies, where a ``uint64`` product or an integer remainder runs scalar."""
+    half, low = np.uint32(16), np.uint32(0xFFFF)
+    a_hi, a_lo, b_hi, b_lo = a >> half, a & low, b >> half, b & low
+    middle = a_hi * b_lo + ((a_lo * b_lo) >> half)  # < 2^32
+    middle_2 = a_lo * b_hi + (middle & low)  # < 2^32
+    return a_hi * b_hi + (middle >> half) + (middle_2 >> half)
+
+
+def uniform_index(key: jax.Array, shape: tuple[int, ...], n: Any) -> jax.Array:
+    """Uniform ``int32`` draws on ``{0, ..., n - 1}`` for a single ``key``: ``floor(n b / 2^32)`` (Lemire's
+    multiply-shift, without rejection) of the word ``b = jax.random.bits(key, shape, uint32)``, for ``int32`` ``n``
+    (a scalar or an array that broadcasts to ``shape``; ``n <= 0`` draws 0).
+
+    Each value takes ``floor(2^32 / n)`` or one more of the ``2^32`` words, so its probability is within ``2^-32`` of
+    ``1 / n``. One hash and a few multiplies an entry, against :func:`randint`'s two hashes and three remainders
+    (``jax.random.randint``'s bits; an integer remainder by a traced ``n`` does not vectorise on a CPU): about 8x on a
+    CPU (docs/performance.md, Continuous planning). Not ``jax.random.randint``'s values.
+    """
+    n = jnp.asarray(n)
+    if n.dtype != jnp.int32:
+        raise ValueError(f"n must be int32 (a scalar or an array broadcasting to shape), got {n.dtype}")
+    try:
+        fits = np.broadcast_shapes(tuple(shape), n.shape) == tuple(shape)
+    except ValueError:
+        fits = False
+    if not fits:
+        raise ValueError(f"n must broadcast to shape {tuple(shape)}; got shape {n.shape}")
+    size = int(np.prod(shape, dtype=np.int64))
+    if not _written_out(key) or size >= 2**32:
+        bits = jax.random.bits(key, shape, jnp.uint32)
+    else:
+        _check_single(key)
+        bits = jnp.bitwise_xor(*_words(key, tuple(shape)))
+    span = jnp.maximum(jax.lax.broadcast_to_rank(n, len(shape)), 0).astype(jnp.uint32)
+    return _mul_hi(bits, span).astype(jnp.int32)
