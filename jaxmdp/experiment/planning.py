@@ -5,7 +5,7 @@ different steps, member by member: in a benchmark batch whose members have diffe
 some member asks at almost every step. Planning the whole batch ``B`` whenever one member asks (and keeping the
 result only for those that did) then costs a full batch of plans per step. :func:`plan_due` instead gathers the
 members that asked into ``slots`` planning slots (:func:`jaxmdp.sampling.compaction.compact`), plans those under
-``vmap``, scatters the plans back and repeats until every member that asked has its plan; the cost is
+``vmap`` (one slot: one plain call), scatters the plans back and repeats until every member that asked has its plan; the cost is
 ``ceil(m / slots)`` rounds of ``slots`` plans for ``m`` members asking, whatever ``B`` (one batch of ``B`` when more
 than half ask and ``B`` is at most the agent's ``whole_batch_plans``).
 
@@ -68,14 +68,23 @@ def plan_due(
     (a whole batch's working set leaves the caches), and for agents whose members seldom ask together.
     """
 
+    def alone(k, st):
+        # One slot's plan without vmap: the same bits as a vmap of one (tests/test_runner_planning.py), and its loops'
+        # predicates and gathers unbatched compile faster (docs/performance.md, Plan slots). A leaf the plan passes
+        # through stays the slot's own leaf, so that ``put`` sees it unchanged.
+        st0 = jax.tree.map(lambda x: x[0], st)
+        return jax.tree.map(lambda y, x0, x: x if y is x0 else y[None], plan(k[0], st0), st0, st)
+
     def plan_slots(k, st, valid):
-        if slots == 1 or not lone_rounds:
+        if slots == 1:
+            return alone(k, st)
+        if not lone_rounds:
             return jax.vmap(plan)(k, st)
 
         # A lone member waiting is planned alone, not with slots - 1 copies of itself. Only the slots' states pass
         # through the cond: with the batch's in it, XLA copied them at every round.
         def one(k, st):
-            lone = jax.vmap(plan)(k[:1], jax.tree.map(lambda x: x[:1], st))
+            lone = alone(k[:1], jax.tree.map(lambda x: x[:1], st))
             return jax.tree.map(lambda y: jnp.broadcast_to(y, (slots,) + y.shape[1:]), lone)
 
         return jax.lax.cond(jnp.sum(valid) == 1, one, jax.vmap(plan), k, st)
