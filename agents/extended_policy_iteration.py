@@ -43,7 +43,7 @@ from agents.posteriors import (
     dirichlet_sample,
     normal_gamma_sample,
 )
-from agents.tabular_common import copy_action_zero, only_if
+from agents.tabular_common import copy_action_zero, max_and_first_argmax, only_if
 from jaxmdp import dynamic_programming as dp
 from jaxmdp import struct
 from jaxmdp._checks import Variant
@@ -315,8 +315,7 @@ def best_candidates(d: Draws, R_ext: jax.Array, V: jax.Array, gamma: jax.Array) 
     dtype = V.dtype
     q_opt = R_ext + gamma * (d.p_minus_dot(V) + d.missing * V[d.z])  # [max_psi, S, A]
     q_opt = jnp.where(d.active[:, None, None], q_opt, -jnp.inf)
-    k_opt = jnp.argmax(q_opt, axis=0).astype(jnp.int32)
-    best_opt = jnp.max(q_opt, axis=0)
+    best_opt, k_opt = max_and_first_argmax(q_opt, axis=0)
     if d.lean:  # static: no pair at eta
         return best_opt, k_opt
 

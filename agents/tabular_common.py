@@ -19,6 +19,7 @@ __all__ = [
     "first_argmax",
     "greedy_action",
     "greedy_action_single_draw",
+    "max_and_first_argmax",
     "only_if",
     "read_at",
     "row_max",
@@ -52,6 +53,18 @@ def first_argmax(x: jax.Array) -> jax.Array:
     for a in reversed(range(n - 1)):
         index = jnp.where(x[a] >= best, a, index)
     return index
+
+
+def max_and_first_argmax(x: jax.Array, axis: int = 0) -> tuple[jax.Array, jax.Array]:
+    """``(jnp.max(x, axis), jnp.argmax(x, axis))`` for ``x`` without NaN: the maximum, then the lowest index that
+    attains it (``int32``), as two plain reductions. XLA CPU lowers ``jnp.argmax`` as one (value, index) reduction
+    that does not vectorise: over ``[60, 784, 3]`` along the first axis it took 0.33 ms, these two 0.07 ms
+    (docs/performance.md, Continuous planning)."""
+    axis = axis % x.ndim
+    best = jnp.max(x, axis=axis)
+    n = x.shape[axis]
+    index = jax.lax.broadcasted_iota(jnp.int32, x.shape, axis)
+    return best, jnp.min(jnp.where(x == jnp.expand_dims(best, axis), index, n), axis=axis)
 
 
 def _flat_index(shape: tuple[int, ...], index: tuple[jax.Array, ...]) -> jax.Array:

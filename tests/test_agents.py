@@ -19,6 +19,7 @@ from agents.tabular_common import (
     discounted_greedy_policy,
     greedy_action,
     greedy_action_single_draw,
+    max_and_first_argmax,
     read_at,
     row_max,
     write_at,
@@ -205,6 +206,24 @@ def test_row_max_reduces_the_last_axis(A):
     np.testing.assert_array_equal(row_max(jnp.asarray(x)), x.max(-1))
     np.testing.assert_array_equal(row_max(jnp.asarray(x[1, 2])), x[1, 2].max())
     assert np.isnan(row_max(jnp.asarray(x).at[0, 0, 1].set(jnp.nan))[0, 0])
+
+
+@pytest.mark.parametrize("axis", [0, 1, -1])
+def test_max_and_first_argmax_equals_numpy_on_ties_and_infinities(axis):
+    # Values on a coarse grid (many exact ties), some -inf and whole -inf lines: numpy's max and its argmax (the
+    # first index of the maximum), bit for bit, jitted and under vmap.
+    rng = np.random.default_rng(3)
+    x = rng.integers(-3, 3, size=(9, 7, 5)).astype(np.float32) / 2
+    x[rng.random(x.shape) < 0.2] = -np.inf
+    x[:, 2, :] = -np.inf
+    x[4] = -np.inf
+    best, index = jax.jit(max_and_first_argmax, static_argnums=1)(jnp.asarray(x), axis)
+    np.testing.assert_array_equal(best, x.max(axis))
+    np.testing.assert_array_equal(index, x.argmax(axis))
+    assert index.dtype == jnp.int32
+    best, index = jax.vmap(lambda y: max_and_first_argmax(y, 0))(jnp.asarray(x))
+    np.testing.assert_array_equal(best, x.max(1))
+    np.testing.assert_array_equal(index, x.argmax(1))
 
 
 @pytest.mark.parametrize("n_index", [1, 2, 3])
