@@ -31,6 +31,9 @@ __all__ = [
 # Up to this many actions the argmax of :func:`greedy_action` is unrolled into elementwise passes: XLA's variadic
 # argmax reduction is several times slower on CPU, and every member acts at every step.
 _UNROLLED_MAX_ACTIONS = 16
+# The same for PSRL continuous's best of ``psi`` candidates per pair (60 at the benchmark's largest MDPs), unrolled
+# into elementwise passes over the pairs (:func:`max_and_first_argmax`).
+_UNROLLED_MAX_CANDIDATES = 128
 
 
 def row_max(x: jax.Array) -> jax.Array:
@@ -56,15 +59,24 @@ def first_argmax(x: jax.Array) -> jax.Array:
 
 
 def max_and_first_argmax(x: jax.Array, axis: int = 0) -> tuple[jax.Array, jax.Array]:
-    """``(jnp.max(x, axis), jnp.argmax(x, axis))`` for ``x`` without NaN: the maximum, then the lowest index that
-    attains it (``int32``), as two plain reductions. XLA CPU lowers ``jnp.argmax`` as one (value, index) reduction
-    that does not vectorise: over ``[60, 784, 3]`` along the first axis it took 0.33 ms, these two 0.07 ms
-    (docs/performance.md, Continuous planning)."""
+    """``(jnp.max(x, axis), jnp.argmax(x, axis))`` for ``x`` without NaN: the maximum and the lowest index that attains
+    it (``int32``), by a running maximum over the entries of ``axis``, unrolled. XLA CPU lowers ``jnp.argmax`` as one
+    (value, index) reduction that does not vectorise: over ``[60, 784, 3]`` along the first axis it took 0.33 ms
+    (docs/performance.md, Continuous planning). A maximum and then the lowest index equal to it is not a substitute:
+    XLA may compute ``x`` again for the second reduction with other roundings, and then no entry equals the
+    maximum. Each step here compares and keeps the same value."""
     axis = axis % x.ndim
-    best = jnp.max(x, axis=axis)
     n = x.shape[axis]
-    index = jax.lax.broadcasted_iota(jnp.int32, x.shape, axis)
-    return best, jnp.min(jnp.where(x == jnp.expand_dims(best, axis), index, n), axis=axis)
+    if n > _UNROLLED_MAX_CANDIDATES:
+        return jnp.max(x, axis=axis), jnp.argmax(x, axis=axis).astype(jnp.int32)
+    best = jax.lax.index_in_dim(x, 0, axis, keepdims=False)
+    index = jnp.zeros(best.shape, jnp.int32)
+    for k in range(1, n):
+        value = jax.lax.index_in_dim(x, k, axis, keepdims=False)
+        better = value > best
+        index = jnp.where(better, jnp.int32(k), index)
+        best = jnp.where(better, value, best)
+    return best, index
 
 
 def _flat_index(shape: tuple[int, ...], index: tuple[jax.Array, ...]) -> jax.Array:
