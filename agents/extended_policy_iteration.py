@@ -189,14 +189,14 @@ def draws(
     """The candidates of one plan (module docstring) without their dense kernels.
 
     The state receiving the missing mass is one uniform draw (:func:`jaxmdp.sampling.fused_random.uniform_index`)
-    over the real states (``state_mask``, in index order, wherever the padding lies) per pair and slot (``variant="colosseum"``:
-    per slot, shared by all pairs). The colosseum variant's deviation divides by ``max(1, N(s, a, s'))`` and its
-    posterior draws are normalised by ``sum + 1e-5``. ``p^-`` is computed at the successor slots only
-    (:class:`Draws`). The posterior draws of the first ``M = min(S A, keep_limit / (max_psi S))`` (at least one) pairs
-    at ``eta`` are kept (``keep_limit`` floats, static; default :data:`KEEP_LIMIT`), drawn only if some pair (of any
-    member of a ``vmap``) is at ``eta``; with more pairs at ``eta``, every backup draws all rows again from the same
-    keys (:meth:`Draws.draw`). ``lean`` (static): for a state with no pair at ``eta`` (the caller's promise, not
-    checked), keep no rows at all (:attr:`Draws.lean`); the candidates are the same."""
+    over the real states (``state_mask``, in index order, wherever the padding lies) per pair and slot
+    (``variant="colosseum"``: per slot, shared by all pairs). The colosseum variant's deviation divides by
+    ``max(1, N(s, a, s'))`` and its posterior draws are normalised by ``sum + 1e-5``. ``p^-`` is computed at the
+    successor slots only (:class:`Draws`). The posterior draws of the first ``M = min(S A, keep_limit / (max_psi S))``
+    (at least one) pairs at ``eta`` are kept (``keep_limit`` floats, static; default :data:`KEEP_LIMIT`), drawn only if
+    some pair (of any member of a ``vmap``) is at ``eta``; with more pairs at ``eta``, every backup draws all rows again
+    from the same keys (:meth:`Draws.draw`). ``lean`` (static): for a state with no pair at ``eta`` (the caller's
+    promise, not checked), keep no rows at all (:attr:`Draws.lean`); the candidates are the same."""
     colosseum = variant == "colosseum"
     hp, c = state.hparams, state.constants
     dtype = state.Q.dtype

@@ -224,6 +224,12 @@ def test_max_and_first_argmax_equals_numpy_on_ties_and_infinities(axis):
     best, index = jax.vmap(lambda y: max_and_first_argmax(y, 0))(jnp.asarray(x))
     np.testing.assert_array_equal(best, x.max(1))
     np.testing.assert_array_equal(index, x.argmax(1))
+    # Past the unrolling limit, jnp.argmax itself; at the limit, still unrolled and the same.
+    for n in (128, 130):
+        y = rng.integers(-3, 3, size=(n, 4)).astype(np.float32)
+        best, index = max_and_first_argmax(jnp.asarray(y), 0)
+        np.testing.assert_array_equal(best, y.max(0))
+        np.testing.assert_array_equal(index, y.argmax(0))
 
 
 @pytest.mark.parametrize("n_index", [1, 2, 3])

@@ -5,9 +5,9 @@ different steps, member by member: in a benchmark batch whose members have diffe
 some member asks at almost every step. Planning the whole batch ``B`` whenever one member asks (and keeping the
 result only for those that did) then costs a full batch of plans per step. :func:`plan_due` instead gathers the
 members that asked into ``slots`` planning slots (:func:`jaxmdp.sampling.compaction.compact`), plans those under
-``vmap`` (one slot: one plain call), scatters the plans back and repeats until every member that asked has its plan; the cost is
-``ceil(m / slots)`` rounds of ``slots`` plans for ``m`` members asking, whatever ``B`` (one batch of ``B`` when more
-than half ask and ``B`` is at most the agent's ``whole_batch_plans``).
+``vmap`` (one slot: one plain call), scatters the plans back and repeats until every member that asked has its plan;
+the cost is ``ceil(m / slots)`` rounds of ``slots`` plans for ``m`` members asking, whatever ``B`` (one batch of ``B``
+when more than half ask and ``B`` is at most the agent's ``whole_batch_plans``).
 
 Each member plans with its own key and its own state, exactly as in the whole-batch step, and the agents' plans
 (their samplers included, :mod:`jaxmdp.sampling.beta_sampling`) give a member the same bits whoever else is in the

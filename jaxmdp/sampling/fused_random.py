@@ -71,6 +71,14 @@ def _check_single(key: jax.Array) -> None:
         raise ValueError(f"key must be a single key (shape ()), got shape {key.shape}; vmap over a batch of keys")
 
 
+def _broadcast_to(shape: tuple[int, ...], *arrays: jax.Array) -> bool:
+    """Whether ``arrays`` broadcast to ``shape`` itself (not to a larger shape)."""
+    try:
+        return np.broadcast_shapes(tuple(shape), *(a.shape for a in arrays)) == tuple(shape)
+    except ValueError:
+        return False
+
+
 def _words(key: jax.Array, shape: tuple[int, ...]) -> tuple[jax.Array, jax.Array]:
     """The two words of the hash of ``(0, i)`` for every entry ``i`` (flat index) of ``shape``; their XOR is
     ``jax.random.bits(key, shape, uint32)``."""
@@ -122,11 +130,7 @@ def randint(key: jax.Array, shape: tuple[int, ...], minval: Any, maxval: Any, dt
             or size >= 2**32):
         return jax.random.randint(key, shape, minval, maxval, dtype)
     _check_single(key)
-    try:
-        fits = np.broadcast_shapes(tuple(shape), lo.shape, hi.shape) == tuple(shape)
-    except ValueError:
-        fits = False
-    if not fits:
+    if not _broadcast_to(shape, lo, hi):
         raise ValueError(f"minval and maxval must broadcast to shape {tuple(shape)}; "
                          f"got shapes {lo.shape} and {hi.shape}")
     k_hi, k_lo = split(key, 2)
@@ -156,17 +160,13 @@ def uniform_index(key: jax.Array, shape: tuple[int, ...], n: Any) -> jax.Array:
 
     Each value takes ``floor(2^32 / n)`` or one more of the ``2^32`` words, so its probability is within ``2^-32`` of
     ``1 / n``. One hash and a few multiplies an entry, against :func:`randint`'s two hashes and three remainders
-    (``jax.random.randint``'s bits; an integer remainder by a traced ``n`` does not vectorise on a CPU): about 8x on a
-    CPU (docs/performance.md, Continuous planning). Not ``jax.random.randint``'s values.
+    (``jax.random.randint``'s bits; an integer remainder by a traced ``n`` does not vectorise on a CPU): about 12x on
+    a CPU (docs/performance.md, Continuous planning). Not ``jax.random.randint``'s values.
     """
     n = jnp.asarray(n)
     if n.dtype != jnp.int32:
         raise ValueError(f"n must be int32 (a scalar or an array broadcasting to shape), got {n.dtype}")
-    try:
-        fits = np.broadcast_shapes(tuple(shape), n.shape) == tuple(shape)
-    except ValueError:
-        fits = False
-    if not fits:
+    if not _broadcast_to(shape, n):
         raise ValueError(f"n must broadcast to shape {tuple(shape)}; got shape {n.shape}")
     size = int(np.prod(shape, dtype=np.int64))
     if not _written_out(key) or size >= 2**32:
