@@ -156,7 +156,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         psrl = psrl_steps(64, args.psrl_steps, args.psrl_reps)
         print(f"PSRL episodic: jax {psrl['jax_steps_per_s']:,.0f}, new {psrl['new_steps_per_s']:,.0f} agent-steps/s "
               f"({psrl['new_steps_per_s'] / psrl['jax_steps_per_s']:.1f}x)", flush=True)
-    _common.publish(NAME, "Sampling: jaxmdp.sampling.beta_sampling against jax.random", body(draws, beta, index, psrl, args),
+    _common.publish(NAME, "Sampling: jaxmdp.sampling against jax.random", body(draws, beta, index, psrl, args),
                     args, argv)
     print(compilation.time_report(time.perf_counter() - t_script, compile_stats.snapshot(), cache_folder),
           file=sys.stderr)
