@@ -434,6 +434,30 @@ def test_part_members_is_checked_and_given_by_the_command_line(tmp_path):
     assert cli.config_from_args(cli.build_parser().parse_args(["run", "--out", "x"])).part_members is None
 
 
+def test_a_run_writing_to_a_log_shows_its_progress_in_lines(tmp_path, capfd):
+    """stderr not a terminal (pytest's capture, as ``nohup ... > log``): with ``log_every`` the run writes plain
+    progress lines and its compilations, no redraws; without it nothing. The command line asks for a line every five
+    minutes by default."""
+    from hardness.cli import benchmark as cli
+    run.run_benchmark(run.RunConfig(**ONE_BUCKET), tmp_path / "lines", log_every=1e-9, report=False)
+    err = capfd.readouterr().err
+    assert "\r" not in err
+    assert re.search(r"^compiling the chunk program \.\.\. \d+\.\d s$", err, re.M)
+    lines = re.findall(r"^benchmark: +(\d+)% ([\d.]+)/800 member-steps \[\d\d:\d\d elapsed, \d\d:\d\d left, [\d.]+k? "
+                       r"member-steps/s, \S+: 4 members\]$", err, re.M)
+    assert lines and lines[-1] == ("100", "800")  # 4 members x 200 steps, the last line at the end
+    run.run_benchmark(run.RunConfig(**ONE_BUCKET), tmp_path / "none", report=False)
+    assert capfd.readouterr().err == ""
+    parse = cli.build_parser().parse_args
+    assert parse(["run", "--out", "x"]).log_every == 300.0
+    assert parse(["run", "--out", "x", "--log-every", "60"]).log_every == 60.0
+    assert parse(["run", "--out", "x", "--log-every", "0"]).log_every is None
+    for bad in ("-1", "inf", "soon"):
+        with pytest.raises(SystemExit):
+            parse(["run", "--out", "x", "--log-every", bad])
+    assert "--log-every: must be a number of seconds >= 0" in capfd.readouterr().err
+
+
 DEEP = dict(sets=("episodic quick test",), agents=("dqn_episodic", "random_episodic"), seeds=(0, 1), n_steps=200,
             log_period=50, n_buckets=1, only=("RiverSwim",), emission="StateInfo")
 

@@ -120,6 +120,53 @@ def test_not_a_terminal_or_quiet_writes_nothing():
     assert "50.0/90.0 member-steps" in shown.getvalue()  # the same calls on a terminal do show
 
 
+def test_log_lines_when_asked(monkeypatch):
+    """In a log (not a terminal) with ``log_every``: plain lines, at most one per interval at the first update past
+    it and one at the end, the compilations' seconds taken off the running time that the rate and the time left
+    count; numbers worked out by hand."""
+    clock = Clock()
+    monkeypatch.setattr("jaxmdp.experiment.progress._now", clock)
+    log = io.StringIO()
+    bar = Progress(1000, "benchmark", file=log, log_every=60)
+    assert bar.enabled
+    bar.skip(200)  # 800 to run here
+    with bar.compiling("the chunk program"):
+        clock.now += 100.0
+    clock.now += 30.0
+    bar.update(100)  # 130 s since the start: a line; 30 s of running for 100 units
+    clock.now += 30.0
+    bar.update(100)  # 30 s since the last line: none
+    bar.set_postfix("b1: 35 members")
+    clock.now += 30.0
+    bar.update(100)
+    bar.write("kept in logs", log=True)
+    bar.write("a line for the terminal only")
+    clock.now += 30.0
+    bar.update(100)
+    bar.close()  # the last state, not shown yet
+    assert log.getvalue().splitlines() == [
+        "compiling the chunk program ... 100.0 s",
+        "benchmark:  12% 100/800 member-steps [02:10 elapsed, 03:30 left, 3.33 member-steps/s]",
+        "benchmark:  38% 300/800 member-steps [03:10 elapsed, 02:30 left, 3.33 member-steps/s, b1: 35 members]",
+        "kept in logs",
+        "benchmark:  50% 400/800 member-steps [03:40 elapsed, 02:00 left, 3.33 member-steps/s, b1: 35 members]",
+    ]
+    # Closing right after a line adds none; nothing ran, nothing shown; quiet wins; a terminal keeps its bar.
+    log = io.StringIO()
+    bar = Progress(10, "run", "seeds", file=log, unit_scale=False, log_every=1)
+    clock.now += 2.0
+    bar.update(10)
+    bar.close()
+    assert log.getvalue() == "run: 100% 10/10 seeds [00:02 elapsed, 00:00 left, 5 seeds/s]\n"
+    for stream, quiet in ((io.StringIO(), False), (io.StringIO(), True)):
+        drive(Progress(100, "run", file=stream, quiet=quiet, log_every=1e-9))
+        assert stream.getvalue() == ("" if quiet else "compiling the chunk program ... 0.0 s\n"
+                                     "run:  56% 50.0/90.0 member-steps [00:00 elapsed, ? left, ? member-steps/s, x]\n")
+    term = Terminal()
+    drive(Progress(100, "run", file=term, mininterval=0, log_every=1))
+    assert "\r" in term.getvalue()
+
+
 def test_default_stream_is_the_stderr_of_the_moment(monkeypatch):
     term = Terminal()
     monkeypatch.setattr(sys, "stderr", term)
@@ -139,6 +186,10 @@ def test_is_terminal(tmp_path):
     ({"total": -1}, "total must be an integer >= 0"),
     ({"total": 2.5}, "total must be an integer >= 0"),
     ({"total": 10, "quiet": "yes"}, "quiet must be True or False"),
+    ({"total": 10, "log_every": 0}, "log_every must be a positive number of seconds or None"),
+    ({"total": 10, "log_every": float("inf")}, "log_every must be a positive number of seconds or None"),
+    ({"total": 10, "log_every": True}, "log_every must be a positive number of seconds or None"),
+    ({"total": 10, "log_every": "60"}, "log_every must be a positive number of seconds or None"),
 ])
 def test_bad_input(kw, match):
     with pytest.raises(ValueError, match=re.escape(match)):

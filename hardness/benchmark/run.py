@@ -525,6 +525,7 @@ def run_benchmark(
     out: str | os.PathLike,
     *,
     progress: bool = True,
+    log_every: float | None = None,
     report: bool = True,
     stop_at: tuple[int, int] | None = None,
     baseline: str | os.PathLike | None = None,
@@ -544,6 +545,8 @@ def run_benchmark(
     ``baseline``: results set beside the run's own in the report (``"committed"``, the shipped agents' committed
     results, or a run folder; :mod:`hardness.benchmark.baselines`), checked before anything runs: ``ValueError``
     naming what differs when none of them was made under this run's protocol.
+    ``log_every``: with ``progress`` and a stream that is not a terminal (a log file), a progress line at most every
+    ``log_every`` seconds (:class:`~jaxmdp.experiment.progress.Progress`); ``None``: none.
     ``stop_at = (b, c)`` interrupts deterministically (for tests): after ``b`` batches of this call have finished, run
     ``c`` runner chunks of the next one and stop; the next call continues from there.
     ``ray``: run the batches as Ray tasks (:mod:`hardness.benchmark.distributed`: ``True``, a local instance; a
@@ -575,8 +578,8 @@ def run_benchmark(
     finished = True
     total = sum(len(b.members) for b in mine if b.id not in done) * config.n_steps
     # One bar of member-steps over every batch of this call, advanced by the runner after each of its chunks (so it
-    # moves inside a batch of hours) and by the batches other processes finish; shown on a terminal only.
-    with Progress(total, "benchmark", quiet=not progress or not total) as bar, claims.Claims(
+    # moves inside a batch of hours) and by the batches other processes finish; on a terminal, or as lines in a log.
+    with Progress(total, "benchmark", quiet=not progress or not total, log_every=log_every) as bar, claims.Claims(
         out, heartbeat_s=heartbeat_s, stale_s=stale_s
     ) as held:
         if ray is not None:  # the batches as Ray tasks

@@ -144,6 +144,9 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, required=True,
                    help="output folder (reused to resume; several processes may share it, each batch runs once)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--log-every", type=_log_every, default=300.0, metavar="SECONDS",
+                   help="when stderr is not a terminal (a log file), a progress line at most every SECONDS: done, "
+                        "elapsed, left, rate (default %(default)g; 0: none)")
     add_cache_flag(p)
     p.set_defaults(func=run_command)
 
@@ -156,6 +159,17 @@ def _shard(text: str) -> tuple[int, int]:
         return shards.parse_shard(text)
     except ValueError as err:
         raise argparse.ArgumentTypeError(str(err).removeprefix("--shard ")) from None
+
+
+def _log_every(text: str) -> float | None:
+    """``--log-every``'s value: seconds > 0, or 0 for no progress lines (``None``)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not 0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a number of seconds >= 0; got {text!r}")
+    return value or None
 
 
 def _fraction(text: str) -> float:
@@ -301,8 +315,8 @@ def run_command(args: argparse.Namespace) -> RunSummary:
 
     try:
         config = config_from_args(args)
-        return run.run_benchmark(config, args.out, progress=not args.quiet, baseline=args.baseline,
-                                 shard=args.shard, ray=ray_from_args(args))
+        return run.run_benchmark(config, args.out, progress=not args.quiet, log_every=args.log_every,
+                                 baseline=args.baseline, shard=args.shard, ray=ray_from_args(args))
     except (ValueError, ImportError) as err:
         raise SystemExit(f"jaxmdp-benchmark run: {err}") from None
 
