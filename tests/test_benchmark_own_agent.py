@@ -130,8 +130,12 @@ def test_the_committed_full_budget_results_are_chosen_by_protocol(registry):
     registry.register(dataclasses.replace(agents.AGENTS["random_continuous"], name="my_random_c"))
     full = dict(sets=("continuous ergodic",), agents=("my_random_c",), n_steps=500_000)
     beside = baselines.select(*_settings(**full, seeds=tuple(range(20))), "committed")
-    assert beside.agents == {"continuous ergodic": ["ucrl2", "q_learning_continuous", "random_continuous"]}
-    assert "seeds 0-19 here, 0, 1 there" in beside.left_out[("continuous ergodic", "psrl_continuous")][0]
+    assert beside.agents == {"continuous ergodic": ["ucrl2", "q_learning_continuous", "random_continuous",
+                                                    "psrl_continuous"]}
+    communicating = baselines.select(*_settings(**{**full, "sets": ("continuous communicating",)},
+                                                seeds=tuple(range(20))), "committed")
+    assert communicating.agents["continuous communicating"] == ["ucrl2", "q_learning_continuous", "random_continuous"]
+    assert "seeds 0-19 here, 0, 1 there" in communicating.left_out[("continuous communicating", "psrl_continuous")][0]
     two = baselines.select(*_settings(**full, seeds=(0, 1)), "committed")  # seeds 0-1 of the 20-seed run
     assert two.agents["continuous ergodic"] == ["ucrl2", "q_learning_continuous", "random_continuous",
                                                 "psrl_continuous"]
@@ -148,10 +152,12 @@ def test_the_committed_full_budget_results_are_chosen_by_protocol(registry):
         with pytest.raises(ValueError, match=re.escape(named)):
             baselines.select(*_settings(**{**full, "seeds": tuple(range(20)), **change}), "committed")
     # Another hyperparameter source: an agent whose values it changes is left out, naming them; the others stay
-    # (continuous Q-learning's tuned values are the reference's, its search's winner; the random agent has none).
+    # (continuous Q-learning's and PSRL's tuned values are the reference's, their searches' winner; the random agent
+    # has none).
     ref = baselines.select(*_settings(**full, seeds=tuple(range(20)), hparams="reference"), "committed")
     assert hparams.load_tuned()["q_learning_continuous"]["winner"] == "reference"
-    assert ref.agents["continuous ergodic"] == ["q_learning_continuous", "random_continuous"]
+    assert hparams.load_tuned()["psrl_continuous"]["winner"] == "reference"
+    assert ref.agents["continuous ergodic"] == ["q_learning_continuous", "random_continuous", "psrl_continuous"]
     assert ref.left_out[("continuous ergodic", "ucrl2")][0].startswith(
         "hyperparameters: --hparams reference gives ucrl2 alpha_p=0.9883750006754203")
     registry.register(dataclasses.replace(agents.AGENTS["random_continuous"], name="my_deep_c",
@@ -191,7 +197,9 @@ def test_the_report_sets_the_committed_full_budget_results_and_the_papers_beside
     assert re.sub(r"\*", "", row[2]) == f"{m:.3f} ± {sd:.3f}"
     pm, psd = published.regret_table("continuous ergodic")["ucrl2"]["RiverSwim/prms_0"]
     assert row[header.index("ucrl2 (paper)")] == f"{pm:.2f} ± {psd:.2f}"
-    assert "psrl_continuous in continuous ergodic (seeds 0-19 here, 0, 1 there)" in md
+    m, sd = _committed_cell("benchmark_tabular_20seeds", "continuous ergodic", "RiverSwim/prms_0", "psrl_continuous",
+                            range(20))
+    assert re.sub(r"\*", "", row[header.index("psrl_continuous (committed)")]) == f"{m:.3f} ± {sd:.3f}"
 
 
 @pytest.mark.slow
@@ -237,7 +245,7 @@ def test_the_package_data_holds_the_committed_run_folders_and_their_protocols(tm
             not in header and "indicators: colosseum" not in header
         assert ("`StateInfo`" in header) == (r.emission == "state_info"), r.folder
         with (TABLES / r.folder / "members.csv").open(newline="") as f:
-            rows = [x for x in csv.DictReader(f) if x["agent"] in r.agents]
+            rows = [x for x in csv.DictReader(f) if x["agent"] in r.agents and x["set"] in r.sets]
         assert {int(x["steps"]) for x in rows} == {r.n_steps} and {x["set"] for x in rows} == set(r.sets)
         assert sorted({int(x["seed"]) for x in rows}) == list(r.seeds)
         expected += len(rows)
