@@ -222,7 +222,7 @@ def _members(path, set_name, agent, mdps, seeds, regret):
                 w.writerow([set_name, m, m.split("/")[0], "random_continuous", s, 1000, 900])
 
 
-def test_read_regrets_takes_the_folder_with_most_seeds(tmp_path):
+def test_read_regrets_takes_the_folder_with_most_mdps_then_seeds(tmp_path):
     _members(tmp_path / "few", "continuous ergodic", "ucrl2", ["A/prms_0", "B/prms_0"], [0, 1], lambda i, s: 0.5)
     _members(tmp_path / "many", "continuous ergodic", "ucrl2", ["A/prms_0", "B/prms_0"], [0, 1, 2],
              lambda i, s: 0.1 * i + 0.01 * s)
@@ -233,6 +233,14 @@ def test_read_regrets_takes_the_folder_with_most_seeds(tmp_path):
     assert entry["regret"]["B/prms_0"] == {0: pytest.approx(0.1), 1: pytest.approx(0.11), 2: pytest.approx(0.12)}
     with pytest.raises(ValueError, match="members.csv"):
         cb.read_regrets([tmp_path / "none"])
+    # A folder still being filled: 20 seeds, but on one MDP of the two; the finished 3-seed run keeps the pair,
+    # whichever comes first. A complete 20-seed run takes it.
+    _members(tmp_path / "partial", "continuous ergodic", "ucrl2", ["A/prms_0"], range(20), lambda i, s: 0.9)
+    for order in ([tmp_path / "partial", tmp_path / "many"], [tmp_path / "many", tmp_path / "partial"]):
+        assert cb.read_regrets(order)[("continuous ergodic", "ucrl2")]["folder"] == tmp_path / "many"
+    _members(tmp_path / "full", "continuous ergodic", "ucrl2", ["A/prms_0", "B/prms_0"], range(20), lambda i, s: 0.2)
+    got = cb.read_regrets([tmp_path / "many", tmp_path / "partial", tmp_path / "full"])
+    assert got[("continuous ergodic", "ucrl2")]["folder"] == tmp_path / "full"
 
 
 def test_command_writes_table_csv_and_figure(tmp_path):

@@ -65,8 +65,10 @@ def read_regrets(
     folders: Sequence[str | Path], *, random_agents: bool = False
 ) -> dict[tuple[str, str], dict[str, Any]]:
     """``{(set, agent): {"regret": {mdp: {seed: per-step regret}}, "folder": path, "steps": n}}`` from the
-    ``members.csv`` of ``folders``; for each (set, agent) the folder with the most seeds wins (the first on a tie).
-    Agents whose name starts with ``random`` are left out unless ``random_agents``."""
+    ``members.csv`` of ``folders``; for each (set, agent) the folder that covers the most MDPs wins, then the one
+    with the most seeds on each of them (its fewest), the first on a tie: a folder still being filled (a 20-seed run
+    with some MDPs done) does not displace a finished run of fewer seeds. Agents whose name starts with ``random``
+    are left out unless ``random_agents``."""
     best: dict[tuple[str, str], dict[str, Any]] = {}
     for folder in folders:
         path = Path(folder) / "members.csv"
@@ -82,10 +84,14 @@ def read_regrets(
                 regret = float(r["normalized_cumulative_regret"]) / float(r["steps"])
                 entry["regret"].setdefault(r["mdp"], {})[int(r["seed"])] = regret
         for key, entry in found.items():
-            n = max(len(v) for v in entry["regret"].values())
-            if key not in best or n > max(len(v) for v in best[key]["regret"].values()):
+            if key not in best or _coverage(entry) > _coverage(best[key]):
                 best[key] = entry
     return best
+
+
+def _coverage(entry: Mapping[str, Any]) -> tuple[int, int]:
+    """``(MDPs, fewest seeds of an MDP)`` of a :func:`read_regrets` entry, compared in that order."""
+    return len(entry["regret"]), min(len(v) for v in entry["regret"].values())
 
 
 def benchmark_measures(

@@ -26,7 +26,7 @@ __all__ = ["DEFAULT_FOLDERS", "build_parser", "main"]
 DEFAULT_FOLDERS = tuple(f"docs/tables/{name}" for name in (
     "benchmark_continuous_full_20seeds", "benchmark_continuous_ergodic_full_2seeds",
     "benchmark_continuous_communicating_psrl_full_2seeds", "benchmark_episodic_full_2seeds",
-    "benchmark_episodic_full_20seeds_ql_random"))
+    "benchmark_episodic_full_20seeds_ql_random", "benchmark_tabular_20seeds"))
 
 
 def build_parser() -> argparse.ArgumentParser:
