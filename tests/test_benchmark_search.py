@@ -2,6 +2,7 @@
 evaluation with a known best candidate, selection and the tuned file's provenance."""
 
 import json
+import re
 
 import jax
 import jax.numpy as jnp
@@ -74,6 +75,25 @@ def test_search_finds_the_known_best_candidate_across_buckets():
     np.testing.assert_allclose(scores, np.broadcast_to(n * eps[:, None] / 2, (5, 3)), rtol=1e-5)
     assert search.select(scores) == int(np.argmin(eps))
     assert run_s > 0
+
+
+def test_a_search_in_a_log_shows_each_bucket_s_progress_in_lines(capfd):
+    """With ``progress`` and stderr not a terminal (pytest's capture, as a tune run's log), each bucket's runner
+    display writes plain lines (its compilations, a last line at 100 %) after the bucket's own line; without
+    ``progress`` nothing is written."""
+    mdps = [_pays_for_action_0(1), _pays_for_action_0(4)]
+    candidates = [EPS_AGENT.default_hparams.replace(eps=e) for e in (0.1, 0.9)]
+    search.evaluate(EPS_AGENT, candidates, mdps, [0, 0], 200, log_period=50, n_buckets=2, progress=True)
+    err = capfd.readouterr().err
+    assert "\r" not in err
+    for b, states in ((1, 1), (2, 4)):
+        head = f" bucket {b}/2: 2 members, up to {states} states\n"
+        assert head in err
+        after = err.split(head, 1)[1]
+        assert "compiling the chunk program ... " in after
+        assert re.search(rf"^eps_greedy_toy, bucket {b}/2: 100% 400/400 member-steps \[", after, re.M), err
+    search.evaluate(EPS_AGENT, candidates, mdps, [0, 0], 200, log_period=50, n_buckets=2)
+    assert capfd.readouterr().err == ""
 
 
 def test_select_rejects_bad_scores_and_breaks_ties_by_order():

@@ -41,6 +41,7 @@ from agents.search_spaces import SEARCH_SPACES, search_space
 from hardness.benchmark import sets
 from jaxmdp import runner
 from jaxmdp.agent_interface import Agent
+from jaxmdp.experiment.progress import LOG_EVERY_S, Progress
 from jaxmdp.mdp import MDP
 
 __all__ = ["Budget", "SearchResult", "check_tunable", "evaluate", "select", "search", "tuned_entry", "provenance",
@@ -128,7 +129,9 @@ def evaluate(
     hyperparameter set on every ``mdps[j]``, whose agent is seeded with ``jax.random.key(seeds[j])``.
 
     One ``run`` call (:func:`jaxmdp.runner.run`) per size bucket of ``mdps``; with ``work_dir`` each call keeps a
-    CSV and a checkpoint there, so an interrupted search resumes.
+    CSV and a checkpoint there, so an interrupted search resumes. ``progress``: a line per bucket on stderr and the
+    runner's display, a bar on a terminal or a line every :data:`~jaxmdp.experiment.progress.LOG_EVERY_S` seconds
+    in a log.
     """
     candidates = list(candidates)
     mdps = list(mdps)
@@ -155,7 +158,9 @@ def evaluate(
             Path(work_dir).mkdir(parents=True, exist_ok=True)
             paths = dict(csv_path=Path(work_dir) / f"{agent.name}-bucket{b}.csv",
                          checkpoint_path=Path(work_dir) / f"{agent.name}-bucket{b}.npz")
-        result = run(agent, g, n_steps, log_period=log_period, progress=progress, **paths)
+        with Progress(len(members) * n_steps, f"{agent.name}, bucket {b + 1}/{len(buckets)}", quiet=not progress,
+                      log_every=LOG_EVERY_S) as display:
+            result = run(agent, g, n_steps, log_period=log_period, progress=display, **paths)
         final = result.column("normalized_cumulative_regret")[-1]
         for i, (c, j) in enumerate(members):
             scores[c, group[j]] = final[i]

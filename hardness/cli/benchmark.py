@@ -51,6 +51,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from hardness.cli._common import add_cache_flag, compile_report, load_agents
+from jaxmdp.experiment.progress import LOG_EVERY_S
 
 if TYPE_CHECKING:  # imported on use: hardness.benchmark starts JAX's backend, after main() set the host devices
     from hardness.benchmark.run import RunConfig, RunSummary
@@ -144,7 +145,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, required=True,
                    help="output folder (reused to resume; several processes may share it, each batch runs once)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.add_argument("--log-every", type=_log_every, default=300.0, metavar="SECONDS",
+    p.add_argument("--log-every", type=_log_every, default=LOG_EVERY_S, metavar="SECONDS",
                    help="when stderr is not a terminal (a log file), a progress line at most every SECONDS: done, "
                         "elapsed, left, rate (default %(default)g; 0: none)")
     add_cache_flag(p)

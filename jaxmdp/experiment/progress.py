@@ -31,7 +31,10 @@ from typing import TextIO
 
 from tqdm import tqdm
 
-__all__ = ["Progress", "BAR_FORMAT", "is_terminal"]
+__all__ = ["Progress", "BAR_FORMAT", "LOG_EVERY_S", "is_terminal"]
+
+#: Seconds between two progress lines in the logs of the long commands (``jaxmdp-benchmark run`` and ``tune``).
+LOG_EVERY_S = 300.0
 
 _now = time.monotonic  # the log lines' clock (the tests replace it)
 
