@@ -31,31 +31,28 @@ COLUMNS = {
     "random": ("random_episodic", "random_continuous"),
 }
 
-#: The folder of each (setting, column), as the page's "Where each cell comes from" table says; the reference-mode
-#: column has a second folder, the reference's loop, in square brackets.
+#: The folder of each (setting, column), as the page's "Where each cell comes from" table says: one folder per
+#: setting kind for UCRL2, Q-learning and the random agent; the reference-mode column has a second folder, the
+#: reference's loop, in square brackets; PSRL's folder per setting.
+_BY_KIND = {
+    "continuous": {"UCRL2": "benchmark_continuous_full_20seeds", "Q-learning": "benchmark_continuous_full_20seeds",
+                   "random": "benchmark_continuous_full_20seeds",
+                   "Q-learning, reference mode": ("benchmark_continuous_full_2seeds_reference_ql",
+                                                  "benchmark_continuous_full_2seeds_reference_loop")},
+    "episodic": {"Q-learning": "benchmark_episodic_full_20seeds_ql_random",
+                 "random": "benchmark_episodic_full_20seeds_ql_random",
+                 "Q-learning, reference mode": ("benchmark_episodic_full_20seeds_reference_ql",
+                                                "benchmark_episodic_full_20seeds_reference_loop")},
+}
+_PSRL = {
+    "continuous ergodic": "benchmark_tabular_20seeds",
+    "continuous communicating": "benchmark_continuous_communicating_psrl_full_2seeds",
+    "episodic ergodic": "benchmark_tabular_20seeds",
+    "episodic communicating": "benchmark_episodic_full_2seeds",
+}
 SOURCES = {
-    ("continuous ergodic", "UCRL2"): "benchmark_continuous_full_20seeds",
-    ("continuous ergodic", "PSRL"): "benchmark_tabular_20seeds",
-    ("continuous ergodic", "Q-learning"): "benchmark_continuous_full_20seeds",
-    ("continuous ergodic", "Q-learning, reference mode"): ("benchmark_continuous_full_2seeds_reference_ql",
-                                                           "benchmark_continuous_full_2seeds_reference_loop"),
-    ("continuous ergodic", "random"): "benchmark_continuous_full_20seeds",
-    ("continuous communicating", "UCRL2"): "benchmark_continuous_full_20seeds",
-    ("continuous communicating", "PSRL"): "benchmark_continuous_communicating_psrl_full_2seeds",
-    ("continuous communicating", "Q-learning"): "benchmark_continuous_full_20seeds",
-    ("continuous communicating", "Q-learning, reference mode"): ("benchmark_continuous_full_2seeds_reference_ql",
-                                                                 "benchmark_continuous_full_2seeds_reference_loop"),
-    ("continuous communicating", "random"): "benchmark_continuous_full_20seeds",
-    ("episodic ergodic", "PSRL"): "benchmark_tabular_20seeds",
-    ("episodic ergodic", "Q-learning"): "benchmark_episodic_full_20seeds_ql_random",
-    ("episodic ergodic", "Q-learning, reference mode"): ("benchmark_episodic_full_20seeds_reference_ql",
-                                                         "benchmark_episodic_full_20seeds_reference_loop"),
-    ("episodic ergodic", "random"): "benchmark_episodic_full_20seeds_ql_random",
-    ("episodic communicating", "PSRL"): "benchmark_episodic_full_2seeds",
-    ("episodic communicating", "Q-learning"): "benchmark_episodic_full_20seeds_ql_random",
-    ("episodic communicating", "Q-learning, reference mode"): ("benchmark_episodic_full_20seeds_reference_ql",
-                                                               "benchmark_episodic_full_20seeds_reference_loop"),
-    ("episodic communicating", "random"): "benchmark_episodic_full_20seeds_ql_random",
+    **{(s, column): folder for s in sets.SETTINGS for column, folder in _BY_KIND[s.split()[0]].items()},
+    **{(s, "PSRL"): folder for s, folder in _PSRL.items()},
 }
 
 
