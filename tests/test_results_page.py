@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hardness.benchmark import published, sets
+from hardness.benchmark import baselines, published, sets
 
 ROOT = Path(__file__).resolve().parent.parent
 TABLES = ROOT / "docs" / "tables"
@@ -31,28 +31,28 @@ COLUMNS = {
     "random": ("random_episodic", "random_continuous"),
 }
 
-#: The folder of each (setting, column), as the page's "Where each cell comes from" table says: one folder per
-#: setting kind for UCRL2, Q-learning and the random agent; the reference-mode column has a second folder, the
-#: reference's loop, in square brackets; PSRL's folder per setting.
-_BY_KIND = {
-    "continuous": {"UCRL2": "benchmark_continuous_full_20seeds", "Q-learning": "benchmark_continuous_full_20seeds",
-                   "random": "benchmark_continuous_full_20seeds",
-                   "Q-learning, reference mode": ("benchmark_continuous_full_2seeds_reference_ql",
-                                                  "benchmark_continuous_full_2seeds_reference_loop")},
-    "episodic": {"Q-learning": "benchmark_episodic_full_20seeds_ql_random",
-                 "random": "benchmark_episodic_full_20seeds_ql_random",
-                 "Q-learning, reference mode": ("benchmark_episodic_full_20seeds_reference_ql",
-                                                "benchmark_episodic_full_20seeds_reference_loop")},
+_REFERENCE_MODE = "Q-learning, reference mode"
+#: The reference-mode column's folders per setting kind: the run and, in square brackets, the reference's loop.
+_REFERENCE_FOLDERS = {
+    "continuous": ("benchmark_continuous_full_2seeds_reference_ql", "benchmark_continuous_full_2seeds_reference_loop"),
+    "episodic": ("benchmark_episodic_full_20seeds_reference_ql", "benchmark_episodic_full_20seeds_reference_loop"),
 }
-_PSRL = {
-    "continuous ergodic": "benchmark_tabular_20seeds",
-    "continuous communicating": "benchmark_continuous_communicating_psrl_full_2seeds",
-    "episodic ergodic": "benchmark_tabular_20seeds",
-    "episodic communicating": "benchmark_episodic_full_2seeds",
-}
+
+
+def _committed_folder(setting: str, agent: str) -> str:
+    """The folder of the committed run at the paper's protocol (500 000 steps) that holds ``agent`` on ``setting``
+    (:data:`hardness.benchmark.baselines.COMMITTED_RUNS`): Table 2's tuned cells are the committed baseline."""
+    runs = [r.folder for r in baselines.COMMITTED_RUNS
+            if r.n_steps == 500_000 and setting in r.sets and agent in r.agents]
+    assert len(runs) == 1, (setting, agent, runs)
+    return runs[0]
+
+
+#: The folder of each (setting, column) with a cell; the reference-mode column has two.
 SOURCES = {
-    **{(s, column): folder for s in sets.SETTINGS for column, folder in _BY_KIND[s.split()[0]].items()},
-    **{(s, "PSRL"): folder for s, folder in _PSRL.items()},
+    (s, column): (_REFERENCE_FOLDERS[s.split()[0]] if column == _REFERENCE_MODE
+                  else _committed_folder(s, agents[s.startswith("continuous")]))
+    for s in sets.SETTINGS for column, agents in COLUMNS.items() if agents[s.startswith("continuous")] is not None
 }
 
 
@@ -113,3 +113,11 @@ def test_every_cell_has_a_source_or_none():
     episodic = {s for s in sets.SETTINGS if s.startswith("episodic")}
     assert {k for k, v in cells.items() if v == "—"} == {(s, "UCRL2") for s in episodic}
     assert {k for k, v in cells.items() if v != "—"} == set(SOURCES)
+
+
+def test_the_page_names_every_folder_it_draws_on():
+    """Each cell's folder is in the page's "Where each cell comes from" table, as ``folder/``."""
+    text = (ROOT / "docs" / "results.md").read_text(encoding="utf-8")
+    table = text.split("Where each cell comes from", 1)[1].split("\n\n", 2)[1]
+    folders = {f for v in SOURCES.values() for f in ((v,) if isinstance(v, str) else v)}
+    assert {f for f in folders if f"`{f}/`" not in table} == set()
