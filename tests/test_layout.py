@@ -96,10 +96,3 @@ def test_short_names_re_export_the_experiment_layer():
     for name in jaxmdp.experiment.agent_interface.__all__:
         assert getattr(jaxmdp.agent_interface, name) is getattr(jaxmdp.experiment.agent_interface, name)
 
-
-def test_compiled_program_caches_are_bounded():
-    from jaxmdp.experiment import runner
-
-    for cache in (runner._init_program, runner._chunk_program, runner._constants_program):
-        assert cache.cache_info().maxsize is not None
-

@@ -8,6 +8,7 @@ Compilation dominates the cost of these tests, so they share a few shapes: River
 from __future__ import annotations
 
 import csv
+import gc
 import dataclasses
 
 import jax
@@ -754,3 +755,31 @@ def test_the_reference_s_convergence_stop_freezes_a_member_whose_regret_stayed_a
     np.testing.assert_array_equal(resumed.values, stop.values)
     with pytest.raises(ValueError, match="stop_when_converged must be True or False; got 1"):
         runner.run(SWITCH, g, 100, stop_when_converged=1)
+
+
+def test_the_program_caches_hold_one_shape_per_entry_and_free_what_they_evict():
+    # A long benchmark run meets many shapes in one process. Each compiled CPU program holds thousands of memory maps
+    # (Linux bounds them, vm.max_map_count); one cached jitted function per agent kept a program for every shape, and
+    # a run aborted compiling its 24th part. Keyed by the inputs' shapes, an entry is one shape's program and evicting
+    # it frees its maps. Mutation: without the signature in the initialisation program's key, the second shape hits
+    # the first's entry.
+    from conftest import memory_maps
+    from jaxmdp.experiment import programs
+
+    caches = (programs.init_program, programs.chunk_program, programs.constants_program)
+    for cache in caches:
+        assert cache.cache_info().maxsize == programs.MAX_CACHED_PROGRAMS
+        cache.cache_clear()
+    agent = agents.get("random_continuous")
+    for S in (3, 4, 3):
+        mdp = random_mdp(np.random.default_rng(S), S=S, A=2)
+        runner.run(agent, runner.product([mdp], [agent.default_hparams], [0]), 20, log_period=10, n_records=2)
+    for cache in caches:
+        info = cache.cache_info()
+        assert (info.misses, info.hits, info.currsize) == (2, 1, 2)
+    before = memory_maps()
+    for cache in caches:
+        cache.cache_clear()
+    gc.collect()
+    if before is not None:  # two shapes' three programs: about a thousand maps or more (Linux)
+        assert before - memory_maps() > 500

@@ -2,8 +2,15 @@
 
 Each builder returns a ``jax.jit``-ed function of :mod:`jaxmdp.experiment.lockstep`'s pure functions, with the run's
 static settings bound. The builders are cached with a bound (least recently used first out), keyed by the agent (by
-identity: ``Agent`` compares and hashes as an object) and the static settings; ``jax.jit`` caches per input shape below
-that. A cached entry holds its agent, so an agent's identity cannot be reused while its programs are cached.
+identity: ``Agent`` compares and hashes as an object), the static settings and the inputs' :func:`signature`. A cached
+entry holds its agent, so an agent's identity cannot be reused while its programs are cached.
+
+Why the signature is part of the key: ``jax.jit`` keeps every executable it compiled for as long as the jitted function
+lives, and on a CPU each executable holds thousands of the process's memory mappings (about 1 500 for the smallest
+runner's three programs, 4 000 for PSRL continuous at 820 states), which Linux bounds (``vm.max_map_count``, 65 530 by
+default); past the bound LLVM cannot map a new program's code and the process aborts. Keyed by settings alone, one
+jitted function per agent collected a program for every shape a long benchmark run met. Keyed by signature too, the
+bound counts executables, and an evicted entry's executables are freed with it (docs/performance.md, Compilation).
 """
 
 from __future__ import annotations
@@ -15,17 +22,27 @@ from typing import Any
 import jax
 import numpy as np
 
-from jaxmdp._checks import VARIANTS, Variant
+from jaxmdp._checks import Variant
 from jaxmdp.experiment import lockstep
 from jaxmdp.experiment.agent_interface import Agent
 from jaxmdp.experiment.indicators import indicator_constants
 from jaxmdp.experiment.members import dynamics
 
-__all__ = ["init_program", "chunk_program", "constants_program", "compile_options", "compile_lowered",
+__all__ = ["init_program", "chunk_program", "constants_program", "compile_options", "compile_lowered", "signature",
            "MAX_CACHED_PROGRAMS", "CPU_COMPILER_OPTIONS"]
 
-#: Programs of each kind kept compiled (see the module docstring).
-MAX_CACHED_PROGRAMS = 32
+#: Programs of each kind kept compiled (see the module docstring): enough for a tuning search or a test module that
+#: comes back to a few shapes, few enough that three kinds of the largest programs stay far under the mappings bound.
+MAX_CACHED_PROGRAMS = 8
+
+
+def signature(*args: Any) -> tuple:
+    """A hashable key of ``args``' tree structure and their leaves' shapes and dtypes: the builders' ``signature``
+    argument, so that one cached entry compiles one shape (module docstring). It only chooses the cache entry;
+    ``jax.jit`` still checks the inputs of every call."""
+    leaves, treedef = jax.tree.flatten(args)
+    return treedef, tuple((tuple(x.shape) if hasattr(x, "shape") else np.shape(x),
+                           str(getattr(x, "dtype", type(x).__name__))) for x in leaves)
 
 #: XLA options for the runner's programs on a CPU, given per compilation (not through ``XLA_FLAGS``, which would
 #: change the process). Region-based copy insertion lets the lockstep loop update an agent's parameters in place
@@ -54,10 +71,12 @@ def compile_lowered(lowered: jax.stages.Lowered, options: dict[str, Any] | None)
 
 @functools.lru_cache(maxsize=MAX_CACHED_PROGRAMS)
 def init_program(
-    agent: Agent, record_visits: bool = False, bandwidth: int | None = None, stop_when_converged: bool = False
+    agent: Agent, record_visits: bool = False, bandwidth: int | None = None, stop_when_converged: bool = False,
+    signature: tuple | None = None,
 ) -> Callable:
     """``init(mdps, mdp_index, hparams, key_data, n_steps, orders=None) -> Carry``
-    (:func:`~jaxmdp.experiment.lockstep.init_carry`), jitted."""
+    (:func:`~jaxmdp.experiment.lockstep.init_carry`), jitted; ``signature`` (:func:`signature` of its inputs) only
+    keys the cache."""
     loop = lockstep.Loop(agent, record_visits=record_visits, bandwidth=bandwidth,
                          stop_when_converged=stop_when_converged)
     return jax.jit(functools.partial(lockstep.init_carry, loop))
@@ -74,6 +93,7 @@ def chunk_program(
     plan_slots: int | None = None,
     bandwidth: int | None = None,
     stop_when_converged: bool = False,
+    signature: tuple | None = None,
 ) -> Callable:
     """``chunk(carry, mdps, mdp_index, consts, schedule, n) -> (carry, steps[capacity], values[capacity, B, 4],
     n_written)`` (:func:`~jaxmdp.experiment.lockstep.chunk`): ``n`` more steps (traced), recording at most
@@ -93,7 +113,7 @@ def chunk_program(
     :func:`~jaxmdp.experiment.lockstep.plan_slots_for` a shard); at least a shard's members, the whole shard is
     planned whenever one member asks and the result kept for those that did. A shard of more than
     ``agent.hints.whole_batch_plans`` members, or of more than ``agent.hints.whole_batch_bytes`` bytes of agent state,
-    plans in rounds only.
+    plans in rounds only. ``signature`` (:func:`signature` of its inputs) only keys the cache.
     """
     loop = lockstep.Loop(agent, variant, record_visits, plan_slots, bandwidth, stop_when_converged)
     chunk = functools.partial(lockstep.chunk, loop, capacity)
@@ -109,9 +129,10 @@ def chunk_program(
     return jax.jit(sharded, donate_argnums=0)
 
 
-@functools.lru_cache(maxsize=len(VARIANTS))
-def constants_program(variant: Variant) -> Callable:
-    """``constants(mdps, mdp_index) -> IndicatorConstants`` of every member (one per stacked MDP, gathered)."""
+@functools.lru_cache(maxsize=MAX_CACHED_PROGRAMS)
+def constants_program(variant: Variant, signature: tuple | None = None) -> Callable:
+    """``constants(mdps, mdp_index) -> IndicatorConstants`` of every member (one per stacked MDP, gathered);
+    ``signature`` (:func:`signature` of its inputs) only keys the cache."""
 
     # lax.map, not vmap: the constants come from planning loops run to convergence, and a vmapped while_loop runs
     # until its slowest member converges. The per-member gather is in the same program.

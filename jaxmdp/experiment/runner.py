@@ -78,6 +78,7 @@ from jaxmdp.experiment.programs import (
     compile_options,
     constants_program,
     init_program,
+    signature,
 )
 from jaxmdp.experiment.progress import Progress
 from jaxmdp.experiment.records import MEMBER_COLUMNS, RunResult, append_rows, csv_rows, record_steps, truncate_csv
@@ -377,22 +378,25 @@ def _compile(agent: Agent, grid: Grid, settings: _Settings, display: Progress) -
     )
     t0 = time.perf_counter()
     with display.compiling("the indicator constants"):  # dispatched: they are computed while the rest compiles
-        consts = constants_program(settings.variant)(mdps, mdp_index)
+        consts = constants_program(settings.variant, signature(mdps, mdp_index))(mdps, mdp_index)
         orders, bandwidth = _band(mdps, grid.mdp_index)
         consts = consts.replace(state_order=orders)
     options = compile_options(jax.default_backend())
-    init_jit = init_program(agent, settings.record_visits, bandwidth, settings.stop_when_converged)
+    init_args = (mdps, mdp_index, hparams, key_data, sched.n_steps, orders)
+    init_jit = init_program(agent, settings.record_visits, bandwidth, settings.stop_when_converged,
+                            signature(*init_args))
     with display.compiling("the initialisation program"):
-        init_fn = compile_lowered(init_jit.lower(mdps, mdp_index, hparams, key_data, sched.n_steps, orders), options)
-    carry_shape = jax.eval_shape(init_jit, mdps, mdp_index, hparams, key_data, sched.n_steps, orders)
+        init_fn = compile_lowered(init_jit.lower(*init_args), options)
+    carry_shape = jax.eval_shape(init_jit, *init_args)
     leaves, treedef = jax.tree.flatten(carry_shape)
     carry_layout = (treedef, tuple(x.ndim for x in leaves))
+    chunk_args = (carry_shape, mdps, mdp_index, consts, sched, jnp.int32(0))
     chunk_fn = chunk_program(
         agent, settings.variant, settings.capacity, settings.n_shards, carry_layout, settings.record_visits,
-        settings.plan_slots, bandwidth, settings.stop_when_converged,
+        settings.plan_slots, bandwidth, settings.stop_when_converged, signature(*chunk_args),
     )
     with display.compiling("the chunk program"):
-        chunk_exe = compile_lowered(chunk_fn.lower(carry_shape, mdps, mdp_index, consts, sched, jnp.int32(0)), options)
+        chunk_exe = compile_lowered(chunk_fn.lower(*chunk_args), options)
     jax.block_until_ready(consts)
     check_fits(
         [("initialisation", init_fn), ("chunk", chunk_exe)],
