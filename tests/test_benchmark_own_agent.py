@@ -134,8 +134,13 @@ def test_the_committed_full_budget_results_are_chosen_by_protocol(registry):
                                                     "psrl_continuous"]}
     communicating = baselines.select(*_settings(**{**full, "sets": ("continuous communicating",)},
                                                 seeds=tuple(range(20))), "committed")
-    assert communicating.agents["continuous communicating"] == ["ucrl2", "q_learning_continuous", "random_continuous"]
-    assert "seeds 0-19 here, 0, 1 there" in communicating.left_out[("continuous communicating", "psrl_continuous")][0]
+    assert communicating.agents["continuous communicating"] == ["ucrl2", "q_learning_continuous", "random_continuous",
+                                                                "psrl_continuous"]
+    registry.register(dataclasses.replace(agents.AGENTS["random_episodic"], name="my_random_e"))
+    episodic = baselines.select(*_settings(sets=("episodic communicating",), agents=("my_random_e",),
+                                           n_steps=500_000, seeds=tuple(range(20))), "committed")
+    assert episodic.agents["episodic communicating"] == ["q_learning_episodic", "random_episodic"]
+    assert "seeds 0-19 here, 0, 1 there" in episodic.left_out[("episodic communicating", "psrl_episodic")][0]
     two = baselines.select(*_settings(**full, seeds=(0, 1)), "committed")  # seeds 0-1 of the 20-seed run
     assert two.agents["continuous ergodic"] == ["ucrl2", "q_learning_continuous", "random_continuous",
                                                 "psrl_continuous"]
