@@ -41,8 +41,7 @@ def signature(*args: Any) -> tuple:
     argument, so that one cached entry compiles one shape (module docstring). It only chooses the cache entry;
     ``jax.jit`` still checks the inputs of every call."""
     leaves, treedef = jax.tree.flatten(args)
-    return treedef, tuple((tuple(x.shape) if hasattr(x, "shape") else np.shape(x),
-                           str(getattr(x, "dtype", type(x).__name__))) for x in leaves)
+    return treedef, tuple((tuple(getattr(x, "shape", ())), str(getattr(x, "dtype", type(x).__name__))) for x in leaves)
 
 #: XLA options for the runner's programs on a CPU, given per compilation (not through ``XLA_FLAGS``, which would
 #: change the process). Region-based copy insertion lets the lockstep loop update an agent's parameters in place
