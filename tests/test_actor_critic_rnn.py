@@ -105,6 +105,40 @@ def test_gradients_flow_through_the_unrolled_sequence(scripted):
     assert all(np.any(np.asarray(x) != 0) for x in g_carry)  # the stored start state enters the loss
 
 
+def _stepwise(net, params, carry, observations):
+    """The independent computation: flax's cell applied step by step in a scan, differentiated by JAX."""
+    return jax.lax.scan(lambda c, o: net.apply(params, c, o), carry, observations)
+
+
+def test_the_sequence_unroll_and_its_written_out_gradient_match_the_stepwise_cell():
+    # acr.unroll runs only the recurrence step by step and back-propagates through time by hand (lstm_sequence's
+    # custom VJP); the flax cell scanned and differentiated by JAX must give the same outputs, final state and
+    # gradients (parameters and start state), for three members under vmap as the runner calls it. A sign or a gate
+    # derivative wrong in the backward pass moves some gradient by far more than rounding.
+    net = acr.PolicyValueRNN(width=16, depth=2, n_actions=3)
+    keys = jax.random.split(jax.random.key(3), 4)
+    obs = jax.random.normal(keys[0], (3, 9, 5))
+    carry = (0.7 * jax.random.normal(keys[1], (3, 16)), 0.7 * jax.random.normal(keys[2], (3, 16)))
+    params = jax.vmap(lambda k: net.init(k, acr.zero_carry(16), obs[0, 0]))(jax.random.split(keys[3], 3))
+    weights = jax.random.normal(jax.random.key(4), (9, 3))
+
+    def loss(unroll, p, c, o):
+        (c_last, h_last), (logits, values) = unroll(net, p, c, o)
+        return jnp.sum(jnp.sin(logits) * weights) + jnp.sum(values**2) + jnp.sum(c_last * h_last) + jnp.sum(h_last)
+
+    outputs = {f: jax.jit(jax.vmap(lambda *a, f=f: f(net, *a)))(params, carry, obs) for f in (acr.unroll, _stepwise)}
+    for ours, theirs in zip(*map(jax.tree.leaves, outputs.values()), strict=True):
+        np.testing.assert_allclose(ours, theirs, rtol=1e-6, atol=1e-6)
+    grads = {f: jax.jit(jax.vmap(jax.grad(lambda p, c, o, f=f: loss(f, p, c, o), argnums=(0, 1))))(params, carry, obs)
+             for f in (acr.unroll, _stepwise)}
+    lstm = grads[acr.unroll][0]["params"]["OptimizedLSTMCell_0"]
+    assert all(np.all(np.abs(np.asarray(x)) > 0) for x in jax.tree.leaves(lstm["hf"]))  # the gates all learn
+    for (path, ours), theirs in zip(jax.tree_util.tree_leaves_with_path(grads[acr.unroll]),
+                                    jax.tree.leaves(grads[_stepwise]), strict=True):
+        scale = float(np.max(np.abs(theirs)))
+        np.testing.assert_allclose(ours, theirs, rtol=1e-5, atol=1e-6 * scale, err_msg=jax.tree_util.keystr(path))
+
+
 def test_gradient_is_clipped_to_the_global_norm_before_adam():
     hp = cast_hparams(acr.ActorCriticRNNHParams(max_grad_norm=0.5))
     grads = {"a": jnp.asarray([3.0, 4.0]), "b": jnp.asarray([[12.0]])}  # global norm 13

@@ -52,6 +52,7 @@ __all__ = [
     "ActorCriticRNNState",
     "PolicyValueRNN",
     "unroll",
+    "lstm_sequence",
     "evaluate",
     "ACTOR_CRITIC_RNN_EPISODIC",
     "ACTOR_CRITIC_RNN_CONTINUOUS",
@@ -97,9 +98,95 @@ def zero_carry(width: int) -> LSTMCarry:
     return jnp.zeros((width,), jnp.float32), jnp.zeros((width,), jnp.float32)
 
 
-def unroll(net: PolicyValueRNN, params: dict, carry: LSTMCarry, observations: jax.Array):
-    """The network over a sequence ``[T, *obs]`` from ``carry``: ``(final carry, (logits [T, A], values [T]))``."""
-    return jax.lax.scan(lambda c, o: net.apply(params, c, o), carry, observations)
+# The order of flax's OptimizedLSTMCell gates in its concatenated kernels: input, forget, cell, output.
+_GATES = ("i", "f", "g", "o")
+
+
+def unroll(
+    net: PolicyValueRNN, params: dict, carry: LSTMCarry, observations: jax.Array
+) -> tuple[LSTMCarry, tuple[jax.Array, jax.Array]]:
+    """The network over a sequence ``[T, *obs]`` from ``carry``: ``(final carry, (logits [T, A], values [T]))``,
+    what a scan of :class:`PolicyValueRNN` step by step computes, up to rounding.
+
+    Only the recurrence runs step by step (:func:`lstm_sequence`): the torso, the LSTM's input projection and the
+    heads are matrix products over the whole sequence, and the recurrent kernel's gradient is one product
+    ``H_prev^T dZ`` after the backward scan. Differentiating a scan of the cell instead accumulates a rank-one
+    ``h_{t-1}^T dz_t`` into a ``[W, 4 W]`` gradient at every step of the backward pass, which XLA's CPU backend also
+    computed once per gate (docs/performance.md, Deep agents).
+    """
+    p = params["params"]
+    embedding = MLP([net.width] * net.depth, n_outputs=None, activate_final=True, batch_dims=1).apply(
+        {"params": p["MLP_0"]}, observations
+    )
+    cell = p["OptimizedLSTMCell_0"]
+    w_in = jnp.concatenate([cell[f"i{gate}"]["kernel"] for gate in _GATES], axis=-1)
+    w_rec = jnp.concatenate([cell[f"h{gate}"]["kernel"] for gate in _GATES], axis=-1)
+    bias = jnp.concatenate([cell[f"h{gate}"]["bias"] for gate in _GATES], axis=-1)
+    carry, h = lstm_sequence(w_rec, bias, embedding @ w_in, carry)
+    embedding = embedding + nn.relu(h)
+    logits = nn.Dense(net.n_actions).apply({"params": p["Dense_0"]}, embedding)
+    values = nn.Dense(1).apply({"params": p["Dense_1"]}, embedding)[:, 0]
+    return carry, (logits, values)
+
+
+def _lstm_forward(w_rec, bias, x_proj, carry):
+    """The recurrence of :func:`lstm_sequence` and what its backward pass reads: the previous states ``c_{t-1}``,
+    ``h_{t-1}``, the gates (``[T, 4 W]``, activated) and ``tanh(c_t)``."""
+
+    def step(state, x):
+        c, h = state
+        i, f, g, o = jnp.split(x + h @ w_rec + bias, 4, axis=-1)
+        i, f, g, o = jax.nn.sigmoid(i), jax.nn.sigmoid(f), jnp.tanh(g), jax.nn.sigmoid(o)
+        c_new = f * c + i * g
+        tanh_c = jnp.tanh(c_new)
+        h_new = o * tanh_c
+        return (c_new, h_new), (h_new, c, h, jnp.concatenate([i, f, g, o], axis=-1), tanh_c)
+
+    carry, (hs, c_prev, h_prev, gates, tanh_c) = jax.lax.scan(step, carry, x_proj)
+    return carry, hs, (c_prev, h_prev, gates, tanh_c)
+
+
+@jax.custom_vjp
+def lstm_sequence(
+    w_rec: jax.Array, bias: jax.Array, x_proj: jax.Array, carry: LSTMCarry
+) -> tuple[LSTMCarry, jax.Array]:
+    """flax's ``OptimizedLSTMCell`` over a sequence whose input projections ``x_proj = x_t W_in`` (``[T, 4 W]``,
+    gates ``i, f, g, o``) are given: ``z_t = x_proj_t + h_{t-1} W_rec + b``, ``i, f, o = sigmoid``, ``g = tanh``,
+    ``c_t = f c_{t-1} + i g``, ``h_t = o tanh(c_t)`` (Hochreiter & Schmidhuber 1997; the paper's App. G network).
+    Returns ``((c_T, h_T), h [T, W])``.
+
+    Its gradient is back-propagation through time written out: a reverse scan carries ``(dc, dh)`` and emits each
+    step's ``dz_t``; then ``dW_rec = H_prev^T dZ``, ``db = sum_t dz_t``, ``dx_proj = dZ`` (one product each).
+    """
+    carry, hs, _ = _lstm_forward(w_rec, bias, x_proj, carry)
+    return carry, hs
+
+
+def _lstm_sequence_fwd(w_rec, bias, x_proj, carry):
+    carry_out, hs, saved = _lstm_forward(w_rec, bias, x_proj, carry)
+    return (carry_out, hs), (w_rec, saved)
+
+
+def _lstm_sequence_bwd(residuals, cotangents):
+    w_rec, (c_prev, h_prev, gates, tanh_c) = residuals
+    (dc_last, dh_last), dhs = cotangents
+
+    def back(state, x):
+        dc, dh = state
+        dh_out, c, gate, tc = x
+        i, f, g, o = jnp.split(gate, 4, axis=-1)
+        dh = dh + dh_out
+        dc = dc + dh * o * (1.0 - tc * tc)
+        dz = jnp.concatenate(
+            [dc * g * i * (1.0 - i), dc * c * f * (1.0 - f), dc * i * (1.0 - g * g), dh * tc * o * (1.0 - o)], axis=-1
+        )
+        return (dc * f, dz @ w_rec.T), dz
+
+    (dc0, dh0), dz = jax.lax.scan(back, (dc_last, dh_last), (dhs, c_prev, gates, tanh_c), reverse=True)
+    return h_prev.T @ dz, jnp.sum(dz, axis=0), dz, (dc0, dh0)
+
+
+lstm_sequence.defvjp(_lstm_sequence_fwd, _lstm_sequence_bwd)
 
 
 def init(
