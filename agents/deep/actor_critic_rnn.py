@@ -130,8 +130,8 @@ def unroll(
 
 
 def _lstm_forward(w_rec, bias, x_proj, carry):
-    """The recurrence of :func:`lstm_sequence` and what its backward pass reads: the previous states ``c_{t-1}``,
-    ``h_{t-1}``, the gates (``[T, 4 W]``, activated) and ``tanh(c_t)``."""
+    """The recurrence of :func:`lstm_sequence`: the last state, ``h [T, W]`` and what the backward pass reads
+    besides them, ``c [T, W]``, the activated gates ``[T, 4 W]`` and ``tanh(c_t)``."""
 
     def step(state, x):
         c, h = state
@@ -140,10 +140,15 @@ def _lstm_forward(w_rec, bias, x_proj, carry):
         c_new = f * c + i * g
         tanh_c = jnp.tanh(c_new)
         h_new = o * tanh_c
-        return (c_new, h_new), (h_new, c, h, jnp.concatenate([i, f, g, o], axis=-1), tanh_c)
+        return (c_new, h_new), (h_new, c_new, jnp.concatenate([i, f, g, o], axis=-1), tanh_c)
 
-    carry, (hs, c_prev, h_prev, gates, tanh_c) = jax.lax.scan(step, carry, x_proj)
-    return carry, hs, (c_prev, h_prev, gates, tanh_c)
+    last, (hs, cs, gates, tanh_c) = jax.lax.scan(step, carry, x_proj)
+    return last, hs, (cs, gates, tanh_c)
+
+
+def _previous(first: jax.Array, seq: jax.Array) -> jax.Array:
+    """``[x_0, x_1 .. x_{T-1}]`` from the start value ``x_0`` and the sequence ``[x_1 .. x_T]``."""
+    return jnp.concatenate([first[None], seq[:-1]], axis=0)
 
 
 @jax.custom_vjp
@@ -163,12 +168,13 @@ def lstm_sequence(
 
 
 def _lstm_sequence_fwd(w_rec, bias, x_proj, carry):
-    carry_out, hs, saved = _lstm_forward(w_rec, bias, x_proj, carry)
-    return (carry_out, hs), (w_rec, saved)
+    last, hs, (cs, gates, tanh_c) = _lstm_forward(w_rec, bias, x_proj, carry)
+    return (last, hs), (w_rec, carry, hs, cs, gates, tanh_c)
 
 
 def _lstm_sequence_bwd(residuals, cotangents):
-    w_rec, (c_prev, h_prev, gates, tanh_c) = residuals
+    w_rec, (c0, h0), hs, cs, gates, tanh_c = residuals
+    c_prev, h_prev = _previous(c0, cs), _previous(h0, hs)
     (dc_last, dh_last), dhs = cotangents
 
     def back(state, x):
