@@ -154,6 +154,23 @@ def test_a_deep_agent_s_step_loop_does_not_copy_its_replay_buffer():
     assert "3000" in text and not buffer_copies, buffer_copies[:4]
 
 
+@pytest.mark.skipif(jax.default_backend() != "cpu", reason="the CPU backend's layouts")
+def test_boot_dqn_s_ensemble_moves_no_activation_between_layouts():
+    # BootDQN (hidden width 29 and batch 41, sizes no other array has) on 6 members: its ensemble's activations are
+    # laid out [heads, width, batch] from the first layer on (agents.deep.networks.ensemble_apply), so that the
+    # compiled chunk program neither copies nor transposes an array with the width and the batch among its dimensions.
+    # With [heads, batch, width] XLA's CPU backend transposed and copied them around its batched products, forward
+    # and backward, and the SGD step ran about 1.3x slower (docs/performance.md, Deep agents).
+    agent = agents.get("boot_dqn_continuous")
+    mdp = jaxmdp.block_mdp(jaxmdp.make("RiverSwim", episodic=False, seed=0, size=5, randomize_actions=False),
+                           "state_info")
+    hp = agent.default_hparams.replace(network_width=29, batch_size=41, n_ensemble=5, replay_capacity=500)
+    text = _chunk_text(agent, runner.product([mdp], [hp], seeds=range(6)))
+    moved = [line for line in text.splitlines()
+             if re.search(r"= f32\[(?=[0-9,]*\b29\b)(?=[0-9,]*\b41\b)[0-9,]*\]\S* (copy|transpose)\(", line)]
+    assert re.search(r"f32\[[0-9,]*\b29\b[0-9,]*\b41\b[0-9,]*\]", text) and not moved, moved[:4]
+
+
 def test_default_plan_slots():
     assert [default_plan_slots(b) for b in (1, 15, 16, 17, 90, 180)] == [1, 1, 1, 2, 6, 12]
     # A byte cap: at most slot_bytes // member_bytes slots, at least one, never more than without it.
