@@ -49,11 +49,10 @@ def ensemble_apply(params: Any, x: jax.Array) -> jax.Array:
     Each layer is one matrix product batched over the heads, ``h_k <- relu(W_k^T h_k + b_k)``, its activations laid
     out head-major and feature-major, ``[K, width, B]``, from the first layer on (which reads the shared ``x`` once for
     all heads); the output is transposed to ``[K, B, n_outputs]`` at the end. Why this layout: ``jax.vmap`` of
-    ``MLP.apply`` over heads and batch gives batch-major activations, which XLA's CPU backend copies into the
-    head-major layout of its batched products at every layer, forward and backward; head-major ``[K, B, width]``
-    has no copies, but its products have bsuite's width (50) as their minor dimension, a poor fit for the CPU's
-    vector registers, where ``[K, width, B]`` has the batch (128) there and runs BootDQN's SGD step about 1.3x faster
-    (docs/performance.md, Deep agents).
+    ``MLP.apply`` over heads and batch gives batch-major activations, and even head-major ``[K, B, width]`` ones
+    (bsuite's width, 50, as the products' minor dimension) are transposed and copied around every batched product
+    by XLA's CPU backend, forward and backward; ``[K, width, B]``, the batch (128) minor, moves none and runs
+    BootDQN's SGD step about 1.2x faster (docs/performance.md, Deep agents; tests/test_runner_planning.py).
     """
     layers = params["params"]
     names = sorted(layers, key=lambda name: int(name.rsplit("_", 1)[1]))  # Dense_0, Dense_1, ... (Dense_10 after 9)
