@@ -68,18 +68,15 @@ class CommittedRun:
 _EP, _CONT = sets.SETTINGS[:2], sets.SETTINGS[2:]
 
 #: The committed runs of the shipped agents, one per (agent, set) and protocol: each agent's results from the run
-#: with the most seeds (seeds 0-1 of a 20-seed run serve a 2-seed run); a run's rows of other sets are not taken (a
-#: folder still being filled, as the 20-seed tabular run, holds parts of the sets that follow).
+#: with the most seeds (seeds 0-1 of a 20-seed run serve a 2-seed run); a run's rows of other sets or agents are not
+#: taken (a folder still being filled, as the 20-seed tabular run, holds parts of the runs that follow).
 COMMITTED_RUNS: tuple[CommittedRun, ...] = (
     CommittedRun("continuous_20", "benchmark_continuous_full_20seeds", _CONT,
                  ("ucrl2", "q_learning_continuous", "random_continuous"), 500_000, tuple(range(20))),
     CommittedRun("episodic_20", "benchmark_episodic_full_20seeds_ql_random", _EP,
                  ("q_learning_episodic", "random_episodic"), 500_000, tuple(range(20))),
-    CommittedRun("psrl_20", "benchmark_tabular_20seeds",
-                 ("continuous ergodic", "episodic ergodic", "continuous communicating"),
-                 ("psrl_continuous", "psrl_episodic"), 500_000, tuple(range(20))),
-    CommittedRun("psrl_episodic_2", "benchmark_episodic_full_2seeds", ("episodic communicating",), ("psrl_episodic",),
-                 500_000, (0, 1)),
+    CommittedRun("psrl_20", "benchmark_tabular_20seeds", sets.SETTINGS, ("psrl_continuous", "psrl_episodic"),
+                 500_000, tuple(range(20))),
     *(CommittedRun(f"deep_{s.replace(' ', '_')}_20k", f"benchmark_deep_{s.replace(' ', '_')}_20k", (s,),
                    tuple(f"{a}_{s.split()[0]}" for a in ("dqn", "actor_critic", "actor_critic_rnn", "random")),
                    20_000, (0, 1, 2), emission="state_info")

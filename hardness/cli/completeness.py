@@ -22,11 +22,10 @@ from hardness.cli._common import add_cache_flag, compile_report
 
 __all__ = ["DEFAULT_FOLDERS", "build_parser", "main"]
 
-#: The committed full-budget benchmark runs (the folders of Table 2 in docs/results.md).
+#: The committed full-budget benchmark runs of the tuned agents (the folders of Table 2 in docs/results.md, every
+#: tabular agent at 20 seeds).
 DEFAULT_FOLDERS = tuple(f"docs/tables/{name}" for name in (
-    "benchmark_continuous_full_20seeds", "benchmark_continuous_ergodic_full_2seeds",
-    "benchmark_continuous_communicating_psrl_full_2seeds", "benchmark_episodic_full_2seeds",
-    "benchmark_episodic_full_20seeds_ql_random", "benchmark_tabular_20seeds"))
+    "benchmark_continuous_full_20seeds", "benchmark_episodic_full_20seeds_ql_random", "benchmark_tabular_20seeds"))
 
 
 def build_parser() -> argparse.ArgumentParser:
