@@ -137,9 +137,9 @@ class RunConfig:
         the results, so not of the plan's settings.
       part_members: run a batch of more members in parts of at most this many (:func:`split_batch`'s halves, again
         until each is small enough; on a machine of several devices also until the devices divide each part's
-        members, but for a last part smaller than them), each finished and written on its own, so that a batch of hours becomes pieces
-        that a machine finishes within its lifetime and a later call resumes from what was written; a batch with a
-        checkpoint continues whole. ``None``: whole batches. Not part of the results (a part is padded like its
+        members, but for a last part smaller than them), each finished and written on its own, so that a batch of
+        hours becomes pieces that a machine finishes within its lifetime and a later call resumes from what was
+        written; a batch with a checkpoint continues whole. ``None``: whole batches. Not part of the results (a part is padded like its
         batch), so not of the plan's settings.
       n_records: records per member in the per-record CSVs and curves.
       emission: the emission through which the agents observe the MDPs (:func:`to_block_mdp`: a kind of
@@ -381,12 +381,13 @@ def split_batch(batch: Batch, settings: dict, multiple: int = 1) -> list[Batch]:
     programs do not fit in memory, or of more than ``part_members`` members. The first half has ``ceil(n / 2)``
     members rounded up to a multiple of ``multiple`` (at most ``n - 1``): :func:`run_benchmark` passes the local
     device count, because the runner shards a call's members only over a device count that divides them, so a part
-    of 5 members on two devices would run on one (docs/performance.md, Benchmark parts). Each half remembers the
+    of 5 members on two devices would run on one (docs/performance.md, Benchmark wall time). Each half remembers the
     batch it came from (:attr:`Batch.whole`, the original one after repeated splits) and is padded and sized like it
     (MDP shapes, PSRL's candidate buffer), so every member computes what it would have computed in the whole batch:
-    the results do not depend on the machine's memory or devices. (With an emission the halves' MDPs are padded to their own members and
-    their observations to the whole batch's shape: the same trajectories and regrets, and the normalised columns,
-    whose normalising gains are computed on the part's padded MDPs, the same to float32 rounding.)"""
+    the results do not depend on the machine's memory or devices. (With an emission the halves' MDPs are padded to
+    their own members and their observations to the whole batch's shape: the same trajectories and regrets, and the
+    normalised columns, whose normalising gains are computed on the part's padded MDPs, the same to float32
+    rounding.)"""
     n = len(batch.members)
     if n < 2:
         raise ValueError(f"batch {batch.id} has a single member and cannot be split")
