@@ -139,8 +139,8 @@ class RunConfig:
         until each is small enough; on a machine of several devices also until the devices divide each part's
         members, but for a last part smaller than them), each finished and written on its own, so that a batch of
         hours becomes pieces that a machine finishes within its lifetime and a later call resumes from what was
-        written; a batch with a checkpoint continues whole. ``None``: whole batches. Not part of the results (a part is padded like its
-        batch), so not of the plan's settings.
+        written; a batch with a checkpoint continues whole. ``None``: whole batches. Not part of the results (a part
+        is padded like its batch), so not of the plan's settings.
       n_records: records per member in the per-record CSVs and curves.
       emission: the emission through which the agents observe the MDPs (:func:`to_block_mdp`: a kind of
         :data:`jaxmdp.EMISSION_KINDS` or a reference class name such as ``"StateInfo"``); the deep agents need one,
