@@ -6,7 +6,6 @@ and the random agent, two seeds, 200 steps.
 """
 
 import csv
-import dataclasses
 import json
 import os
 import re
@@ -420,41 +419,6 @@ def test_a_batch_runs_in_parts_of_at_most_part_members_with_the_whole_batch_s_re
     rest = run.run_benchmark(config, tmp_path / "started", progress=False, report=False)
     assert rest.finished and rest.ran == [b]
     assert _member_rows(tmp_path / "started") == _member_rows(tmp_path / "whole")
-
-
-def test_split_halves_are_multiples_of_the_devices_so_that_every_part_uses_them_all():
-    # The runner shards a call's members over the largest device count that divides them: on two devices a part of
-    # 5 runs on one. With ``multiple`` the first half is ceil(n / 2) rounded up to a multiple, the second the rest.
-    settings, batches = run.plan(run.RunConfig(**ONE_BUCKET))
-    whole = batches[0]
-    for n in range(2, 14):
-        members = tuple(("m", k) for k in range(n))
-        batch = dataclasses.replace(whole, members=members)
-        assert [len(h.members) for h in run.split_batch(batch, settings)] == [(n + 1) // 2, n // 2]
-        for multiple in (2, 4):
-            first, second = run.split_batch(batch, settings, multiple)
-            assert first.members + second.members == members and second.members
-            assert len(first.members) % multiple == 0 or len(first.members) == n - 1
-            assert len(first.members) - (n + 1) // 2 < multiple  # still about half
-        first = {2: 1, 3: 2, 4: 2, 5: 4, 6: 4, 7: 4, 8: 4, 9: 6, 10: 6, 11: 6, 12: 6, 13: 8}[n]
-        assert [len(h.members) for h in run.split_batch(batch, settings, 2)] == [first, n - first]
-    for bad in (0, -2, 1.5, True):
-        with pytest.raises(ValueError, match="multiple must be a positive integer"):
-            run.split_batch(whole, settings, bad)
-
-
-def test_parts_are_cut_for_the_local_devices(tmp_path, monkeypatch):
-    # On a machine of two devices: 6 members (RiverSwim 5 and DeepSea 10, three seeds) in parts of at most 5 run as
-    # 4 + 2 (halving alone gives 3 + 3, each on one device); 3 members (DeepSea, three seeds) in parts of at most 8
-    # as 2 + 1 (whole, they would run on one device).
-    monkeypatch.setattr(run, "_devices", lambda: 2)
-    for only, part_members, sizes in ((("RiverSwim", "DeepSea"), 5, [4, 2]), (("DeepSea",), 8, [2, 1])):
-        config = run.RunConfig(**{**ONE_BUCKET, "seeds": (0, 1, 2), "only": only}, part_members=part_members)
-        out = tmp_path / "_".join(only)
-        result = run.run_benchmark(config, out, progress=False, report=False)
-        plan = json.loads((out / "plan.json").read_text())
-        assert result.finished and [len(p["members"]) for p in plan["batches"]] == sizes
-        assert [p["id"].rsplit(".", 1)[-1] for p in plan["batches"]] == ["s0", "s1"]
 
 
 def test_part_members_is_checked_and_given_by_the_command_line(tmp_path):

@@ -59,7 +59,6 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import jax
 import numpy as np
 
 import agents as agent_registry
@@ -136,11 +135,10 @@ class RunConfig:
       memory_limit: bytes a runner call's programs may use (``None``: what the machine has available); not part of
         the results, so not of the plan's settings.
       part_members: run a batch of more members in parts of at most this many (:func:`split_batch`'s halves, again
-        until each is small enough; on a machine of several devices also until the devices divide each part's
-        members, but for a last part smaller than them), each finished and written on its own, so that a batch of
-        hours becomes pieces that a machine finishes within its lifetime and a later call resumes from what was
-        written; a batch with a checkpoint continues whole. ``None``: whole batches. Not part of the results (a part
-        is padded like its batch), so not of the plan's settings.
+        until each is small enough), each finished and written on its own, so that a batch of hours becomes pieces
+        that a machine finishes within its lifetime and a later call resumes from what was written; a batch with a
+        checkpoint continues whole. ``None``: whole batches. Not part of the results (a part is padded like its
+        batch), so not of the plan's settings.
       n_records: records per member in the per-record CSVs and curves.
       emission: the emission through which the agents observe the MDPs (:func:`to_block_mdp`: a kind of
         :data:`jaxmdp.EMISSION_KINDS` or a reference class name such as ``"StateInfo"``); the deep agents need one,
@@ -365,36 +363,17 @@ def _batch_key(settings: dict, set_name: str, agent: str, members: Sequence, who
     return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def _devices() -> int:
-    """The devices a runner call here shards its members over (:func:`jaxmdp.runner.run`'s ``shards``)."""
-    return jax.local_device_count()
-
-
-def _split_part(n: int, part_members: int, devices: int) -> bool:
-    """Whether a batch of ``n`` members is split under ``part_members``: it has more, or the ``devices`` do not divide
-    them (the runner would shard it over fewer: 5 members on two devices run on one, 4 + 1 on both)."""
-    return n > part_members or (n > devices and n % devices != 0)
-
-
-def split_batch(batch: Batch, settings: dict, multiple: int = 1) -> list[Batch]:
+def split_batch(batch: Batch, settings: dict) -> list[Batch]:
     """``batch`` in two halves (ids ``<id>.s0``, ``<id>.s1``): how :func:`run_benchmark` splits a batch whose
-    programs do not fit in memory, or of more than ``part_members`` members. The first half has ``ceil(n / 2)``
-    members rounded up to a multiple of ``multiple`` (at most ``n - 1``): :func:`run_benchmark` passes the local
-    device count, because the runner shards a call's members only over a device count that divides them, so a part
-    of 5 members on two devices would run on one (docs/performance.md, Benchmark wall time). Each half remembers the
-    batch it came from (:attr:`Batch.whole`, the original one after repeated splits) and is padded and sized like it
-    (MDP shapes, PSRL's candidate buffer), so every member computes what it would have computed in the whole batch:
-    the results do not depend on the machine's memory or devices. (With an emission the halves' MDPs are padded to
-    their own members and their observations to the whole batch's shape: the same trajectories and regrets, and the
-    normalised columns, whose normalising gains are computed on the part's padded MDPs, the same to float32
-    rounding.)"""
-    n = len(batch.members)
-    if n < 2:
+    programs do not fit in memory, or of more than ``part_members`` members. Each half remembers the batch it came
+    from (:attr:`Batch.whole`, the original one after repeated splits) and is padded and sized like it (MDP shapes,
+    PSRL's candidate buffer), so every member computes what it would have computed in the whole batch: the results
+    do not depend on the machine's memory. (With an emission the halves' MDPs are padded to their own members and
+    their observations to the whole batch's shape: the same trajectories and regrets, and the normalised columns,
+    whose normalising gains are computed on the part's padded MDPs, the same to float32 rounding.)"""
+    if len(batch.members) < 2:
         raise ValueError(f"batch {batch.id} has a single member and cannot be split")
-    if not isinstance(multiple, int) or isinstance(multiple, bool) or multiple < 1:
-        raise ValueError(f"multiple must be a positive integer (members per part a multiple of it); got {multiple!r}")
-    half = -(-n // 2)
-    half = min(-(-half // multiple) * multiple, n - 1)
+    half = -(-len(batch.members) // 2)
     whole = batch.members if batch.whole is None else batch.whole
     return [
         Batch(f"{batch.id}.s{j}", _batch_key(settings, batch.set_name, batch.agent, part, whole), batch.set_name,
@@ -627,11 +606,11 @@ def run_benchmark(
             if _finished(run_dir, batch) is not None:  # finished between the look and the claim
                 held.drop(batch.id)
                 continue
-            if (config.part_members is not None and _split_part(len(batch.members), config.part_members, _devices())
+            if (config.part_members is not None and len(batch.members) > config.part_members
                     and not (run_dir / f"{batch.id}.ckpt.npz").exists()):
                 # The plan first, then the claim: no other process can take the whole batch in between.
-                plans.replace(out, dataclasses.asdict(batch), [dataclasses.asdict(h) for h in
-                                                               split_batch(batch, settings, _devices())])
+                plans.replace(out, dataclasses.asdict(batch), [dataclasses.asdict(h)
+                                                               for h in split_batch(batch, settings)])
                 held.drop(batch.id, f"split: parts of at most {config.part_members} members")
                 continue
             bar.set_postfix(f"{batch.id}: {len(batch.members)} members")
@@ -642,7 +621,7 @@ def run_benchmark(
                 held.drop(batch.id, "split: does not fit in memory")
                 if config.max_members is not None or len(batch.members) < 2:
                     raise
-                halves = split_batch(batch, settings, _devices())
+                halves = split_batch(batch, settings)
                 bar.write(f"{batch.id} does not fit in memory ({err}); split into {len(halves)} parts", log=True)
                 plans.replace(out, dataclasses.asdict(batch), [dataclasses.asdict(h) for h in halves])
                 continue

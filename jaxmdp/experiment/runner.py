@@ -106,14 +106,45 @@ __all__ = [
 
 
 def _n_shards(n_members: int, shards: int | None) -> int:
+    """The devices a run's members are sharded over: ``shards``, which must divide them, or by default the count
+    that puts the fewest members on a device, then pads the fewest (:func:`_pad_members`): 5 members on two devices
+    run as 3 + 3, not 5 on one (docs/performance.md, Benchmark wall time)."""
     available = jax.local_device_count()
     if shards is None:
-        return max(d for d in range(1, available + 1) if n_members % d == 0)
+        per_device = lambda d: -(-n_members // d)  # noqa: E731
+        return min(range(1, min(available, n_members) + 1), key=lambda d: (per_device(d), d * per_device(d)))
     shards = check_int("shards", shards)
     if shards > available or n_members % shards:
         raise ValueError(f"shards must divide the {n_members} members and be at most the {available} local devices; "
                          f"got {shards}")
     return shards
+
+
+def _pad_members(tree: Any, n: int) -> Any:
+    """Every per-member leaf of ``tree`` (leading axis the members; scalars are shared) padded to ``n`` members with
+    copies of its last member. A copy computes what its original does (members never interact), so its results are
+    dropped and the checkpoint holds the real members only: it resumes on any device count."""
+    def pad(x):
+        x = np.asarray(x)
+        return x if x.ndim == 0 or len(x) >= n else np.concatenate([x, np.repeat(x[-1:], n - len(x), axis=0)])
+
+    return jax.tree.map(pad, tree)
+
+
+def _first_members(tree: Any, n: int) -> Any:
+    """Every per-member leaf of ``tree`` cut to its first ``n`` members (numpy; the inverse of :func:`_pad_members`)."""
+    return jax.tree.map(lambda x: np.asarray(x) if np.ndim(x) == 0 else np.asarray(x)[:n], tree)
+
+
+def _padded_grid(g: Grid, n: int) -> Grid:
+    """``g`` with ``n`` members, the last one repeated (:func:`_pad_members`)."""
+    if n == g.n_members:
+        return g
+    return dataclasses.replace(
+        g, mdp_index=_pad_members(g.mdp_index, n), hparams=_pad_members(g.hparams, n),
+        key_data=_pad_members(g.key_data, n), hparams_index=_pad_members(g.hparams_index, n),
+        seeds=_pad_members(g.seeds, n),
+    )
 
 
 def _validate(agent: Agent, g: Grid, variant: str) -> None:
@@ -423,7 +454,10 @@ def _start_or_resume(
     """Continue this run's checkpoint if there is one (and ``resume``), dropping CSV rows written after it;
     otherwise initialise every member and start a fresh CSV."""
     if ckpt is not None and resume and ckpt.exists():
-        carry, steps_done, values_done, meta = load_checkpoint(ckpt, program.carry_shape, run_id)
+        like = jax.tree.map(lambda x: x if x.ndim == 0 else jax.ShapeDtypeStruct((n_members, *x.shape[1:]), x.dtype),
+                            program.carry_shape)
+        carry, steps_done, values_done, meta = load_checkpoint(ckpt, like, run_id)
+        carry = jax.tree.map(jnp.asarray, _pad_members(carry, len(program.mdp_index)))
         if csv_file is not None:
             truncate_csv(csv_file, int(carry.t), program.diagnostic_names)
         return _RunState(carry, steps_done, values_done, float(meta["run_s"]))
@@ -454,9 +488,9 @@ def _run_chunks(
     """Run the chunk program until ``n_steps`` (or ``stop_after_chunks``), appending each chunk's records to the CSV,
     checkpointing and advancing ``display`` by the chunk's member-steps after each; returns where the run stands and
     its run seconds over every call that ran it."""
-    n_steps = settings.n_steps
+    n_steps, n_members = settings.n_steps, grid.n_members  # the program's members may be padded (_pad_members)
     carry, steps_done, values_done = start.carry, start.steps, start.values
-    consts_np = jax.tree.map(np.asarray, program.consts)
+    consts_np = _first_members(program.consts, n_members)
     t_start = time.perf_counter()
     chunks = 0
     t = int(carry.t)
@@ -466,7 +500,7 @@ def _run_chunks(
             carry, program.mdps, program.mdp_index, program.consts, program.sched, jnp.int32(n)
         )
         j = int(j)
-        steps, values = np.asarray(steps)[:j], np.asarray(values)[:j]
+        steps, values = np.asarray(steps)[:j], np.asarray(values)[:j, :n_members]
         elapsed = start.elapsed_before + time.perf_counter() - t_start
         steps_done = np.concatenate([steps_done, steps])
         values_done = np.concatenate([values_done, values])
@@ -475,7 +509,7 @@ def _run_chunks(
             append_rows(csv_file, csv_rows(grid, steps, values, consts_np, per_second))
         if ckpt is not None:
             meta = {"fingerprint": run_id, "run_s": elapsed, "t": int(carry.t), "agent": agent.name}
-            save_checkpoint(ckpt, carry, steps_done, values_done, meta)
+            save_checkpoint(ckpt, _first_members(carry, n_members), steps_done, values_done, meta)
         display.update(grid.n_members * (int(carry.t) - t))
         t = int(carry.t)
         chunks += 1
@@ -527,9 +561,11 @@ def run(
         resumed run takes its finished steps off that display's total. The results do not depend on it.
       stop_after_chunks: stop after this many chunks of this call (to test interruption; the result then holds the
         records so far).
-      shards: split the members over this many local devices (default: as many as divide the batch, up to
-        ``jax.local_device_count()``). XLA runs one lockstep loop on one core; to use every core of a CPU, start
-        Python with ``XLA_FLAGS=--xla_force_host_platform_device_count=<cores>`` (before JAX is imported).
+      shards: split the members over this many local devices, which must divide them (default: the count of at
+        most ``jax.local_device_count()`` that puts the fewest members on a device, the members padded to a multiple
+        of it with copies of the last one, whose results are dropped). XLA runs one lockstep loop on one core; to
+        use every core of a CPU, start Python with ``XLA_FLAGS=--xla_force_host_platform_device_count=<cores>``
+        (before JAX is imported).
       record_visits: also count, per member, the states it took its actions in (``RunResult.visits``, ``[B, S]``
         int, summing to ``n_steps`` per member; for a BlockMDP the latent states). Off by default: the loop then
         carries and computes nothing for it.
@@ -564,8 +600,10 @@ def run(
         memory_limit, stop_when_converged,
     )
     display, own_display = _display(progress, agent, grid, settings.n_steps)
+    n_members = grid.n_members
     try:
-        program = _compile(agent, grid, settings, display)
+        program = _compile(agent, _padded_grid(grid, -(-n_members // settings.n_shards) * settings.n_shards),
+                           settings, display)
         run_id = fingerprint(agent.name, grid, settings.n_steps, settings.log_period, settings.record_period, variant)
         if record_visits:  # a checkpoint of a run without counts cannot continue one with them (and vice versa)
             run_id += "+visits"
@@ -587,7 +625,7 @@ def run(
     return RunResult(
         steps=done.steps,
         values=done.values,
-        constants=jax.tree.map(np.asarray, program.consts),
+        constants=_first_members(program.consts, n_members),
         grid=grid,
         agent=agent.name,
         compile_s=program.compile_s,
@@ -596,8 +634,8 @@ def run(
         log_period=settings.log_period,
         record_period=settings.record_period,
         variant=variant,
-        agent_state=_final_states(done.carry, stop_when_converged),
-        visits=np.asarray(done.carry.visits) if record_visits else None,
-        stopped_at=np.asarray(done.carry.stopped_at[:, 0]) if stop_when_converged else None,
+        agent_state=_first_members(_final_states(done.carry, stop_when_converged), n_members),
+        visits=np.asarray(done.carry.visits)[:n_members] if record_visits else None,
+        stopped_at=np.asarray(done.carry.stopped_at[:n_members, 0]) if stop_when_converged else None,
         diagnostic_names=program.diagnostic_names,
     )
