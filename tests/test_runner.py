@@ -392,6 +392,23 @@ def test_product_layout():
     assert g.mdps.T.shape[0] == 2  # distinct MDPs are stored once
 
 
+def test_grid_take_selects_members_in_order():
+    agent = agents.get("q_learning_continuous")
+    hps = [agent.default_hparams, agent.default_hparams.replace(min_at=0.0)]
+    g = runner.product([river_swim(False), river_swim(False, p_lazy=0.5)], hps, seeds=[3, 4, 5])
+    picked = [11, 0, 0, 7]
+    t = g.take(picked)
+    assert t.n_members == 4 and t.mdps is g.mdps and t.mdp_labels == g.mdp_labels
+    for field in ("mdp_index", "key_data", "hparams_index", "seeds"):
+        np.testing.assert_array_equal(getattr(t, field), np.asarray(getattr(g, field))[picked])
+    np.testing.assert_array_equal(t.hparams.min_at, np.asarray(g.hparams.min_at)[picked])
+    np.testing.assert_array_equal(runner.take_members({"t": np.int32(7), "x": np.arange(12)}, slice(3))["x"],
+                                  [0, 1, 2])
+    for bad in ([12], [-1], [[0, 1]], [0.5]):
+        with pytest.raises(ValueError, match=r"members must be a 1-D sequence of member indices in \[0, 12\)"):
+            g.take(bad)
+
+
 # ---------------------------------------------------------------------------------------------------------------
 # Bad input: clear errors before anything compiles
 # ---------------------------------------------------------------------------------------------------------------

@@ -48,7 +48,8 @@ def test_two_shards_equal_one():
 
 PADDED = textwrap.dedent(
     """
-    import dataclasses, json, pathlib, tempfile
+    import json, pathlib, tempfile, warnings
+    import agents
     import jax, numpy as np
     import jaxmdp
     from jaxmdp.experiment import runner
@@ -60,8 +61,7 @@ PADDED = textwrap.dedent(
     hps = [ScriptedHParams(plan_every=5), ScriptedHParams(plan_every=7)]
     mdp = jaxmdp.make("RiverSwim", episodic=True, seed=0, size=5, randomize_actions=False)
     g = runner.product([mdp], hps, seeds=[0, 1, 2])
-    g = dataclasses.replace(g, hparams=jax.tree.map(lambda x: x[1:4], g.hparams),
-                            **{k: getattr(g, k)[1:4] for k in ("mdp_index", "key_data", "hparams_index", "seeds")})
+    g = g.take([1, 2, 3])
     out["shards"] = runner._n_shards(3, None)
     tmp = pathlib.Path(tempfile.mkdtemp())
     two = runner.run(SCRIPTED[True], g, 400, n_records=4, log_period=20, csv_path=tmp / "two.csv")
@@ -84,6 +84,20 @@ PADDED = textwrap.dedent(
     rest = runner.run(SCRIPTED[True], g, 400, n_records=4, log_period=20, chunk_steps=100, checkpoint_path=ckpt,
                       shards=1)
     out["resumed_equal"] = bool(np.array_equal(one.values, rest.values))
+    # And the reverse: a checkpoint of one device resumed on two, its members padded at load.
+    ckpt = tmp / "one.ckpt.npz"
+    runner.run(SCRIPTED[True], g, 400, n_records=4, log_period=20, chunk_steps=100, checkpoint_path=ckpt,
+               stop_after_chunks=2, shards=1)
+    rest = runner.run(SCRIPTED[True], g, 400, n_records=4, log_period=20, chunk_steps=100, checkpoint_path=ckpt)
+    out["resumed_padded_equal"] = bool(np.array_equal(one.values, rest.values))
+    # The end-of-run warnings count the real members, not the copies (UCRL2 with one sweep per plan never converges).
+    ucrl2 = agents.AGENTS["ucrl2"]
+    capped = runner.product([jaxmdp.make("RiverSwim", episodic=False, seed=0, size=4)],
+                            [ucrl2.default_hparams.replace(evi_max_iter=1)], seeds=[0, 1, 2])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        runner.run(ucrl2, capped, 200, log_period=50, n_records=2)
+    out["warnings"] = [str(w.message) for w in caught if "plans_unconverged" in str(w.message)]
     print(json.dumps(out))
     """
 )
@@ -94,7 +108,8 @@ def test_members_that_the_devices_do_not_divide_are_padded_and_their_copies_drop
     assert out["shards"] == 2, out
     assert out["values_equal"] and out["states_equal"] and out["constants_equal"] and out["csv_equal"], out
     assert out["plans"] == out["expected_plans"] and len(set(out["plans"])) == 2, out
-    assert out["checkpoint_members"] == [3] and out["resumed_equal"], out
+    assert out["checkpoint_members"] == [3] and out["resumed_equal"] and out["resumed_padded_equal"], out
+    assert len(out["warnings"]) == 1 and "(3 of 3 members)" in out["warnings"][0], out
 
 
 def test_the_default_shards_put_the_fewest_members_on_a_device_then_pad_the_fewest(monkeypatch):

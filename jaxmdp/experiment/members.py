@@ -20,7 +20,14 @@ from jaxmdp.batching import stack
 from jaxmdp.blockmdp.block_mdp import BlockMDP
 from jaxmdp.mdp import MDP
 
-__all__ = ["Grid", "grid", "product", "seed_keys", "stack_hparams", "dynamics", "n_distinct", "member_mdp"]
+__all__ = ["Grid", "grid", "product", "seed_keys", "stack_hparams", "dynamics", "n_distinct", "member_mdp",
+           "take_members"]
+
+
+def take_members(tree: Any, index: np.ndarray | slice) -> Any:
+    """Members ``index`` (indices, repeats allowed, or a slice) of every per-member leaf of ``tree``, as numpy: the
+    leaves with a leading member axis; a scalar leaf (shared by all members, as the loop's step counter) is kept."""
+    return jax.tree.map(lambda x: np.asarray(x) if np.ndim(x) == 0 else np.asarray(x)[index], tree)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -50,6 +57,18 @@ class Grid:
     @property
     def n_members(self) -> int:
         return int(self.mdp_index.shape[0])
+
+    def take(self, members: Sequence[int] | np.ndarray) -> Grid:
+        """The grid of members ``members`` of this one, in that order (repeats allowed); the MDPs are shared."""
+        index = np.asarray(members)
+        if index.ndim != 1 or not np.issubdtype(index.dtype, np.integer) or not np.all(
+                (index >= 0) & (index < self.n_members)):
+            raise ValueError(f"members must be a 1-D sequence of member indices in [0, {self.n_members}); got "
+                             f"{members!r}")
+        return dataclasses.replace(
+            self, mdp_index=self.mdp_index[index], hparams=take_members(self.hparams, index),
+            key_data=self.key_data[index], hparams_index=self.hparams_index[index], seeds=self.seeds[index],
+        )
 
     @property
     def episodic(self) -> bool:

@@ -71,7 +71,7 @@ from jaxmdp.experiment.lockstep import (  # noqa: F401 (the convergence stop's c
     plan_slots_for,
 )
 from jaxmdp.experiment.memory import ProgramTooLarge, check_fits
-from jaxmdp.experiment.members import Grid, dynamics, grid, member_mdp, product, seed_keys, stack_hparams
+from jaxmdp.experiment.members import Grid, dynamics, grid, member_mdp, product, seed_keys, stack_hparams, take_members
 from jaxmdp.experiment.programs import (
     chunk_program,
     compile_lowered,
@@ -95,8 +95,8 @@ from jaxmdp.experiment.programs import constants_program as _constants_program  
 from jaxmdp.experiment.programs import init_program as _init_program  # noqa: F401
 
 __all__ = [
-    "Grid", "grid", "product", "seed_keys", "stack_hparams", "RunResult", "run", "record_steps", "MEMBER_COLUMNS",
-    "ProgramTooLarge", "DEFAULT_CHUNKS", "default_chunk_steps", "plan_slots_for",
+    "Grid", "grid", "product", "seed_keys", "stack_hparams", "take_members", "RunResult", "run", "record_steps",
+    "MEMBER_COLUMNS", "ProgramTooLarge", "DEFAULT_CHUNKS", "default_chunk_steps", "plan_slots_for",
 ]
 
 
@@ -107,7 +107,7 @@ __all__ = [
 
 def _n_shards(n_members: int, shards: int | None) -> int:
     """The devices a run's members are sharded over: ``shards``, which must divide them, or by default the count
-    that puts the fewest members on a device, then pads the fewest (:func:`_pad_members`): 5 members on two devices
+    that puts the fewest members on a device, then pads the fewest (:func:`_padding`): 5 members on two devices
     run as 3 + 3, not 5 on one (docs/performance.md, Benchmark wall time)."""
     available = jax.local_device_count()
     if shards is None:
@@ -120,31 +120,11 @@ def _n_shards(n_members: int, shards: int | None) -> int:
     return shards
 
 
-def _pad_members(tree: Any, n: int) -> Any:
-    """Every per-member leaf of ``tree`` (leading axis the members; scalars are shared) padded to ``n`` members with
-    copies of its last member. A copy computes what its original does (members never interact), so its results are
-    dropped and the checkpoint holds the real members only: it resumes on any device count."""
-    def pad(x):
-        x = np.asarray(x)
-        return x if x.ndim == 0 or len(x) >= n else np.concatenate([x, np.repeat(x[-1:], n - len(x), axis=0)])
-
-    return jax.tree.map(pad, tree)
-
-
-def _first_members(tree: Any, n: int) -> Any:
-    """Every per-member leaf of ``tree`` cut to its first ``n`` members (numpy; the inverse of :func:`_pad_members`)."""
-    return jax.tree.map(lambda x: np.asarray(x) if np.ndim(x) == 0 else np.asarray(x)[:n], tree)
-
-
-def _padded_grid(g: Grid, n: int) -> Grid:
-    """``g`` with ``n`` members, the last one repeated (:func:`_pad_members`)."""
-    if n == g.n_members:
-        return g
-    return dataclasses.replace(
-        g, mdp_index=_pad_members(g.mdp_index, n), hparams=_pad_members(g.hparams, n),
-        key_data=_pad_members(g.key_data, n), hparams_index=_pad_members(g.hparams_index, n),
-        seeds=_pad_members(g.seeds, n),
-    )
+def _padding(n_members: int, n_padded: int) -> np.ndarray:
+    """The members a run of ``n_members`` runs on ``n_padded`` slots (:func:`_n_shards`): each, then copies of the
+    last. A copy computes what its original does (members never interact), so its results are dropped and the
+    checkpoint holds the real members only: it resumes on any device count."""
+    return np.minimum(np.arange(n_padded), n_members - 1)
 
 
 def _validate(agent: Agent, g: Grid, variant: str) -> None:
@@ -457,7 +437,7 @@ def _start_or_resume(
         like = jax.tree.map(lambda x: x if x.ndim == 0 else jax.ShapeDtypeStruct((n_members, *x.shape[1:]), x.dtype),
                             program.carry_shape)
         carry, steps_done, values_done, meta = load_checkpoint(ckpt, like, run_id)
-        carry = jax.tree.map(jnp.asarray, _pad_members(carry, len(program.mdp_index)))
+        carry = jax.tree.map(jnp.asarray, take_members(carry, _padding(n_members, len(program.mdp_index))))
         if csv_file is not None:
             truncate_csv(csv_file, int(carry.t), program.diagnostic_names)
         return _RunState(carry, steps_done, values_done, float(meta["run_s"]))
@@ -488,9 +468,9 @@ def _run_chunks(
     """Run the chunk program until ``n_steps`` (or ``stop_after_chunks``), appending each chunk's records to the CSV,
     checkpointing and advancing ``display`` by the chunk's member-steps after each; returns where the run stands and
     its run seconds over every call that ran it."""
-    n_steps, n_members = settings.n_steps, grid.n_members  # the program's members may be padded (_pad_members)
+    n_steps, n_members = settings.n_steps, grid.n_members  # the program's members may be padded (_padding)
     carry, steps_done, values_done = start.carry, start.steps, start.values
-    consts_np = _first_members(program.consts, n_members)
+    consts_np = take_members(program.consts, slice(n_members))
     t_start = time.perf_counter()
     chunks = 0
     t = int(carry.t)
@@ -509,7 +489,7 @@ def _run_chunks(
             append_rows(csv_file, csv_rows(grid, steps, values, consts_np, per_second))
         if ckpt is not None:
             meta = {"fingerprint": run_id, "run_s": elapsed, "t": int(carry.t), "agent": agent.name}
-            save_checkpoint(ckpt, _first_members(carry, n_members), steps_done, values_done, meta)
+            save_checkpoint(ckpt, take_members(carry, slice(n_members)), steps_done, values_done, meta)
         display.update(grid.n_members * (int(carry.t) - t))
         t = int(carry.t)
         chunks += 1
@@ -602,7 +582,8 @@ def run(
     display, own_display = _display(progress, agent, grid, settings.n_steps)
     n_members = grid.n_members
     try:
-        program = _compile(agent, _padded_grid(grid, -(-n_members // settings.n_shards) * settings.n_shards),
+        n_padded = -(-n_members // settings.n_shards) * settings.n_shards
+        program = _compile(agent, grid if n_padded == n_members else grid.take(_padding(n_members, n_padded)),
                            settings, display)
         run_id = fingerprint(agent.name, grid, settings.n_steps, settings.log_period, settings.record_period, variant)
         if record_visits:  # a checkpoint of a run without counts cannot continue one with them (and vice versa)
@@ -621,11 +602,11 @@ def run(
     finally:
         if own_display:
             display.close()
-    _warn_diagnostics(agent, done.carry.agent_state)
+    _warn_diagnostics(agent, take_members(done.carry.agent_state, slice(n_members)))  # not the copies
     return RunResult(
         steps=done.steps,
         values=done.values,
-        constants=_first_members(program.consts, n_members),
+        constants=take_members(program.consts, slice(n_members)),
         grid=grid,
         agent=agent.name,
         compile_s=program.compile_s,
@@ -634,7 +615,7 @@ def run(
         log_period=settings.log_period,
         record_period=settings.record_period,
         variant=variant,
-        agent_state=_first_members(_final_states(done.carry, stop_when_converged), n_members),
+        agent_state=take_members(_final_states(done.carry, stop_when_converged), slice(n_members)),
         visits=np.asarray(done.carry.visits)[:n_members] if record_visits else None,
         stopped_at=np.asarray(done.carry.stopped_at[:n_members, 0]) if stop_when_converged else None,
         diagnostic_names=program.diagnostic_names,
