@@ -15,5 +15,6 @@ from jaxmdp.experiment.runner import (  # noqa: F401
     run,
     seed_keys,
     stack_hparams,
+    take_members,
 )
 from jaxmdp.experiment.runner import __all__  # noqa: F401
